@@ -1,0 +1,500 @@
+//! Run configuration: TOML files with every key defaulting to the paper's values, command-line
+//! overrides, and validation with messages that name the key and its allowed range.
+
+use crate::method::{ImpactMethod, Settings};
+use crate::model::{ParamError, Params, SWEEPABLE};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read config {path}: {source}")]
+    Read {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("config error: {0}")]
+    Parse(String),
+    #[error("config error: `{key}` = {value} is outside the allowed range {range}")]
+    Range {
+        key: String,
+        value: String,
+        range: String,
+    },
+}
+
+impl ConfigError {
+    fn range(key: &str, value: impl std::fmt::Display, range: &str) -> Self {
+        ConfigError::Range {
+            key: key.into(),
+            value: value.to_string(),
+            range: range.into(),
+        }
+    }
+}
+
+impl From<ParamError> for ConfigError {
+    fn from(e: ParamError) -> Self {
+        ConfigError::range(&format!("model.{}", e.name), e.value, e.range)
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum FrictionLaw {
+    /// T = lambda * sign(v) (paper eq. 4).
+    #[default]
+    Coulomb,
+    /// T = ((fs - fk)/(1 + l1|v|) + fk + l2 v^2) sign(v) (paper eq. 5).
+    Stribeck,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Precision {
+    F32,
+    #[default]
+    F64,
+}
+
+impl Precision {
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Backend {
+    #[default]
+    Cpu,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelConfig {
+    pub eta: f64,
+    #[serde(rename = "R")]
+    pub restitution: f64,
+    pub friction: FrictionLaw,
+    /// Coulomb coefficient.
+    pub lambda: f64,
+    /// Stribeck static level (paper's mu0 in the usual reading).
+    pub fs: f64,
+    /// Stribeck kinetic level (paper's mu1 in the usual reading).
+    pub fk: f64,
+    /// Stribeck decay (paper's lambda1).
+    pub l1: f64,
+    /// Stribeck quadratic term (paper's lambda2).
+    pub l2: f64,
+    pub r: f64,
+    pub delta: f64,
+    pub b1: f64,
+    pub mu: f64,
+}
+
+impl Default for ModelConfig {
+    fn default() -> Self {
+        ModelConfig {
+            eta: 1.5,
+            restitution: 0.6,
+            friction: FrictionLaw::Coulomb,
+            lambda: 0.02,
+            fs: 0.25,
+            fk: 0.05,
+            l1: 1.42,
+            l2: 0.005,
+            r: 0.8,
+            delta: 0.5,
+            b1: 0.1,
+            mu: 0.693,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InitialConfig {
+    /// Initial state (y1, y2, y3, y4) at phase 0.
+    pub y: [f64; 4],
+}
+
+impl Default for InitialConfig {
+    fn default() -> Self {
+        InitialConfig { y: [0.0; 4] }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MethodConfig {
+    pub steps_per_period: u32,
+    pub impacts: ImpactMethod,
+    pub max_events: u32,
+    pub zeno_speed: f64,
+    pub precision: Precision,
+    pub backend: Backend,
+}
+
+impl Default for MethodConfig {
+    fn default() -> Self {
+        let s = Settings::default();
+        MethodConfig {
+            steps_per_period: s.steps_per_period,
+            impacts: s.impacts,
+            max_events: s.max_events,
+            zeno_speed: s.zeno_speed,
+            precision: Precision::F64,
+            backend: Backend::Cpu,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunConfig {
+    pub transient_periods: u32,
+    pub sample_periods: u32,
+    /// Period test tolerance relative to the attractor size.
+    pub period_tol: f64,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        RunConfig {
+            transient_periods: 500,
+            sample_periods: 200,
+            period_tol: 1e-4,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SweepConfig {
+    /// Swept parameter, one of [`SWEEPABLE`].
+    pub param: String,
+    pub from: f64,
+    pub to: f64,
+    pub points: u32,
+    /// Plotted variable: y1, y2, y3, y4, z (= y3 - y1) or v (= y2 - y4).
+    pub plot: String,
+    /// Figure title; empty => generated from the parameters.
+    pub title: String,
+}
+
+impl Default for SweepConfig {
+    fn default() -> Self {
+        SweepConfig {
+            param: "eta".into(),
+            from: 1.0,
+            to: 2.0,
+            points: 2000,
+            plot: "y1".into(),
+            title: String::new(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    pub model: ModelConfig,
+    pub initial: InitialConfig,
+    pub method: MethodConfig,
+    pub run: RunConfig,
+    pub sweep: SweepConfig,
+}
+
+/// Largest sample array a sweep may hold in memory (points x samples x 4 x f64).
+pub const MAX_SAMPLE_BYTES: u64 = 4 << 30;
+
+pub const PLOT_VARS: &[&str] = &["y1", "y2", "y3", "y4", "z", "v"];
+
+impl Config {
+    /// Reads a TOML file and applies `overrides` (`key=value`, key either `section.key` or a
+    /// bare model key), then validates.
+    pub fn load(path: &Path, overrides: &[String]) -> Result<Config, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_toml(&text, overrides)
+    }
+
+    pub fn from_toml(text: &str, overrides: &[String]) -> Result<Config, ConfigError> {
+        let mut table: toml::Table =
+            toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))?;
+        for o in overrides {
+            apply_override(&mut table, o)?;
+        }
+        let cfg: Config = table
+            .try_into()
+            .map_err(|e: toml::de::Error| ConfigError::Parse(e.to_string()))?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Model parameters in the integrator's form.
+    pub fn params(&self) -> Params<f64> {
+        let m = &self.model;
+        let (fs, fk, l1, l2) = match m.friction {
+            FrictionLaw::Coulomb => (m.lambda, m.lambda, 0.0, 0.0),
+            FrictionLaw::Stribeck => (m.fs, m.fk, m.l1, m.l2),
+        };
+        Params {
+            eta: m.eta,
+            restitution: m.restitution,
+            fs,
+            fk,
+            l1,
+            l2,
+            r: m.r,
+            delta: m.delta,
+            b1: m.b1,
+            mu: m.mu,
+        }
+    }
+
+    pub fn settings(&self) -> Settings {
+        Settings {
+            steps_per_period: self.method.steps_per_period,
+            max_events: self.method.max_events,
+            zeno_speed: self.method.zeno_speed,
+            impacts: self.method.impacts,
+        }
+    }
+
+    /// Parameter values of the sweep (inclusive of both ends).
+    pub fn sweep_values(&self) -> Vec<f64> {
+        let s = &self.sweep;
+        if s.points == 1 {
+            return vec![s.from];
+        }
+        (0..s.points)
+            .map(|i| s.from + (s.to - s.from) * i as f64 / (s.points - 1) as f64)
+            .collect()
+    }
+
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let m = &self.model;
+        if !(m.lambda.is_finite() && m.lambda >= 0.0) {
+            return Err(ConfigError::range("model.lambda", m.lambda, "[0, inf)"));
+        }
+        self.params().validate()?;
+        for (i, v) in self.initial.y.iter().enumerate() {
+            if !v.is_finite() {
+                return Err(ConfigError::range(
+                    &format!("initial.y[{i}]"),
+                    v,
+                    "finite values",
+                ));
+            }
+        }
+        let z0 = self.initial.y[2] - self.initial.y[0];
+        if z0.abs() > m.r {
+            return Err(ConfigError::range(
+                "initial.y",
+                format!("{:?} (|y3 - y1| = {})", self.initial.y, z0.abs()),
+                &format!("|y3 - y1| <= r = {}", m.r),
+            ));
+        }
+        let me = &self.method;
+        if !(8..=1 << 20).contains(&me.steps_per_period) {
+            return Err(ConfigError::range(
+                "method.steps_per_period",
+                me.steps_per_period,
+                "[8, 1048576]",
+            ));
+        }
+        if !(1..=1000).contains(&me.max_events) {
+            return Err(ConfigError::range(
+                "method.max_events",
+                me.max_events,
+                "[1, 1000]",
+            ));
+        }
+        if !(me.zeno_speed.is_finite() && me.zeno_speed >= 0.0 && me.zeno_speed < 1.0) {
+            return Err(ConfigError::range(
+                "method.zeno_speed",
+                me.zeno_speed,
+                "[0, 1)",
+            ));
+        }
+        let r = &self.run;
+        if r.transient_periods > 10_000_000 {
+            return Err(ConfigError::range(
+                "run.transient_periods",
+                r.transient_periods,
+                "[0, 10000000]",
+            ));
+        }
+        if !(2..=1_000_000).contains(&r.sample_periods) {
+            return Err(ConfigError::range(
+                "run.sample_periods",
+                r.sample_periods,
+                "[2, 1000000]",
+            ));
+        }
+        if !(r.period_tol.is_finite() && r.period_tol > 0.0 && r.period_tol < 1.0) {
+            return Err(ConfigError::range("run.period_tol", r.period_tol, "(0, 1)"));
+        }
+        let s = &self.sweep;
+        if !SWEEPABLE.contains(&s.param.as_str()) {
+            return Err(ConfigError::range(
+                "sweep.param",
+                format!("\"{}\"", s.param),
+                &format!("one of {SWEEPABLE:?}"),
+            ));
+        }
+        if s.param == "lambda" && m.friction != FrictionLaw::Coulomb {
+            return Err(ConfigError::range(
+                "sweep.param",
+                "\"lambda\"",
+                "fs, fk, l1 or l2 with friction = \"stribeck\"",
+            ));
+        }
+        if !PLOT_VARS.contains(&s.plot.as_str()) {
+            return Err(ConfigError::range(
+                "sweep.plot",
+                format!("\"{}\"", s.plot),
+                &format!("one of {PLOT_VARS:?}"),
+            ));
+        }
+        if !(1..=10_000_000).contains(&s.points) {
+            return Err(ConfigError::range(
+                "sweep.points",
+                s.points,
+                "[1, 10000000]",
+            ));
+        }
+        for (key, v) in [("sweep.from", s.from), ("sweep.to", s.to)] {
+            if !v.is_finite() {
+                return Err(ConfigError::range(key, v, "finite values"));
+            }
+        }
+        // Every swept value must be a valid model point.
+        for v in [s.from, s.to] {
+            let mut p = self.params();
+            p.set(&s.param, v).map_err(ConfigError::Parse)?;
+            p.validate().map_err(|e| {
+                ConfigError::range(
+                    if v == s.from {
+                        "sweep.from"
+                    } else {
+                        "sweep.to"
+                    },
+                    v,
+                    &format!("{} for `{}`", e.range, s.param),
+                )
+            })?;
+        }
+        let bytes = s.points as u64 * r.sample_periods as u64 * 32;
+        if bytes > MAX_SAMPLE_BYTES {
+            return Err(ConfigError::range(
+                "sweep.points x run.sample_periods",
+                format!(
+                    "{} x {} ({} MiB of samples)",
+                    s.points,
+                    r.sample_periods,
+                    bytes >> 20
+                ),
+                &format!("at most {} MiB of samples", MAX_SAMPLE_BYTES >> 20),
+            ));
+        }
+        Ok(())
+    }
+}
+
+const MODEL_KEYS: &[&str] = &[
+    "eta", "R", "friction", "lambda", "fs", "fk", "l1", "l2", "r", "delta", "b1", "mu",
+];
+
+/// Applies one `key=value` override to the raw TOML table; the value is parsed as TOML
+/// (numbers, strings, arrays), falling back to a bare string.
+fn apply_override(table: &mut toml::Table, o: &str) -> Result<(), ConfigError> {
+    let (key, value) = o.split_once('=').ok_or_else(|| {
+        ConfigError::Parse(format!("override `{o}` is not of the form key=value"))
+    })?;
+    let key = key.trim();
+    let (section, name) = match key.split_once('.') {
+        Some((s, n)) => (s.to_string(), n.to_string()),
+        None if MODEL_KEYS.contains(&key) => ("model".to_string(), key.to_string()),
+        None => {
+            return Err(ConfigError::Parse(format!(
+                "override key `{key}` is neither `section.key` nor a model key ({MODEL_KEYS:?})"
+            )));
+        }
+    };
+    let parsed: toml::Value = toml::from_str::<toml::Table>(&format!("v = {}", value.trim()))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(value.trim().to_string()));
+    let entry = table
+        .entry(section.clone())
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    match entry {
+        toml::Value::Table(t) => {
+            t.insert(name, parsed);
+            Ok(())
+        }
+        _ => Err(ConfigError::Parse(format!("`{section}` is not a table"))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_paper() {
+        let c = Config::from_toml("", &[]).unwrap();
+        let p = c.params();
+        assert_eq!((p.restitution, p.fs, p.fk, p.r), (0.6, 0.02, 0.02, 0.8));
+        assert_eq!((p.delta, p.b1, p.mu), (0.5, 0.1, 0.693));
+    }
+
+    #[test]
+    fn errors_name_the_key() {
+        let e = Config::from_toml("[model]\nfoo = 1\n", &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("foo"), "{e}");
+        let e = Config::from_toml("[model]\nR = 1.5\n", &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("model.R") && e.contains("[0, 1]"), "{e}");
+        let e = Config::from_toml("[model]\nmu = 0.0\n", &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("model.mu") && e.contains("(0, inf)"), "{e}");
+        let e = Config::from_toml("[model]\nb1 = nan\n", &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("model.b1"), "{e}");
+        let e = Config::from_toml("", &["eta=-1".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("model.eta"), "{e}");
+        let e = Config::from_toml("[sweep]\nparam = \"R\"\nto = 2.0\n", &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sweep.to") && e.contains("[0, 1]"), "{e}");
+    }
+
+    #[test]
+    fn overrides_apply() {
+        let c = Config::from_toml(
+            "[model]\nR = 0.6\n",
+            &["R=0.62".into(), "run.sample_periods=64".into()],
+        )
+        .unwrap();
+        assert_eq!(c.model.restitution, 0.62);
+        assert_eq!(c.run.sample_periods, 64);
+        let c = Config::from_toml("", &["friction=stribeck".into()]).unwrap();
+        assert_eq!(c.params().fs, 0.25);
+    }
+}

@@ -1,0 +1,14 @@
+//! rattle: parameter sweeps of an impact oscillator with dry friction, on GPU and CPU.
+//!
+//! One module per concept: [`model`] (equations), [`method`] (the CPU integrator, twin of
+//! `shaders/integrate.wgsl`), [`classify`], [`sweep`], [`config`], [`render`], [`output`].
+
+pub mod classify;
+pub mod config;
+pub mod method;
+pub mod model;
+pub mod output;
+pub mod real;
+pub mod reference;
+pub mod render;
+pub mod sweep;

@@ -1,0 +1,307 @@
+//! rattle command line: a thin layer over the library.
+
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+use rattle::classify::classify;
+use rattle::config::{Config, Precision};
+use rattle::output::{Staged, with_ext};
+use rattle::render::{DensityPlot, density_png};
+use rattle::sweep::{finish, plot_value, progress_bar, run_cpu, sweep_params};
+use serde_json::json;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(
+    name = "rattle",
+    version,
+    about = "Impact oscillator with dry friction: GPU/CPU parameter sweeps"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Integrate one parameter point and classify its motion.
+    Point {
+        #[command(flatten)]
+        common: Common,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Sweep one parameter and draw the bifurcation diagram (PNG, CSV, JSON).
+    Bifurcation {
+        #[command(flatten)]
+        common: Common,
+        /// Output prefix: writes PREFIX.png, PREFIX.csv, PREFIX.json.
+        #[arg(long, default_value = "bifurcation")]
+        out: PathBuf,
+    },
+}
+
+#[derive(Args)]
+struct Common {
+    /// TOML configuration (every key defaults to the paper's values).
+    #[arg(long)]
+    config: PathBuf,
+    /// Forcing frequency (overrides model.eta).
+    #[arg(long)]
+    eta: Option<f64>,
+    /// Restitution coefficient (overrides model.R).
+    #[arg(long = "R")]
+    restitution: Option<f64>,
+    /// Coulomb friction coefficient (overrides model.lambda).
+    #[arg(long)]
+    lambda: Option<f64>,
+    /// Any other key: `--set r=0.9`, `--set method.steps_per_period=512`.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Floating-point precision of the integrator.
+    #[arg(long, value_parser = ["f32", "f64"])]
+    precision: Option<String>,
+    /// Compute backend.
+    #[arg(long, value_parser = ["cpu"])]
+    backend: Option<String>,
+}
+
+impl Common {
+    fn load(&self) -> Result<Config> {
+        let mut o = self.set.clone();
+        if let Some(v) = self.eta {
+            o.push(format!("model.eta={v:e}"));
+        }
+        if let Some(v) = self.restitution {
+            o.push(format!("model.R={v:e}"));
+        }
+        if let Some(v) = self.lambda {
+            o.push(format!("model.lambda={v:e}"));
+        }
+        if let Some(p) = &self.precision {
+            o.push(format!("method.precision=\"{p}\""));
+        }
+        if let Some(b) = &self.backend {
+            o.push(format!("method.backend=\"{b}\""));
+        }
+        Ok(Config::load(&self.config, &o)?)
+    }
+}
+
+fn main() {
+    if let Err(e) = run(Cli::parse()) {
+        eprintln!("error: {e:#}");
+        std::process::exit(2);
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.cmd {
+        Cmd::Point { common, json } => point(&common.load()?, json),
+        Cmd::Bifurcation { common, out } => bifurcation(&common.load()?, &out),
+    }
+}
+
+fn point(cfg: &Config, as_json: bool) -> Result<()> {
+    let p = cfg.params();
+    let t = Instant::now();
+    let pb = progress_bar(1, "point");
+    let r = run_cpu(&[p], cfg, &pb).pop().context("no result")?;
+    pb.finish_and_clear();
+    let secs = t.elapsed().as_secs_f64();
+    let class = classify(
+        &r.samples,
+        r.sample_impacts,
+        r.diag.nonfinite,
+        cfg.run.period_tol,
+    );
+    let ipp = r.sample_impacts as f64 / r.samples.len().max(1) as f64;
+    if as_json {
+        let j = json!({
+            "class": class.name(),
+            "period": class.period(),
+            "impacts_per_period": ipp,
+            "diagnostics": r.diag,
+            "samples": r.samples,
+            "final_mode": r.final_mode,
+            "params": p,
+            "backend": "cpu",
+            "precision": cfg.method.precision.name(),
+            "seconds": secs,
+        });
+        println!("{}", serde_json::to_string(&j)?);
+        return Ok(());
+    }
+    println!("class              {}", class.name());
+    println!(
+        "period             {}",
+        class.period().map_or("-".into(), |n| n.to_string())
+    );
+    println!("impacts per period {ipp:.4}");
+    println!(
+        "diagnostics        impacts {} sticks {} locks {} overflows {} nonfinite {}",
+        r.diag.impacts, r.diag.sticks, r.diag.locks, r.diag.overflows, r.diag.nonfinite
+    );
+    println!(
+        "backend            cpu ({}), {:.3} s",
+        cfg.method.precision.name(),
+        secs
+    );
+    println!("samples (phase 0 of the forcing):");
+    println!(
+        "{:>5} {:>14} {:>14} {:>14} {:>14}",
+        "k", "y1", "y2", "y3", "y4"
+    );
+    for (i, s) in r.samples.iter().enumerate() {
+        println!(
+            "{i:>5} {:>14.8} {:>14.8} {:>14.8} {:>14.8}",
+            s[0], s[1], s[2], s[3]
+        );
+    }
+    Ok(())
+}
+
+fn bifurcation(cfg: &Config, out: &std::path::Path) -> Result<()> {
+    let t0 = Instant::now();
+    let params = sweep_params(cfg);
+    let pb = progress_bar(params.len() as u64, "bifurcation");
+    let t = Instant::now();
+    let results = run_cpu(&params, cfg, &pb);
+    let integration_s = t.elapsed().as_secs_f64();
+    pb.finish_and_clear();
+    let points = finish(cfg, results);
+    let steps = params.len() as f64
+        * (cfg.run.transient_periods + cfg.run.sample_periods) as f64
+        * cfg.method.steps_per_period as f64;
+
+    let mut staged = Staged::new();
+    // CSV: parameter, sample index, state.
+    let csv_path = with_ext(out, "csv");
+    {
+        let mut w = csv::Writer::from_path(staged.path(&csv_path))
+            .with_context(|| format!("cannot write {}", csv_path.display()))?;
+        w.write_record([cfg.sweep.param.as_str(), "sample", "y1", "y2", "y3", "y4"])?;
+        for pt in &points {
+            for (i, s) in pt.result.samples.iter().enumerate() {
+                w.write_record(&[
+                    pt.value.to_string(),
+                    i.to_string(),
+                    s[0].to_string(),
+                    s[1].to_string(),
+                    s[2].to_string(),
+                    s[3].to_string(),
+                ])?;
+            }
+        }
+        w.flush()?;
+    }
+    // PNG: density-shaded stroboscopic samples.
+    let var = cfg.sweep.plot.as_str();
+    let xy: Vec<(f64, f64)> = points
+        .iter()
+        .flat_map(|pt| {
+            pt.result
+                .samples
+                .iter()
+                .map(|s| (pt.value, plot_value(var, s)))
+        })
+        .collect();
+    let title = if cfg.sweep.title.is_empty() {
+        default_title(cfg)
+    } else {
+        cfg.sweep.title.clone()
+    };
+    let png_path = with_ext(out, "png");
+    let x_label = sweep_label(&cfg.sweep.param);
+    density_png(
+        &staged.path(&png_path),
+        &DensityPlot {
+            title: &title,
+            x_label: &x_label,
+            y_label: var,
+            x_range: (
+                cfg.sweep.from.min(cfg.sweep.to),
+                cfg.sweep.from.max(cfg.sweep.to),
+            ),
+            y_range: None,
+            points: &xy,
+            width: 1200,
+            height: 800,
+        },
+    )?;
+    // JSON: config, timings, per-point class.
+    let mut counts = std::collections::BTreeMap::<String, usize>::new();
+    for pt in &points {
+        *counts.entry(pt.class.name()).or_default() += 1;
+    }
+    let j = json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "command": "bifurcation",
+        "backend": "cpu",
+        "adapter": serde_json::Value::Null,
+        "precision": cfg.method.precision.name(),
+        "config": cfg,
+        "timings": {
+            "integration_s": integration_s,
+            "total_s": t0.elapsed().as_secs_f64(),
+            "rk4_steps": steps,
+            "steps_per_s": steps / integration_s,
+        },
+        "class_counts": counts,
+        "points": points.iter().map(|pt| json!({
+            "value": pt.value,
+            "class": pt.class.name(),
+            "period": pt.class.period(),
+            "impacts_per_period": pt.impacts_per_period(),
+            "diagnostics": pt.result.diag,
+        })).collect::<Vec<_>>(),
+    });
+    staged.write(
+        &with_ext(out, "json"),
+        serde_json::to_string_pretty(&j)?.as_bytes(),
+    )?;
+    let files = staged.commit()?;
+    eprintln!(
+        "bifurcation: {} points x {} periods x {} steps on cpu ({}) in {:.2} s ({:.3e} RK4 steps/s)",
+        params.len(),
+        cfg.run.transient_periods + cfg.run.sample_periods,
+        cfg.method.steps_per_period,
+        cfg.method.precision.name(),
+        integration_s,
+        steps / integration_s
+    );
+    for f in files {
+        println!("{}", f.display());
+    }
+    Ok(())
+}
+
+fn sweep_label(param: &str) -> String {
+    match param {
+        "eta" => "eta (forcing frequency)".into(),
+        "R" => "R (restitution)".into(),
+        "lambda" => "lambda (friction)".into(),
+        p => p.into(),
+    }
+}
+
+fn default_title(cfg: &Config) -> String {
+    let m = &cfg.model;
+    let friction = match m.friction {
+        rattle::config::FrictionLaw::Coulomb => format!("Coulomb lambda={}", m.lambda),
+        rattle::config::FrictionLaw::Stribeck => {
+            format!("Stribeck fs={} fk={} l1={} l2={}", m.fs, m.fk, m.l1, m.l2)
+        }
+    };
+    let prec = match cfg.method.precision {
+        Precision::F32 => "f32",
+        Precision::F64 => "f64",
+    };
+    format!(
+        "{friction}, R={}, r={}, delta={}, b1={}, mu={} (N={}, {prec})",
+        m.restitution, m.r, m.delta, m.b1, m.mu, cfg.method.steps_per_period
+    )
+    .replace("Coulomb", "Coulomb friction:")
+    .replace("Stribeck", "Stribeck friction:")
+}

@@ -1,0 +1,561 @@
+//! The integration method shared by the CPU and the GPU (`shaders/integrate.wgsl` is its twin:
+//! same function names, same order, same event rules).
+//!
+//! Fixed grid of N steps per forcing period. Each step is one RK4 step in the current mode;
+//! events inside the step (impact, slip reversal, release from stick/lock) are located on the
+//! cubic Hermite interpolant of a guard function, the step is redone exactly up to the event,
+//! the jump or mode switch is applied and the rest of the step is integrated, with a bounded
+//! number of events per step. The forcing phase is kept as (step index, fraction of the step),
+//! so no large-argument cosine is ever evaluated.
+
+use crate::model::{
+    Mode, Params, co_move, field, impact, initial_mode, mode_at_rest, needed_force,
+    needed_force_rate,
+};
+use crate::real::Real;
+use serde::{Deserialize, Serialize};
+
+/// How impacts are handled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum ImpactMethod {
+    /// Locate the impact inside the step (fourth order).
+    #[default]
+    Located,
+    /// Apply the impact at the end of the step and clamp the position (first order);
+    /// kept only as a comparison method.
+    Naive,
+}
+
+/// Numerical settings of the method.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Settings {
+    pub steps_per_period: u32,
+    pub max_events: u32,
+    pub zeno_speed: f64,
+    pub impacts: ImpactMethod,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            steps_per_period: 256,
+            max_events: 32,
+            zeno_speed: 1e-4,
+            impacts: ImpactMethod::Located,
+        }
+    }
+}
+
+/// Event kinds; the numeric values are shared with the shader (`EV_*`).
+pub const EV_NONE: u32 = 0;
+pub const EV_IMPACT_POS: u32 = 1;
+pub const EV_IMPACT_NEG: u32 = 2;
+pub const EV_REVERSAL: u32 = 3;
+pub const EV_RELEASE_POS: u32 = 4;
+pub const EV_RELEASE_NEG: u32 = 5;
+
+/// Iteration cap of the Illinois root finder (it usually stops after 5-10 iterations).
+pub const MAX_ROOT_ITERS: u32 = 40;
+
+/// Per-point diagnostics.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct Diagnostics {
+    pub impacts: u64,
+    /// Entries into STICK.
+    pub sticks: u64,
+    /// Entries into LOCK+ or LOCK- (end of a chattering sequence).
+    pub locks: u64,
+    /// Steps whose event budget ran out (finished without further event handling).
+    pub overflows: u64,
+    /// The state became non-finite; integration stopped there.
+    pub nonfinite: bool,
+}
+
+/// cos and sin of the forcing at the grid's stage phases 2*pi*j/(2N), j = 0..=2N.
+/// Computed in f64 on the host and rounded once, on CPU and GPU alike.
+pub fn forcing_table(n: u32) -> Vec<[f64; 2]> {
+    (0..=2 * n)
+        .map(|j| {
+            let phi = std::f64::consts::PI * j as f64 / n as f64;
+            [phi.cos(), phi.sin()]
+        })
+        .collect()
+}
+
+/// cos and sin of a small angle (|d| <= pi/N) by their Taylor series, exact to f64 round-off
+/// for N >= 8. Only + - * / are used, as in the f64 shader.
+#[inline(always)]
+pub fn cos_sin_small<F: Real>(d: F) -> (F, F) {
+    let d2 = d * d;
+    let o = F::one();
+    let c = o - d2 / F::of(2.0)
+        * (o - d2 / F::of(12.0)
+            * (o - d2 / F::of(30.0)
+                * (o - d2 / F::of(56.0) * (o - d2 / F::of(90.0) * (o - d2 / F::of(132.0))))));
+    let s = d
+        * (o - d2 / F::of(6.0)
+            * (o - d2 / F::of(20.0)
+                * (o - d2 / F::of(42.0) * (o - d2 / F::of(72.0) * (o - d2 / F::of(110.0))))));
+    (c, s)
+}
+
+/// First time theta in (0, 1] where the cubic Hermite interpolant of a guard goes from > 0 to
+/// <= 0, or 2 when it does not. `g0, g1` are the guard at both ends, `m0, m1` its derivatives
+/// times the step length. The cubic is split at its extrema so that each piece is monotone:
+/// a grazing double crossing inside one step is not missed.
+#[inline(always)]
+pub fn first_crossing<F: Real>(g0: F, g1: F, m0: F, m1: F, tol: F) -> F {
+    let none = F::of(2.0);
+    let d = g1 - g0;
+    // The Hermite cubic stays within max(|m0-d|,|m1-d|)/4 of its chord.
+    let bound = F::of(0.25) * (m0 - d).abs().max((m1 - d).abs());
+    if g0.min(g1) > bound || g0.max(g1) < -bound {
+        return none;
+    }
+    let a1 = m0;
+    let a2 = F::of(3.0) * d - F::of(2.0) * m0 - m1;
+    let a3 = m0 + m1 - F::of(2.0) * d;
+    // Extrema: roots of 3 a3 t^2 + 2 a2 t + a1 (stable quadratic formula).
+    let qa = F::of(3.0) * a3;
+    let qb = F::of(2.0) * a2;
+    let mut t1 = none;
+    let mut t2 = none;
+    if qa != F::zero() {
+        let disc = qb * qb - F::of(4.0) * qa * a1;
+        if disc >= F::zero() {
+            let sq = disc.sqrt();
+            let q = if qb >= F::zero() {
+                F::of(-0.5) * (qb + sq)
+            } else {
+                F::of(-0.5) * (qb - sq)
+            };
+            t1 = q / qa;
+            t2 = if q != F::zero() { a1 / q } else { t1 };
+        }
+    } else if qb != F::zero() {
+        t1 = -a1 / qb;
+    }
+    if t1 > t2 {
+        std::mem::swap(&mut t1, &mut t2);
+    }
+    let mut a = F::zero();
+    let mut pa = g0;
+    for i in 0..3 {
+        let mut b = F::one();
+        if i == 0 && t1 > F::zero() && t1 < F::one() {
+            b = t1;
+        } else if i <= 1 && t2 > a && t2 < F::one() {
+            b = t2;
+        }
+        let pb = hermite(g0, a1, a2, a3, b);
+        if pa > F::zero() && pb <= F::zero() {
+            return illinois(g0, a1, a2, a3, a, b, pa, pb, tol);
+        }
+        if b >= F::one() {
+            break;
+        }
+        a = b;
+        pa = pb;
+    }
+    none
+}
+
+#[inline(always)]
+fn hermite<F: Real>(a0: F, a1: F, a2: F, a3: F, t: F) -> F {
+    a0 + t * (a1 + t * (a2 + t * a3))
+}
+
+/// Illinois (modified regula falsi) on [lo, hi] with p(lo) > 0 >= p(hi); returns the right end
+/// of the final bracket, where the event condition already holds.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn illinois<F: Real>(
+    a0: F,
+    a1: F,
+    a2: F,
+    a3: F,
+    mut lo: F,
+    mut hi: F,
+    mut plo: F,
+    mut phi: F,
+    tol: F,
+) -> F {
+    let mut side = 0i32;
+    for _ in 0..MAX_ROOT_ITERS {
+        if hi - lo <= tol {
+            break;
+        }
+        let mut m = (lo * phi - hi * plo) / (phi - plo);
+        if !(m > lo && m < hi) {
+            m = F::of(0.5) * (lo + hi);
+        }
+        let pm = hermite(a0, a1, a2, a3, m);
+        if pm <= F::zero() {
+            hi = m;
+            phi = pm;
+            if side == -1 {
+                plo = plo * F::of(0.5);
+            }
+            side = -1;
+            if pm == F::zero() {
+                break;
+            }
+        } else {
+            lo = m;
+            plo = pm;
+            if side == 1 {
+                phi = phi * F::of(0.5);
+            }
+            side = 1;
+        }
+    }
+    hi
+}
+
+/// State of one parameter point.
+#[derive(Clone, Copy, Debug)]
+pub struct PointState<F> {
+    pub y: [F; 4],
+    pub mode: Mode,
+    pub diag: Diagnostics,
+}
+
+/// Result of a run: stroboscopic samples (phase 0 of the forcing) and diagnostics.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    pub samples: Vec<[f64; 4]>,
+    /// Impacts during the sampled periods only.
+    pub sample_impacts: u64,
+    pub diag: Diagnostics,
+    pub final_y: [f64; 4],
+    pub final_mode: Mode,
+}
+
+/// The CPU integrator for one parameter point.
+pub struct Integrator<F> {
+    pub p: Params<F>,
+    /// cos/sin at phases 2*pi*j/(2N).
+    tab: Vec<[F; 2]>,
+    n: u32,
+    /// Grid step h = P/N.
+    h: F,
+    /// Phase advance of one step, 2*pi/N.
+    dphi: F,
+    max_events: u32,
+    zeno: F,
+    naive: bool,
+    tol: F,
+}
+
+impl<F: Real> Integrator<F> {
+    pub fn new(p: &Params<f64>, s: &Settings) -> Self {
+        let n = s.steps_per_period;
+        let period = 2.0 * std::f64::consts::PI / p.eta;
+        Integrator {
+            p: p.cast(),
+            tab: forcing_table(n)
+                .iter()
+                .map(|&[c, s]| [F::of(c), F::of(s)])
+                .collect(),
+            n,
+            h: F::of(period / n as f64),
+            dphi: F::of(2.0 * std::f64::consts::PI / n as f64),
+            max_events: s.max_events,
+            zeno: F::of(s.zeno_speed),
+            naive: s.impacts == ImpactMethod::Naive,
+            tol: F::EPSILON * F::of(16.0),
+        }
+    }
+
+    pub fn steps_per_period(&self) -> u32 {
+        self.n
+    }
+
+    /// cos and sin of the forcing at time (k + theta) * h: a table entry at the nearest
+    /// half-step below, rotated by a short series for the remainder.
+    #[inline(always)]
+    pub fn forcing(&self, k: u32, theta: F) -> (F, F) {
+        let t2 = theta * F::of(2.0);
+        let jf = t2.floor();
+        let j = ((2 * k) as usize + jf.to_f64() as usize).min(2 * self.n as usize);
+        let [cj, sj] = self.tab[j];
+        let rem = (t2 - jf) * F::of(0.5);
+        if rem == F::zero() {
+            return (cj, sj);
+        }
+        let (cd, sd) = cos_sin_small(rem * self.dphi);
+        (cj * cd - sj * sd, sj * cd + cj * sd)
+    }
+
+    /// One RK4 step of length dtheta*h in a fixed mode from (k, theta0); `k1` is the field
+    /// at the start.
+    #[inline(always)]
+    pub fn rk4(&self, y: &[F; 4], mode: Mode, k: u32, theta0: F, dtheta: F, k1: &[F; 4]) -> [F; 4] {
+        let p = &self.p;
+        let dt = dtheta * self.h;
+        let half = F::of(0.5) * dt;
+        let (c2, _) = self.forcing(k, theta0 + F::of(0.5) * dtheta);
+        let (c4, _) = self.forcing(k, theta0 + dtheta);
+        let mut t = [F::zero(); 4];
+        for i in 0..4 {
+            t[i] = y[i] + half * k1[i];
+        }
+        let k2 = field(p, &t, mode, c2);
+        for i in 0..4 {
+            t[i] = y[i] + half * k2[i];
+        }
+        let k3 = field(p, &t, mode, c2);
+        for i in 0..4 {
+            t[i] = y[i] + dt * k3[i];
+        }
+        let k4 = field(p, &t, mode, c4);
+        let sixth = dt / F::of(6.0);
+        let mut out = [F::zero(); 4];
+        for i in 0..4 {
+            out[i] = y[i] + sixth * (k1[i] + F::of(2.0) * (k2[i] + k3[i]) + k4[i]);
+        }
+        out
+    }
+
+    /// Earliest event inside the (sub)step from y0 to y1: (theta in (0,1], kind) or (2, EV_NONE).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn locate(
+        &self,
+        y0: &[F; 4],
+        y1: &[F; 4],
+        f0: &[F; 4],
+        f1: &[F; 4],
+        mode: Mode,
+        k: u32,
+        theta0: F,
+        dtheta: F,
+    ) -> (F, u32) {
+        let p = &self.p;
+        let dt = dtheta * self.h;
+        let mut best = F::of(2.0);
+        let mut kind = EV_NONE;
+        let mut consider = |g0: F, g1: F, m0: F, m1: F, ev: u32| {
+            let t = first_crossing(g0, g1, m0, m1, self.tol);
+            if t < best {
+                best = t;
+                kind = ev;
+            }
+        };
+        if mode.is_slip() {
+            if !self.naive {
+                // Impact guards r - z and r + z; z' = y4 - y2 comes with the state.
+                let z0 = y0[2] - y0[0];
+                let z1 = y1[2] - y1[0];
+                let zd0 = (y0[3] - y0[1]) * dt;
+                let zd1 = (y1[3] - y1[1]) * dt;
+                // A stop already passed and still approached (round-off, or a step whose event
+                // budget ran out) is an impact right now: m2 never goes through a stop.
+                if p.r - z0 <= F::zero() && zd0 > F::zero() {
+                    return (F::zero(), EV_IMPACT_POS);
+                }
+                if p.r + z0 <= F::zero() && zd0 < F::zero() {
+                    return (F::zero(), EV_IMPACT_NEG);
+                }
+                consider(p.r - z0, p.r - z1, -zd0, -zd1, EV_IMPACT_POS);
+                consider(p.r + z0, p.r + z1, zd0, zd1, EV_IMPACT_NEG);
+            }
+            // Slip reversal: s*v reaches 0.
+            let s = if mode == Mode::SlipPos {
+                F::one()
+            } else {
+                -F::one()
+            };
+            consider(
+                s * (y0[1] - y0[3]),
+                s * (y1[1] - y1[3]),
+                s * (f0[1] - f0[3]) * dt,
+                s * (f1[1] - f1[3]) * dt,
+                EV_REVERSAL,
+            );
+        } else {
+            // Release: the needed force leaves the holding interval.
+            let (c0, s0) = self.forcing(k, theta0);
+            let (c1, s1) = self.forcing(k, theta0 + dtheta);
+            let tn0 = needed_force(p, y0, c0);
+            let tn1 = needed_force(p, y1, c1);
+            let td0 = needed_force_rate(p, y0, f0[1], s0) * dt;
+            let td1 = needed_force_rate(p, y1, f1[1], s1) * dt;
+            if mode != Mode::LockNeg {
+                consider(p.fs - tn0, p.fs - tn1, -td0, -td1, EV_RELEASE_POS);
+            }
+            if mode != Mode::LockPos {
+                consider(p.fs + tn0, p.fs + tn1, td0, td1, EV_RELEASE_NEG);
+            }
+        }
+        (best, kind)
+    }
+
+    /// Mode after an impact at `stop`: slip away, or lock when the rebound is below the Zeno
+    /// speed and the stop is pressed.
+    #[inline(always)]
+    fn after_impact(&self, st: &mut PointState<F>, stop: i32, c: F) {
+        let v = st.y[1] - st.y[3];
+        if v.abs() < self.zeno {
+            co_move(&self.p, &mut st.y);
+            st.mode = mode_at_rest(&self.p, stop, needed_force(&self.p, &st.y, c));
+            if st.mode == Mode::LockPos || st.mode == Mode::LockNeg {
+                st.diag.locks += 1;
+            }
+        } else {
+            st.mode = Mode::slip(v);
+        }
+    }
+
+    /// Applies event `ev` at phase (k, theta).
+    #[inline(always)]
+    pub fn apply_event(&self, st: &mut PointState<F>, ev: u32, k: u32, theta: F) {
+        let p = &self.p;
+        let (c, _) = self.forcing(k, theta);
+        match ev {
+            EV_IMPACT_POS | EV_IMPACT_NEG => {
+                impact(p, &mut st.y);
+                st.diag.impacts += 1;
+                self.after_impact(st, if ev == EV_IMPACT_POS { 1 } else { -1 }, c);
+            }
+            EV_REVERSAL => {
+                co_move(p, &mut st.y);
+                st.mode = mode_at_rest(p, 0, needed_force(p, &st.y, c));
+                if st.mode == Mode::Stick {
+                    st.diag.sticks += 1;
+                }
+            }
+            EV_RELEASE_POS => st.mode = Mode::SlipPos,
+            _ => st.mode = Mode::SlipNeg,
+        }
+    }
+
+    /// Naive impact handling at the end of a step: impact and clamp onto the stop.
+    #[inline(always)]
+    fn naive_impact(&self, st: &mut PointState<F>, k: u32) -> bool {
+        if !st.mode.is_slip() {
+            return false;
+        }
+        let z = st.y[2] - st.y[0];
+        let zd = st.y[3] - st.y[1];
+        let stop = if z > self.p.r && zd > F::zero() {
+            1
+        } else if z < -self.p.r && zd < F::zero() {
+            -1
+        } else {
+            return false;
+        };
+        st.y[2] = st.y[0] + if stop > 0 { self.p.r } else { -self.p.r };
+        let ev = if stop > 0 {
+            EV_IMPACT_POS
+        } else {
+            EV_IMPACT_NEG
+        };
+        self.apply_event(st, ev, k, F::one());
+        true
+    }
+
+    /// Advances grid step k (from phase k*h to (k+1)*h). `f0` is the field at the start in the
+    /// current mode and is updated to the field at the end (first-same-as-last).
+    #[inline(always)]
+    pub fn step(&self, st: &mut PointState<F>, k: u32, f0: &mut [F; 4]) {
+        let mut theta0 = F::zero();
+        let mut events = 0u32;
+        loop {
+            let dtheta = F::one() - theta0;
+            let y1 = self.rk4(&st.y, st.mode, k, theta0, dtheta, f0);
+            let (c1, _) = self.forcing(k, F::one());
+            let f1 = field(&self.p, &y1, st.mode, c1);
+            let (te, ev) = self.locate(&st.y, &y1, f0, &f1, st.mode, k, theta0, dtheta);
+            if ev == EV_NONE || events >= self.max_events {
+                if ev != EV_NONE {
+                    st.diag.overflows += 1;
+                }
+                st.y = y1;
+                *f0 = f1;
+                break;
+            }
+            // Redo the step exactly up to the event, apply it, continue with the rest.
+            let de = te * dtheta;
+            st.y = self.rk4(&st.y, st.mode, k, theta0, de, f0);
+            theta0 = if te >= F::one() {
+                F::one()
+            } else {
+                theta0 + de
+            };
+            self.apply_event(st, ev, k, theta0);
+            events += 1;
+            let (c, _) = self.forcing(k, theta0);
+            *f0 = field(&self.p, &st.y, st.mode, c);
+            if theta0 >= F::one() {
+                break;
+            }
+        }
+        if self.naive && self.naive_impact(st, k) {
+            let (c, _) = self.forcing(k, F::one());
+            *f0 = field(&self.p, &st.y, st.mode, c);
+        }
+        if !(st.y[0].is_finite()
+            && st.y[1].is_finite()
+            && st.y[2].is_finite()
+            && st.y[3].is_finite())
+        {
+            st.diag.nonfinite = true;
+        }
+    }
+
+    /// One forcing period: N grid steps from phase 0 to phase 0.
+    pub fn period(&self, st: &mut PointState<F>) {
+        let (c0, _) = self.forcing(0, F::zero());
+        let mut f0 = field(&self.p, &st.y, st.mode, c0);
+        for k in 0..self.n {
+            self.step(st, k, &mut f0);
+            if st.diag.nonfinite {
+                return;
+            }
+        }
+    }
+
+    /// Start state (mode from the at-rest rule when v = 0).
+    pub fn start(&self, y0: [f64; 4]) -> PointState<F> {
+        let y = y0.map(F::of);
+        PointState {
+            y,
+            mode: initial_mode(&self.p, &y, F::one()),
+            diag: Diagnostics::default(),
+        }
+    }
+
+    /// Integrates `transient` periods, then records `samples` stroboscopic states.
+    pub fn run(&self, y0: [f64; 4], transient: u32, samples: u32) -> RunResult {
+        let mut st = self.start(y0);
+        self.run_from(&mut st, transient, samples)
+    }
+
+    /// As [`Integrator::run`], from a given state (continuation).
+    pub fn run_from(&self, st: &mut PointState<F>, transient: u32, samples: u32) -> RunResult {
+        for _ in 0..transient {
+            if st.diag.nonfinite {
+                break;
+            }
+            self.period(st);
+        }
+        let before = st.diag.impacts;
+        let mut out = Vec::with_capacity(samples as usize);
+        for _ in 0..samples {
+            if st.diag.nonfinite {
+                break;
+            }
+            self.period(st);
+            out.push(st.y.map(|v| v.to_f64()));
+        }
+        RunResult {
+            samples: out,
+            sample_impacts: st.diag.impacts - before,
+            diag: st.diag,
+            final_y: st.y.map(|v| v.to_f64()),
+            final_mode: st.mode,
+        }
+    }
+}

@@ -1,0 +1,271 @@
+//! The impact oscillator with dry friction, as specified in the project's model page:
+//! parameters, the vector field of each mode, the impact map and the stick/lock conditions.
+//!
+//! Friction is stored in the Stribeck form `T = ((fs - fk)/(1 + l1|v|) + fk + l2 v^2) * s`;
+//! Coulomb friction with coefficient lambda is the special case `fs = fk = lambda, l1 = l2 = 0`,
+//! so the CPU integrator and the shader need one friction law only.
+
+use crate::real::Real;
+use serde::Serialize;
+
+/// Motion mode. The mode, not sign(v), fixes the friction direction inside a step.
+/// The numeric values are shared with the shader (`MODE_*` constants).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[repr(u32)]
+pub enum Mode {
+    /// m2 slips with v = y2 - y4 > 0 (friction on m2 is +T).
+    SlipPos = 0,
+    /// m2 slips with v < 0.
+    SlipNeg = 1,
+    /// Masses move together away from the stops (v = 0).
+    Stick = 2,
+    /// m2 pressed against the stop z = +r, moving with m1.
+    LockPos = 3,
+    /// m2 pressed against the stop z = -r, moving with m1.
+    LockNeg = 4,
+}
+
+impl Mode {
+    pub fn from_u32(m: u32) -> Mode {
+        match m {
+            0 => Mode::SlipPos,
+            1 => Mode::SlipNeg,
+            2 => Mode::Stick,
+            3 => Mode::LockPos,
+            _ => Mode::LockNeg,
+        }
+    }
+    /// Slip mode with friction direction `s` (s > 0 => SlipPos).
+    pub fn slip<F: Real>(s: F) -> Mode {
+        if s > F::zero() {
+            Mode::SlipPos
+        } else {
+            Mode::SlipNeg
+        }
+    }
+    pub fn is_slip(self) -> bool {
+        matches!(self, Mode::SlipPos | Mode::SlipNeg)
+    }
+}
+
+/// Model parameters in the precision of the integrator.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Params<F> {
+    /// Forcing frequency.
+    pub eta: F,
+    /// Restitution coefficient R.
+    pub restitution: F,
+    /// Static friction limit.
+    pub fs: F,
+    /// Kinetic friction level.
+    pub fk: F,
+    /// Stribeck decay rate.
+    pub l1: F,
+    /// Quadratic (viscous-like) friction growth.
+    pub l2: F,
+    /// Clearance: |z| <= r.
+    pub r: F,
+    /// Damper ratio c2/c1 between the masses.
+    pub delta: F,
+    /// Damping of m1.
+    pub b1: F,
+    /// Mass ratio m2/m1.
+    pub mu: F,
+}
+
+/// A parameter that is out of its allowed range.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("parameter `{name}` = {value} is outside the allowed range {range}")]
+pub struct ParamError {
+    pub name: &'static str,
+    pub value: f64,
+    pub range: &'static str,
+}
+
+impl Params<f64> {
+    /// The paper's Fig. 2 point (Coulomb friction), at the given eta.
+    pub fn paper(eta: f64) -> Self {
+        Params {
+            eta,
+            restitution: 0.6,
+            fs: 0.02,
+            fk: 0.02,
+            l1: 0.0,
+            l2: 0.0,
+            r: 0.8,
+            delta: 0.5,
+            b1: 0.1,
+            mu: 0.693,
+        }
+    }
+
+    /// Checks every parameter; the error names the first one out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let check = |name, value: f64, ok: bool, range| {
+            if value.is_finite() && ok {
+                Ok(())
+            } else {
+                Err(ParamError { name, value, range })
+            }
+        };
+        check("eta", self.eta, self.eta > 0.0, "(0, inf)")?;
+        check(
+            "R",
+            self.restitution,
+            (0.0..=1.0).contains(&self.restitution),
+            "[0, 1]",
+        )?;
+        check("fs", self.fs, self.fs >= 0.0, "[0, inf)")?;
+        check("fk", self.fk, self.fk >= 0.0, "[0, inf)")?;
+        check("l1", self.l1, self.l1 >= 0.0, "[0, inf)")?;
+        check("l2", self.l2, self.l2 >= 0.0, "[0, inf)")?;
+        check("r", self.r, self.r > 0.0, "(0, inf)")?;
+        check("delta", self.delta, self.delta >= 0.0, "[0, inf)")?;
+        check("b1", self.b1, self.b1 >= 0.0, "[0, inf)")?;
+        check("mu", self.mu, self.mu > 0.0, "(0, inf)")?;
+        Ok(())
+    }
+
+    pub fn cast<F: Real>(&self) -> Params<F> {
+        Params {
+            eta: F::of(self.eta),
+            restitution: F::of(self.restitution),
+            fs: F::of(self.fs),
+            fk: F::of(self.fk),
+            l1: F::of(self.l1),
+            l2: F::of(self.l2),
+            r: F::of(self.r),
+            delta: F::of(self.delta),
+            b1: F::of(self.b1),
+            mu: F::of(self.mu),
+        }
+    }
+
+    /// Sets a parameter by its config name; used by sweeps.
+    pub fn set(&mut self, name: &str, value: f64) -> Result<(), String> {
+        match name {
+            "eta" => self.eta = value,
+            "R" => self.restitution = value,
+            "lambda" => {
+                self.fs = value;
+                self.fk = value;
+            }
+            "fs" => self.fs = value,
+            "fk" => self.fk = value,
+            "l1" => self.l1 = value,
+            "l2" => self.l2 = value,
+            "r" => self.r = value,
+            "delta" => self.delta = value,
+            "b1" => self.b1 = value,
+            "mu" => self.mu = value,
+            _ => return Err(format!("unknown parameter `{name}`")),
+        }
+        Ok(())
+    }
+}
+
+/// Names accepted by [`Params::set`] (sweeps and maps).
+pub const SWEEPABLE: &[&str] = &[
+    "eta", "R", "lambda", "fs", "fk", "l1", "l2", "r", "delta", "b1", "mu",
+];
+
+/// Slip friction magnitude at slip speed |v| (the mode supplies the sign).
+#[inline(always)]
+pub fn friction<F: Real>(p: &Params<F>, v: F) -> F {
+    let w = v.abs();
+    (p.fs - p.fk) / (F::one() + p.l1 * w) + p.fk + p.l2 * w * w
+}
+
+/// Vector field of mode `mode` at state `y` with forcing value `c = cos(eta*tau)`.
+#[inline(always)]
+pub fn field<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode, c: F) -> [F; 4] {
+    match mode {
+        Mode::SlipPos | Mode::SlipNeg => {
+            let v = y[1] - y[3];
+            let t = if mode == Mode::SlipPos {
+                friction(p, v)
+            } else {
+                -friction(p, v)
+            };
+            let d = p.b1 * p.delta * v;
+            [y[1], c - p.b1 * y[1] - y[0] - d - t, y[3], (d + t) / p.mu]
+        }
+        _ => {
+            // Masses move together: same acceleration for both, so v stays exactly 0.
+            let a = (c - p.b1 * y[1] - y[0]) / (F::one() + p.mu);
+            [y[1], a, y[3], a]
+        }
+    }
+}
+
+/// Force m2 needs from m1 to move with it (v = 0): `Tn = mu * a`.
+#[inline(always)]
+pub fn needed_force<F: Real>(p: &Params<F>, y: &[F; 4], c: F) -> F {
+    p.mu * (c - p.b1 * y[1] - y[0]) / (F::one() + p.mu)
+}
+
+/// Time derivative of [`needed_force`] along the common motion, with `sn = sin(eta*tau)`
+/// and `a` the common acceleration; used to interpolate the release guard.
+#[inline(always)]
+pub fn needed_force_rate<F: Real>(p: &Params<F>, y: &[F; 4], a: F, sn: F) -> F {
+    p.mu * (-p.eta * sn - p.b1 * a - y[1]) / (F::one() + p.mu)
+}
+
+/// Impact map: momentum `y2 + mu*y4` conserved, relative velocity reversed with factor R.
+#[inline(always)]
+pub fn impact<F: Real>(p: &Params<F>, y: &mut [F; 4]) {
+    let inv = F::one() / (F::one() + p.mu);
+    let vc = (y[1] + p.mu * y[3]) * inv;
+    let w = p.restitution * (y[1] - y[3]);
+    y[1] = vc - p.mu * inv * w;
+    y[3] = vc + inv * w;
+}
+
+/// Sets both velocities to the common (momentum-preserving) velocity: v = 0 exactly.
+#[inline(always)]
+pub fn co_move<F: Real>(p: &Params<F>, y: &mut [F; 4]) {
+    let vc = (y[1] + p.mu * y[3]) / (F::one() + p.mu);
+    y[1] = vc;
+    y[3] = vc;
+}
+
+/// Mode entered at rest (v = 0) given the needed force `tn` and the stop m2 touches
+/// (`stop` = +1 at z = +r, -1 at z = -r, 0 away from the stops).
+/// A stop can push m2 inward but not pull it, so a lock holds on one side only.
+#[inline(always)]
+pub fn mode_at_rest<F: Real>(p: &Params<F>, stop: i32, tn: F) -> Mode {
+    if stop > 0 {
+        if tn <= p.fs {
+            Mode::LockPos
+        } else {
+            Mode::SlipPos
+        }
+    } else if stop < 0 {
+        if tn >= -p.fs {
+            Mode::LockNeg
+        } else {
+            Mode::SlipNeg
+        }
+    } else if tn.abs() <= p.fs {
+        Mode::Stick
+    } else {
+        Mode::slip(tn)
+    }
+}
+
+/// Initial mode of a state: slip by the sign of v, or the at-rest rule when v = 0.
+pub fn initial_mode<F: Real>(p: &Params<F>, y: &[F; 4], c: F) -> Mode {
+    let v = y[1] - y[3];
+    if v != F::zero() {
+        return Mode::slip(v);
+    }
+    let z = y[2] - y[0];
+    let stop = if z >= p.r {
+        1
+    } else if z <= -p.r {
+        -1
+    } else {
+        0
+    };
+    mode_at_rest(p, stop, needed_force(p, y, c))
+}

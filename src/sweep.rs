@@ -1,0 +1,116 @@
+//! Running many parameter points: the CPU backend (rayon over points) and the bifurcation
+//! sweep that both backends feed.
+
+use crate::classify::{Class, classify};
+use crate::config::{Config, Precision};
+use crate::method::{Integrator, RunResult};
+use crate::model::Params;
+use crate::real::Real;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayon::prelude::*;
+use std::io::IsTerminal;
+
+/// Progress bar on stderr, hidden when stdout is not a terminal (pipes, CI, tests).
+pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::with_draw_target(
+        Some(len),
+        if std::io::stdout().is_terminal() {
+            ProgressDrawTarget::stderr()
+        } else {
+            ProgressDrawTarget::hidden()
+        },
+    );
+    pb.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    pb.set_message(what.to_string());
+    pb
+}
+
+/// Integrates every point on the CPU cores, from the same initial state.
+pub fn run_cpu(points: &[Params<f64>], cfg: &Config, pb: &ProgressBar) -> Vec<RunResult> {
+    match cfg.method.precision {
+        Precision::F32 => run_cpu_typed::<f32>(points, cfg, pb),
+        Precision::F64 => run_cpu_typed::<f64>(points, cfg, pb),
+    }
+}
+
+fn run_cpu_typed<F: Real>(
+    points: &[Params<f64>],
+    cfg: &Config,
+    pb: &ProgressBar,
+) -> Vec<RunResult> {
+    let settings = cfg.settings();
+    points
+        .par_iter()
+        .map(|p| {
+            let r = Integrator::<F>::new(p, &settings).run(
+                cfg.initial.y,
+                cfg.run.transient_periods,
+                cfg.run.sample_periods,
+            );
+            pb.inc(1);
+            r
+        })
+        .collect()
+}
+
+/// Parameter sets of a sweep over `cfg.sweep.param`.
+pub fn sweep_params(cfg: &Config) -> Vec<Params<f64>> {
+    let base = cfg.params();
+    cfg.sweep_values()
+        .into_iter()
+        .map(|v| {
+            let mut p = base;
+            p.set(&cfg.sweep.param, v)
+                .expect("validated sweep parameter");
+            p
+        })
+        .collect()
+}
+
+/// One point of a finished sweep.
+#[derive(Clone, Debug)]
+pub struct SweepPoint {
+    pub value: f64,
+    pub class: Class,
+    pub result: RunResult,
+}
+
+impl SweepPoint {
+    pub fn impacts_per_period(&self) -> f64 {
+        self.result.sample_impacts as f64 / self.result.samples.len().max(1) as f64
+    }
+}
+
+/// Classifies the results of a sweep.
+pub fn finish(cfg: &Config, results: Vec<RunResult>) -> Vec<SweepPoint> {
+    cfg.sweep_values()
+        .into_iter()
+        .zip(results)
+        .map(|(value, result)| SweepPoint {
+            value,
+            class: classify(
+                &result.samples,
+                result.sample_impacts,
+                result.diag.nonfinite,
+                cfg.run.period_tol,
+            ),
+            result,
+        })
+        .collect()
+}
+
+/// The plotted quantity of a state.
+pub fn plot_value(var: &str, y: &[f64; 4]) -> f64 {
+    match var {
+        "y1" => y[0],
+        "y2" => y[1],
+        "y3" => y[2],
+        "y4" => y[3],
+        "z" => y[2] - y[0],
+        _ => y[1] - y[3],
+    }
+}

@@ -1,0 +1,125 @@
+//! The command line: JSON output of `point`, and bad input giving a clear error, a non-zero
+//! exit and no output files.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn rattle() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_rattle"))
+}
+
+fn config(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("configs")
+        .join(name)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rattle-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn point_json_has_the_documented_keys() {
+    let out = rattle()
+        .args(["point", "--config"])
+        .arg(config("fig2.toml"))
+        .args(["--eta", "1.5", "--backend", "cpu", "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["class"], "period-1");
+    assert_eq!(j["period"], 1);
+    assert!((j["impacts_per_period"].as_f64().unwrap() - 2.0).abs() < 1e-12);
+    let samples = j["samples"].as_array().unwrap();
+    assert_eq!(samples.len(), 200);
+    assert_eq!(samples[0].as_array().unwrap().len(), 4);
+}
+
+#[test]
+fn bifurcation_writes_png_csv_json() {
+    let dir = scratch("ok");
+    let cfg = dir.join("small.toml");
+    std::fs::write(
+        &cfg,
+        "[run]\ntransient_periods = 50\nsample_periods = 20\n[sweep]\nfrom = 1.4\nto = 1.5\npoints = 8\n",
+    )
+    .unwrap();
+    let out = rattle()
+        .args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(dir.join("b"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.join("b.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 8 * 20);
+    assert!(csv.starts_with("eta,sample,y1,y2,y3,y4"));
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("b.json")).unwrap()).unwrap();
+    assert_eq!(j["points"].as_array().unwrap().len(), 8);
+    assert_eq!(j["config"]["sweep"]["points"], 8);
+    let img = image::open(dir.join("b.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (1200, 800));
+}
+
+#[test]
+fn bad_configs_fail_cleanly_without_output() {
+    let cases = [
+        ("[model]\nfoo = 1.0\n", "foo"),
+        ("[model]\nR = 1.5\n", "model.R"),
+        ("[model]\nmu = 0.0\n", "model.mu"),
+        ("[model]\nlambda = nan\n", "model.lambda"),
+        ("[sweep]\nparam = \"zeta\"\n", "sweep.param"),
+        (
+            "[sweep]\npoints = 10000000\n[run]\nsample_periods = 1000\n",
+            "sweep.points",
+        ),
+    ];
+    for (i, (text, key)) in cases.iter().enumerate() {
+        let dir = scratch(&format!("bad{i}"));
+        let cfg = dir.join("bad.toml");
+        std::fs::write(&cfg, text).unwrap();
+        for sub in ["bifurcation", "point"] {
+            let mut cmd = rattle();
+            cmd.args([sub, "--config"]).arg(&cfg);
+            if sub == "bifurcation" {
+                cmd.arg("--out").arg(dir.join("out"));
+            }
+            let out = cmd.output().unwrap();
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(!out.status.success(), "{text}: should fail");
+            assert!(
+                err.contains(key),
+                "{text}: message `{err}` must name `{key}`"
+            );
+        }
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .filter(|n| n != "bad.toml")
+            .collect();
+        assert!(left.is_empty(), "{text}: output written: {left:?}");
+    }
+    // Override on the command line.
+    let out = rattle()
+        .args(["point", "--config"])
+        .arg(config("fig2.toml"))
+        .args(["--R", "1.5"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("model.R"));
+}

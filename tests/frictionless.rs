@@ -1,0 +1,109 @@
+//! Frictionless limit (lambda = 0, delta = 0): the exact solution with exactly located impacts
+//! is known in closed form (`rattle::reference`). The event-located RK4 must converge with
+//! order >= 3.5 as N doubles; the naive end-of-step impact must show order about 1.
+
+use rattle::method::{ImpactMethod, Integrator, Settings};
+use rattle::model::Params;
+use rattle::reference::{FrictionlessParams, exact_frictionless};
+
+/// Three forcing periods with 12 impacts at both stops.
+const ETA: f64 = 0.9;
+const PERIODS: u32 = 3;
+
+fn params() -> Params<f64> {
+    Params {
+        eta: ETA,
+        restitution: 0.7,
+        fs: 0.0,
+        fk: 0.0,
+        l1: 0.0,
+        l2: 0.0,
+        r: 1.0,
+        delta: 0.0,
+        b1: 0.2,
+        mu: 0.5,
+    }
+}
+
+fn exact() -> ([f64; 4], usize) {
+    let p = params();
+    let fp = FrictionlessParams {
+        eta: p.eta,
+        b1: p.b1,
+        restitution: p.restitution,
+        r: p.r,
+        mu: p.mu,
+    };
+    let t_end = PERIODS as f64 * 2.0 * std::f64::consts::PI / ETA;
+    let (y, events) = exact_frictionless(&fp, [0.0; 4], 0.0, t_end).expect("exact solution");
+    (y, events.len())
+}
+
+/// Max-norm error of the state after PERIODS periods, and the impact count.
+fn error(n: u32, impacts: ImpactMethod) -> (f64, u64) {
+    let s = Settings {
+        steps_per_period: n,
+        impacts,
+        ..Settings::default()
+    };
+    let r = Integrator::<f64>::new(&params(), &s).run([0.0; 4], PERIODS, 0);
+    let (ex, _) = exact();
+    let e = (0..4)
+        .map(|i| (r.final_y[i] - ex[i]).abs())
+        .fold(0.0, f64::max);
+    (e, r.diag.impacts)
+}
+
+/// Least-squares slope of -log(error) against log(N).
+fn fitted_order(pts: &[(u32, f64)]) -> f64 {
+    let xy: Vec<(f64, f64)> = pts
+        .iter()
+        .map(|&(n, e)| ((n as f64).ln(), e.ln()))
+        .collect();
+    let k = xy.len() as f64;
+    let mx = xy.iter().map(|p| p.0).sum::<f64>() / k;
+    let my = xy.iter().map(|p| p.1).sum::<f64>() / k;
+    let sxy: f64 = xy.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = xy.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    -sxy / sxx
+}
+
+#[test]
+fn located_events_converge_with_fourth_order() {
+    let (_, n_exact) = exact();
+    assert_eq!(n_exact, 12, "test case must impact at both stops");
+    let ns = [32, 64, 128, 256, 512, 1024, 2048];
+    let mut errs = Vec::new();
+    for &n in &ns {
+        let (e, imp) = error(n, ImpactMethod::Located);
+        assert_eq!(imp as usize, n_exact, "impact count at N = {n}");
+        errs.push((n, e));
+    }
+    let orders: Vec<f64> = errs.windows(2).map(|w| (w[0].1 / w[1].1).log2()).collect();
+    eprintln!(
+        "located: errors {errs:?}\n  orders {orders:.2?}, fitted {:.2}",
+        fitted_order(&errs)
+    );
+    for &q in &orders {
+        assert!(q >= 3.5, "observed order {q:.2} < 3.5 ({orders:.2?})");
+    }
+    assert!(
+        errs.last().unwrap().1 < 1e-10,
+        "error at N = 2048: {errs:?}"
+    );
+}
+
+#[test]
+fn naive_impacts_are_first_order() {
+    // The naive error depends on where each impact falls inside its step, so single doublings
+    // scatter; the order is the least-squares slope over N growing by 1.25 from 64 to ~19000.
+    let pts: Vec<(u32, f64)> = (0..26)
+        .map(|i| (64.0 * 1.25f64.powi(i)).round() as u32)
+        .map(|n| (n, error(n, ImpactMethod::Naive).0))
+        .collect();
+    let q = fitted_order(&pts);
+    eprintln!("naive fitted order {q:.2}");
+    assert!((0.7..1.4).contains(&q), "naive order {q:.2} is not about 1");
+    // And the naive method is far less accurate than the located one at equal N.
+    assert!(error(1024, ImpactMethod::Naive).0 > 1e3 * error(1024, ImpactMethod::Located).0);
+}
