@@ -45,50 +45,111 @@ impl Class {
     }
 }
 
-/// Tolerance of the period test: `rel_tol` times the attractor size (largest range of any
-/// state component over the samples), floored so that a fixed point still gets a tolerance.
-pub fn tolerance(samples: &[[f64; 4]], rel_tol: f64) -> f64 {
-    let mut span: f64 = 0.0;
-    for c in 0..4 {
-        let (lo, hi) = samples
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
-                (lo.min(s[c]), hi.max(s[c]))
-            });
-        span = span.max(hi - lo);
-    }
-    rel_tol * span.max(1.0)
+/// Incremental period detector over the stroboscopic section value y1, the twin of the
+/// kernel's on-GPU classification: a ring of the last 64 values, and one "still possible" bit
+/// per candidate period n. Each new value is compared with the values 1..64 samples back,
+/// within `rel_tol * max(1, span)` where span is the range of y1 seen so far (a period-n orbit
+/// has shown its whole range after n samples, before any lag-n comparison matters).
+#[derive(Clone, Debug)]
+pub struct PeriodDetector {
+    ring: [f64; MAX_PERIOD],
+    count: u32,
+    lo: f64,
+    hi: f64,
+    /// Bit n-1 set: period n not yet contradicted.
+    possible: u64,
+    rel_tol: f64,
 }
 
-/// Smallest n <= 64 with |x[i+n] - x[i]| <= tol for every sample pair and component.
-/// Only the last `min(len, 2*64)` samples are used, as in the kernel's ring buffer.
+impl PeriodDetector {
+    pub fn new(rel_tol: f64) -> Self {
+        PeriodDetector {
+            ring: [0.0; MAX_PERIOD],
+            count: 0,
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+            possible: u64::MAX,
+            rel_tol,
+        }
+    }
+
+    pub fn push(&mut self, x: f64) {
+        self.lo = self.lo.min(x);
+        self.hi = self.hi.max(x);
+        let tol = self.rel_tol * (self.hi - self.lo).max(1.0);
+        let lags = (self.count as usize).min(MAX_PERIOD);
+        for n in 1..=lags {
+            let past = self.ring[(self.count as usize - n) % MAX_PERIOD];
+            // Written so that NaN counts as a mismatch.
+            let close = (x - past).abs() <= tol;
+            if !close {
+                self.possible &= !(1u64 << (n - 1));
+            }
+        }
+        self.ring[self.count as usize % MAX_PERIOD] = x;
+        self.count += 1;
+    }
+
+    /// Smallest period not contradicted and seen at least twice over.
+    pub fn period(&self) -> Option<u32> {
+        Self::period_from(self.possible, self.count)
+    }
+
+    /// [`PeriodDetector::period`] from the detector's bits and sample count (as the kernel
+    /// leaves them).
+    pub fn period_from(possible: u64, count: u32) -> Option<u32> {
+        (1..=MAX_PERIOD as u32).find(|&n| possible & (1u64 << (n - 1)) != 0 && count >= 2 * n)
+    }
+}
+
+/// Period of a sample sequence by [`PeriodDetector`] on y1.
 pub fn detect_period(samples: &[[f64; 4]], rel_tol: f64) -> Option<u32> {
-    let tol = tolerance(samples, rel_tol);
-    let len = samples.len();
-    (1..=MAX_PERIOD.min(len / 2))
-        .find(|&n| {
-            (0..len - n).all(|i| (0..4).all(|c| (samples[i + n][c] - samples[i][c]).abs() <= tol))
-        })
-        .map(|n| n as u32)
+    let mut d = PeriodDetector::new(rel_tol);
+    for s in samples {
+        d.push(s[0]);
+    }
+    d.period()
 }
 
 /// Classifies a run.
 pub fn classify(samples: &[[f64; 4]], sample_impacts: u64, nonfinite: bool, rel_tol: f64) -> Class {
-    if nonfinite || samples.len() < 2 || samples.iter().flatten().any(|v| !v.is_finite()) {
+    let bad = nonfinite || samples.iter().flatten().any(|v| !v.is_finite());
+    class_of(bad, samples.len(), sample_impacts, || {
+        detect_period(samples, rel_tol)
+    })
+}
+
+/// The class rule shared by the CPU and the GPU detector.
+pub fn class_of(
+    nonfinite: bool,
+    n_samples: usize,
+    sample_impacts: u64,
+    period: impl FnOnce() -> Option<u32>,
+) -> Class {
+    if nonfinite || n_samples < 2 {
         return Class::Failed;
     }
     if sample_impacts == 0 {
         return Class::NoImpact;
     }
-    match detect_period(samples, rel_tol) {
-        Some(n) => Class::Periodic(n),
-        None => Class::Aperiodic,
-    }
+    period().map_or(Class::Aperiodic, Class::Periodic)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quasi_periodic_rotation_is_aperiodic() {
+        // Points on a circle rotated by an irrational angle never repeat.
+        let s: Vec<[f64; 4]> = (0..200)
+            .map(|i| {
+                let a = i as f64 * 2.0 * std::f64::consts::PI * 0.618_034;
+                [a.cos(), a.sin(), 0.0, 0.0]
+            })
+            .collect();
+        assert_eq!(detect_period(&s, 1e-4), None);
+    }
 
     fn orbit(n: usize, len: usize, noise: f64) -> Vec<[f64; 4]> {
         (0..len)

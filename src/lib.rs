@@ -5,6 +5,7 @@
 
 pub mod classify;
 pub mod config;
+pub mod gpu;
 pub mod method;
 pub mod model;
 pub mod output;

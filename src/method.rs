@@ -139,24 +139,34 @@ pub fn first_crossing<F: Real>(g0: F, g1: F, m0: F, m1: F, tol: F) -> F {
     if t1 > t2 {
         std::mem::swap(&mut t1, &mut t2);
     }
-    let mut a = F::zero();
-    let mut pa = g0;
-    for i in 0..3 {
-        let mut b = F::one();
-        if i == 0 && t1 > F::zero() && t1 < F::one() {
-            b = t1;
-        } else if i <= 1 && t2 > a && t2 < F::one() {
-            b = t2;
-        }
-        let pb = hermite(g0, a1, a2, a3, b);
-        if pa > F::zero() && pb <= F::zero() {
-            return illinois(g0, a1, a2, a3, a, b, pa, pb, tol);
-        }
-        if b >= F::one() {
-            break;
-        }
-        a = b;
-        pa = pb;
+    // The three monotone pieces, unrolled as in the shader.
+    let b1 = if t1 > F::zero() && t1 < F::one() {
+        t1
+    } else {
+        F::one()
+    };
+    let p1 = hermite(g0, a1, a2, a3, b1);
+    if g0 > F::zero() && p1 <= F::zero() {
+        return illinois(g0, a1, a2, a3, F::zero(), b1, g0, p1, tol);
+    }
+    if b1 >= F::one() {
+        return none;
+    }
+    let b2 = if t2 > b1 && t2 < F::one() {
+        t2
+    } else {
+        F::one()
+    };
+    let p2 = hermite(g0, a1, a2, a3, b2);
+    if p1 > F::zero() && p2 <= F::zero() {
+        return illinois(g0, a1, a2, a3, b1, b2, p1, p2, tol);
+    }
+    if b2 >= F::one() {
+        return none;
+    }
+    let p3 = hermite(g0, a1, a2, a3, F::one());
+    if p2 > F::zero() && p3 <= F::zero() {
+        return illinois(g0, a1, a2, a3, b2, F::one(), p2, p3, tol);
     }
     none
 }
@@ -251,16 +261,17 @@ pub struct Integrator<F> {
 impl<F: Real> Integrator<F> {
     pub fn new(p: &Params<f64>, s: &Settings) -> Self {
         let n = s.steps_per_period;
-        let period = 2.0 * std::f64::consts::PI / p.eta;
+        let p: Params<F> = p.cast();
+        let dphi = F::of(2.0 * std::f64::consts::PI / n as f64);
         Integrator {
-            p: p.cast(),
+            p,
             tab: forcing_table(n)
                 .iter()
                 .map(|&[c, s]| [F::of(c), F::of(s)])
                 .collect(),
             n,
-            h: F::of(period / n as f64),
-            dphi: F::of(2.0 * std::f64::consts::PI / n as f64),
+            h: dphi / p.eta,
+            dphi,
             max_events: s.max_events,
             zeno: F::of(s.zeno_speed),
             naive: s.impacts == ImpactMethod::Naive,
@@ -277,10 +288,11 @@ impl<F: Real> Integrator<F> {
     #[inline(always)]
     pub fn forcing(&self, k: u32, theta: F) -> (F, F) {
         let t2 = theta * F::of(2.0);
-        let jf = t2.floor();
-        let j = ((2 * k) as usize + jf.to_f64() as usize).min(2 * self.n as usize);
+        // Truncation (theta >= 0), as the shader's u32 conversion.
+        let jf = t2.to_f64() as u32;
+        let j = (2 * k + jf).min(2 * self.n) as usize;
         let [cj, sj] = self.tab[j];
-        let rem = (t2 - jf) * F::of(0.5);
+        let rem = (t2 - F::of(jf as f64)) * F::of(0.5);
         if rem == F::zero() {
             return (cj, sj);
         }
@@ -496,11 +508,9 @@ impl<F: Real> Integrator<F> {
             let (c, _) = self.forcing(k, F::one());
             *f0 = field(&self.p, &st.y, st.mode, c);
         }
-        if !(st.y[0].is_finite()
-            && st.y[1].is_finite()
-            && st.y[2].is_finite()
-            && st.y[3].is_finite())
-        {
+        // NaN, infinity, or a state beyond any physical scale (as in the shader).
+        let big = F::of(1e30);
+        if !st.y.iter().all(|v| v.abs() <= big) {
             st.diag.nonfinite = true;
         }
     }
@@ -523,7 +533,11 @@ impl<F: Real> Integrator<F> {
         PointState {
             y,
             mode: initial_mode(&self.p, &y, F::one()),
-            diag: Diagnostics::default(),
+            diag: Diagnostics {
+                // Non-finite input fails the point before it runs.
+                nonfinite: !self.p.is_finite() || !y.iter().all(|v| v.is_finite()),
+                ..Diagnostics::default()
+            },
         }
     }
 
@@ -548,7 +562,9 @@ impl<F: Real> Integrator<F> {
                 break;
             }
             self.period(st);
-            out.push(st.y.map(|v| v.to_f64()));
+            if !st.diag.nonfinite {
+                out.push(st.y.map(|v| v.to_f64()));
+            }
         }
         RunResult {
             samples: out,

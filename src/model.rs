@@ -73,6 +73,25 @@ pub struct Params<F> {
     pub mu: F,
 }
 
+impl<F: Real> Params<F> {
+    pub fn is_finite(&self) -> bool {
+        [
+            self.eta,
+            self.restitution,
+            self.fs,
+            self.fk,
+            self.l1,
+            self.l2,
+            self.r,
+            self.delta,
+            self.b1,
+            self.mu,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+    }
+}
+
 /// A parameter that is out of its allowed range.
 #[derive(Debug, thiserror::Error, PartialEq)]
 #[error("parameter `{name}` = {value} is outside the allowed range {range}")]

@@ -28,7 +28,6 @@ pub trait Real:
     fn to_f64(self) -> f64;
     fn sqrt(self) -> Self;
     fn abs(self) -> Self;
-    fn floor(self) -> Self;
     fn is_finite(self) -> bool;
     fn zero() -> Self {
         Self::of(0.0)
@@ -64,10 +63,6 @@ macro_rules! impl_real {
             #[inline(always)]
             fn abs(self) -> Self {
                 <$t>::abs(self)
-            }
-            #[inline(always)]
-            fn floor(self) -> Self {
-                <$t>::floor(self)
             }
             #[inline(always)]
             fn is_finite(self) -> bool {

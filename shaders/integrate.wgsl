@@ -1,0 +1,578 @@
+// The integration method of src/method.rs (its twin: same names, same order, same event
+// rules), one invocation per parameter point. Read method.rs for the reasoning; comments here
+// only note what differs in form.
+//
+// `F` is f32; the host rewrites the alias line to f64 for the f64 variant. In F only
+// + - * / sqrt, comparisons and conversions are used (no cos/exp: unreliable in f64 on some
+// drivers): the forcing comes from a host-computed table, and abs/min/max are selects.
+alias F = f32;
+
+const MODE_SLIP_POS: u32 = 0u;
+const MODE_SLIP_NEG: u32 = 1u;
+const MODE_STICK: u32 = 2u;
+const MODE_LOCK_POS: u32 = 3u;
+const MODE_LOCK_NEG: u32 = 4u;
+
+const EV_NONE: u32 = 0u;
+const EV_IMPACT_POS: u32 = 1u;
+const EV_IMPACT_NEG: u32 = 2u;
+const EV_REVERSAL: u32 = 3u;
+const EV_RELEASE_POS: u32 = 4u;
+const EV_RELEASE_NEG: u32 = 5u;
+
+const MAX_ROOT_ITERS: u32 = 40u;
+const MAX_PERIOD: u32 = 64u;
+
+// Per-point u32 state, structure of arrays: us[slot * n_points + i].
+const U_MODE: u32 = 0u;
+const U_IMPACTS: u32 = 1u;
+const U_SAMPLE_IMPACTS: u32 = 2u;
+const U_STICKS: u32 = 3u;
+const U_LOCKS: u32 = 4u;
+const U_OVERFLOWS: u32 = 5u;
+const U_NONFINITE: u32 = 6u;
+const U_DET_COUNT: u32 = 7u;
+const U_DET_LO: u32 = 8u;
+const U_DET_HI: u32 = 9u;
+// Set when the driver cut a loop short (llvmpipe limits the loop iterations of one
+// invocation); the host then rejects the run instead of returning a wrong answer.
+const U_TRUNCATED: u32 = 10u;
+
+// Layout of `consts`: parameters, method constants, then the forcing table (cos, sin) at
+// phases 2*pi*j/(2N), j = 0..2N.
+const C_ZENO: u32 = 10u;
+const C_TOL: u32 = 11u;
+const C_PERIOD_TOL: u32 = 12u;
+const C_DPHI: u32 = 13u;
+const C_TABLE: u32 = 16u;
+
+// Parameter codes for per-point values (VARY_LAMBDA sets fs and fk).
+const VARY_LAMBDA: u32 = 10u;
+const VARY_NONE: u32 = 255u;
+
+struct Control {
+    n_points: u32,
+    steps: u32,
+    periods: u32,
+    period0: u32,
+    transient: u32,
+    samples: u32,
+    store: u32,
+    max_events: u32,
+    n_vary: u32,
+    vary0: u32,
+    vary1: u32,
+    naive: u32,
+    row: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> ctl: Control;
+@group(0) @binding(1) var<storage, read> consts: array<F>;
+@group(0) @binding(2) var<storage, read> pvals: array<F>;
+@group(0) @binding(3) var<storage, read_write> ys: array<F>;
+@group(0) @binding(4) var<storage, read_write> us: array<u32>;
+@group(0) @binding(5) var<storage, read_write> samples: array<F>;
+@group(0) @binding(6) var<storage, read_write> ring: array<F>;
+
+// Parameters in the order of the `consts` buffer and of model.rs `Params`.
+var<private> prm: array<F, 10>;
+var<private> h: F;
+var<private> dphi: F;
+var<private> zeno: F;
+var<private> tol: F;
+
+struct PointState {
+    y: vec4<F>,
+    mode: u32,
+    impacts: u32,
+    sticks: u32,
+    locks: u32,
+    overflows: u32,
+    nonfinite: u32,
+}
+var<private> st: PointState;
+
+fn eta() -> F { return prm[0]; }
+fn restitution() -> F { return prm[1]; }
+fn fs() -> F { return prm[2]; }
+fn fk() -> F { return prm[3]; }
+fn l1() -> F { return prm[4]; }
+fn l2() -> F { return prm[5]; }
+fn r() -> F { return prm[6]; }
+fn delta() -> F { return prm[7]; }
+fn b1() -> F { return prm[8]; }
+fn mu() -> F { return prm[9]; }
+
+fn fabs(x: F) -> F { return select(-x, x, x >= F(0.0)); }
+fn fmax(a: F, b: F) -> F { return select(b, a, a > b); }
+fn fmin(a: F, b: F) -> F { return select(b, a, a < b); }
+
+// ---- model.rs ----
+
+fn is_slip(mode: u32) -> bool { return mode <= MODE_SLIP_NEG; }
+
+fn slip(s: F) -> u32 { return select(MODE_SLIP_NEG, MODE_SLIP_POS, s > F(0.0)); }
+
+fn friction(v: F) -> F {
+    let w = fabs(v);
+    return (fs() - fk()) / (F(1.0) + l1() * w) + fk() + l2() * w * w;
+}
+
+fn field(y: vec4<F>, mode: u32, c: F) -> vec4<F> {
+    if (is_slip(mode)) {
+        let v = y.y - y.w;
+        var t = friction(v);
+        if (mode == MODE_SLIP_NEG) {
+            t = -t;
+        }
+        let d = b1() * delta() * v;
+        return vec4<F>(y.y, c - b1() * y.y - y.x - d - t, y.w, (d + t) / mu());
+    }
+    let a = (c - b1() * y.y - y.x) / (F(1.0) + mu());
+    return vec4<F>(y.y, a, y.w, a);
+}
+
+fn needed_force(y: vec4<F>, c: F) -> F {
+    return mu() * (c - b1() * y.y - y.x) / (F(1.0) + mu());
+}
+
+fn needed_force_rate(y: vec4<F>, a: F, sn: F) -> F {
+    return mu() * (-eta() * sn - b1() * a - y.y) / (F(1.0) + mu());
+}
+
+fn impact(y: vec4<F>) -> vec4<F> {
+    let inv = F(1.0) / (F(1.0) + mu());
+    let vc = (y.y + mu() * y.w) * inv;
+    let w = restitution() * (y.y - y.w);
+    return vec4<F>(y.x, vc - mu() * inv * w, y.z, vc + inv * w);
+}
+
+fn co_move(y: vec4<F>) -> vec4<F> {
+    let vc = (y.y + mu() * y.w) / (F(1.0) + mu());
+    return vec4<F>(y.x, vc, y.z, vc);
+}
+
+fn mode_at_rest(stop: i32, tn: F) -> u32 {
+    if (stop > 0) {
+        return select(MODE_SLIP_POS, MODE_LOCK_POS, tn <= fs());
+    }
+    if (stop < 0) {
+        return select(MODE_SLIP_NEG, MODE_LOCK_NEG, tn >= -fs());
+    }
+    if (fabs(tn) <= fs()) {
+        return MODE_STICK;
+    }
+    return slip(tn);
+}
+
+// ---- method.rs ----
+
+fn cos_sin_small(d: F) -> vec2<F> {
+    let d2 = d * d;
+    let o = F(1.0);
+    let c = o - d2 / F(2.0) * (o - d2 / F(12.0) * (o - d2 / F(30.0) * (o - d2 / F(56.0)
+        * (o - d2 / F(90.0) * (o - d2 / F(132.0))))));
+    let s = d * (o - d2 / F(6.0) * (o - d2 / F(20.0) * (o - d2 / F(42.0) * (o - d2 / F(72.0)
+        * (o - d2 / F(110.0))))));
+    return vec2<F>(c, s);
+}
+
+fn hermite(a0: F, a1: F, a2: F, a3: F, t: F) -> F {
+    return a0 + t * (a1 + t * (a2 + t * a3));
+}
+
+fn illinois(a0: F, a1: F, a2: F, a3: F, lo_in: F, hi_in: F, plo_in: F, phi_in: F) -> F {
+    var lo = lo_in;
+    var hi = hi_in;
+    var plo = plo_in;
+    var phi = phi_in;
+    var side = 0;
+    for (var it = 0u; it < MAX_ROOT_ITERS; it++) {
+        if (hi - lo <= tol) {
+            break;
+        }
+        var m = (lo * phi - hi * plo) / (phi - plo);
+        if (!(m > lo && m < hi)) {
+            m = F(0.5) * (lo + hi);
+        }
+        let pm = hermite(a0, a1, a2, a3, m);
+        if (pm <= F(0.0)) {
+            hi = m;
+            phi = pm;
+            if (side == -1) {
+                plo = plo * F(0.5);
+            }
+            side = -1;
+            if (pm == F(0.0)) {
+                break;
+            }
+        } else {
+            lo = m;
+            plo = pm;
+            if (side == 1) {
+                phi = phi * F(0.5);
+            }
+            side = 1;
+        }
+    }
+    return hi;
+}
+
+fn first_crossing(g0: F, g1: F, m0: F, m1: F) -> F {
+    let none = F(2.0);
+    let d = g1 - g0;
+    let bound = F(0.25) * fmax(fabs(m0 - d), fabs(m1 - d));
+    if (fmin(g0, g1) > bound || fmax(g0, g1) < -bound) {
+        return none;
+    }
+    let a1 = m0;
+    let a2 = F(3.0) * d - F(2.0) * m0 - m1;
+    let a3 = m0 + m1 - F(2.0) * d;
+    let qa = F(3.0) * a3;
+    let qb = F(2.0) * a2;
+    var t1 = none;
+    var t2 = none;
+    if (qa != F(0.0)) {
+        let disc = qb * qb - F(4.0) * qa * a1;
+        if (disc >= F(0.0)) {
+            let sq = sqrt(disc);
+            var q = F(-0.5) * (qb - sq);
+            if (qb >= F(0.0)) {
+                q = F(-0.5) * (qb + sq);
+            }
+            t1 = q / qa;
+            t2 = select(t1, a1 / q, q != F(0.0));
+        }
+    } else if (qb != F(0.0)) {
+        t1 = -a1 / qb;
+    }
+    if (t1 > t2) {
+        let t = t1;
+        t1 = t2;
+        t2 = t;
+    }
+    // The three monotone pieces, unrolled: llvmpipe caps the loop iterations of one
+    // invocation, so the hot path avoids loops with a fixed small trip count.
+    let c1 = t1 > F(0.0) && t1 < F(1.0);
+    let b1v = select(F(1.0), t1, c1);
+    let p1 = hermite(g0, a1, a2, a3, b1v);
+    if (g0 > F(0.0) && p1 <= F(0.0)) {
+        return illinois(g0, a1, a2, a3, F(0.0), b1v, g0, p1);
+    }
+    if (b1v >= F(1.0)) {
+        return none;
+    }
+    let c2 = t2 > b1v && t2 < F(1.0);
+    let b2v = select(F(1.0), t2, c2);
+    let p2 = hermite(g0, a1, a2, a3, b2v);
+    if (p1 > F(0.0) && p2 <= F(0.0)) {
+        return illinois(g0, a1, a2, a3, b1v, b2v, p1, p2);
+    }
+    if (b2v >= F(1.0)) {
+        return none;
+    }
+    let p3 = hermite(g0, a1, a2, a3, F(1.0));
+    if (p2 > F(0.0) && p3 <= F(0.0)) {
+        return illinois(g0, a1, a2, a3, b2v, F(1.0), p2, p3);
+    }
+    return none;
+}
+
+fn forcing(k: u32, theta: F) -> vec2<F> {
+    let t2 = theta * F(2.0);
+    let jf = u32(t2);
+    let j = min(2u * k + jf, 2u * ctl.steps);
+    let cj = consts[C_TABLE + 2u * j];
+    let sj = consts[C_TABLE + 2u * j + 1u];
+    let rem = (t2 - F(jf)) * F(0.5);
+    if (rem == F(0.0)) {
+        return vec2<F>(cj, sj);
+    }
+    let cs = cos_sin_small(rem * dphi);
+    return vec2<F>(cj * cs.x - sj * cs.y, sj * cs.x + cj * cs.y);
+}
+
+fn rk4(y: vec4<F>, mode: u32, k: u32, theta0: F, dtheta: F, k1: vec4<F>) -> vec4<F> {
+    let dt = dtheta * h;
+    let half = F(0.5) * dt;
+    let c2 = forcing(k, theta0 + F(0.5) * dtheta).x;
+    let c4 = forcing(k, theta0 + dtheta).x;
+    let k2 = field(y + half * k1, mode, c2);
+    let k3 = field(y + half * k2, mode, c2);
+    let k4 = field(y + dt * k3, mode, c4);
+    let sixth = dt / F(6.0);
+    return y + sixth * (k1 + F(2.0) * (k2 + k3) + k4);
+}
+
+struct Hit {
+    t: F,
+    ev: u32,
+}
+
+fn consider(hit: Hit, g0: F, g1: F, m0: F, m1: F, ev: u32) -> Hit {
+    let t = first_crossing(g0, g1, m0, m1);
+    if (t < hit.t) {
+        return Hit(t, ev);
+    }
+    return hit;
+}
+
+fn locate(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, k: u32, theta0: F,
+          dtheta: F) -> Hit {
+    let dt = dtheta * h;
+    var hit = Hit(F(2.0), EV_NONE);
+    if (is_slip(mode)) {
+        if (ctl.naive == 0u) {
+            let z0 = y0.z - y0.x;
+            let z1 = y1.z - y1.x;
+            let zd0 = (y0.w - y0.y) * dt;
+            let zd1 = (y1.w - y1.y) * dt;
+            if (r() - z0 <= F(0.0) && zd0 > F(0.0)) {
+                return Hit(F(0.0), EV_IMPACT_POS);
+            }
+            if (r() + z0 <= F(0.0) && zd0 < F(0.0)) {
+                return Hit(F(0.0), EV_IMPACT_NEG);
+            }
+            hit = consider(hit, r() - z0, r() - z1, -zd0, -zd1, EV_IMPACT_POS);
+            hit = consider(hit, r() + z0, r() + z1, zd0, zd1, EV_IMPACT_NEG);
+        }
+        let s = select(F(-1.0), F(1.0), mode == MODE_SLIP_POS);
+        hit = consider(hit, s * (y0.y - y0.w), s * (y1.y - y1.w), s * (f0.y - f0.w) * dt,
+                       s * (f1.y - f1.w) * dt, EV_REVERSAL);
+    } else {
+        let cs0 = forcing(k, theta0);
+        let cs1 = forcing(k, theta0 + dtheta);
+        let tn0 = needed_force(y0, cs0.x);
+        let tn1 = needed_force(y1, cs1.x);
+        let td0 = needed_force_rate(y0, f0.y, cs0.y) * dt;
+        let td1 = needed_force_rate(y1, f1.y, cs1.y) * dt;
+        if (mode != MODE_LOCK_NEG) {
+            hit = consider(hit, fs() - tn0, fs() - tn1, -td0, -td1, EV_RELEASE_POS);
+        }
+        if (mode != MODE_LOCK_POS) {
+            hit = consider(hit, fs() + tn0, fs() + tn1, td0, td1, EV_RELEASE_NEG);
+        }
+    }
+    return hit;
+}
+
+fn after_impact(stop: i32, c: F) {
+    let v = st.y.y - st.y.w;
+    if (fabs(v) < zeno) {
+        st.y = co_move(st.y);
+        st.mode = mode_at_rest(stop, needed_force(st.y, c));
+        if (st.mode == MODE_LOCK_POS || st.mode == MODE_LOCK_NEG) {
+            st.locks += 1u;
+        }
+    } else {
+        st.mode = slip(v);
+    }
+}
+
+fn apply_event(ev: u32, k: u32, theta: F) {
+    let c = forcing(k, theta).x;
+    if (ev == EV_IMPACT_POS || ev == EV_IMPACT_NEG) {
+        st.y = impact(st.y);
+        st.impacts += 1u;
+        after_impact(select(-1, 1, ev == EV_IMPACT_POS), c);
+    } else if (ev == EV_REVERSAL) {
+        st.y = co_move(st.y);
+        st.mode = mode_at_rest(0, needed_force(st.y, c));
+        if (st.mode == MODE_STICK) {
+            st.sticks += 1u;
+        }
+    } else if (ev == EV_RELEASE_POS) {
+        st.mode = MODE_SLIP_POS;
+    } else {
+        st.mode = MODE_SLIP_NEG;
+    }
+}
+
+fn naive_impact(k: u32) -> bool {
+    if (!is_slip(st.mode)) {
+        return false;
+    }
+    let z = st.y.z - st.y.x;
+    let zd = st.y.w - st.y.y;
+    var stop = 0;
+    if (z > r() && zd > F(0.0)) {
+        stop = 1;
+    } else if (z < -r() && zd < F(0.0)) {
+        stop = -1;
+    } else {
+        return false;
+    }
+    st.y.z = st.y.x + select(-r(), r(), stop > 0);
+    apply_event(select(EV_IMPACT_NEG, EV_IMPACT_POS, stop > 0), k, F(1.0));
+    return true;
+}
+
+// Field at the start of the current step (first-same-as-last), carried between steps.
+var<private> f0: vec4<F>;
+
+fn step(k: u32) {
+    var theta0 = F(0.0);
+    var events = 0u;
+    loop {
+        let dtheta = F(1.0) - theta0;
+        let y1 = rk4(st.y, st.mode, k, theta0, dtheta, f0);
+        let c1 = forcing(k, F(1.0)).x;
+        let f1 = field(y1, st.mode, c1);
+        let hit = locate(st.y, y1, f0, f1, st.mode, k, theta0, dtheta);
+        if (hit.ev == EV_NONE || events >= ctl.max_events) {
+            if (hit.ev != EV_NONE) {
+                st.overflows += 1u;
+            }
+            st.y = y1;
+            f0 = f1;
+            break;
+        }
+        let de = hit.t * dtheta;
+        st.y = rk4(st.y, st.mode, k, theta0, de, f0);
+        theta0 = select(theta0 + de, F(1.0), hit.t >= F(1.0));
+        apply_event(hit.ev, k, theta0);
+        events += 1u;
+        f0 = field(st.y, st.mode, forcing(k, theta0).x);
+        if (theta0 >= F(1.0)) {
+            break;
+        }
+    }
+    if (ctl.naive != 0u && naive_impact(k)) {
+        f0 = field(st.y, st.mode, forcing(k, F(1.0)).x);
+    }
+    // x != x is the NaN test; the bound catches infinities.
+    let y = st.y;
+    let big = F(1e30);
+    if (any(y != y) || fmax(fmax(fabs(y.x), fabs(y.y)), fmax(fabs(y.z), fabs(y.w))) > big) {
+        st.nonfinite = 1u;
+    }
+}
+
+// Returns false when the period did not run to its end (non-finite state or a loop cut short).
+fn period() -> bool {
+    f0 = field(st.y, st.mode, forcing(0u, F(0.0)).x);
+    var k = 0u;
+    for (; k < ctl.steps; k++) {
+        step(k);
+        if (st.nonfinite != 0u) {
+            return false;
+        }
+    }
+    return k == ctl.steps;
+}
+
+// ---- classify.rs: PeriodDetector::push on the section value y1 ----
+
+fn detector_push(i: u32, x: F) {
+    let n = ctl.n_points;
+    let count = us[U_DET_COUNT * n + i];
+    var lo = x;
+    var hi = x;
+    if (count > 0u) {
+        lo = fmin(ring[MAX_PERIOD * n + i], x);
+        hi = fmax(ring[(MAX_PERIOD + 1u) * n + i], x);
+    }
+    let tl = consts[C_PERIOD_TOL] * fmax(hi - lo, F(1.0));
+    var plo = us[U_DET_LO * n + i];
+    var phi = us[U_DET_HI * n + i];
+    let lags = min(count, MAX_PERIOD);
+    for (var m = 1u; m <= lags; m++) {
+        let past = ring[((count - m) % MAX_PERIOD) * n + i];
+        if (!(fabs(x - past) <= tl)) {
+            if (m <= 32u) {
+                plo &= ~(1u << (m - 1u));
+            } else {
+                phi &= ~(1u << (m - 33u));
+            }
+        }
+    }
+    ring[(count % MAX_PERIOD) * n + i] = x;
+    ring[MAX_PERIOD * n + i] = lo;
+    ring[(MAX_PERIOD + 1u) * n + i] = hi;
+    us[U_DET_COUNT * n + i] = count + 1u;
+    us[U_DET_LO * n + i] = plo;
+    us[U_DET_HI * n + i] = phi;
+}
+
+fn set_param(code: u32, v: F) {
+    if (code == VARY_LAMBDA) {
+        prm[2] = v;
+        prm[3] = v;
+    } else if (code < 10u) {
+        prm[code] = v;
+    }
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x + gid.y * ctl.row;
+    let n = ctl.n_points;
+    if (i >= n) {
+        return;
+    }
+    for (var q = 0u; q < 10u; q++) {
+        prm[q] = consts[q];
+    }
+    if (ctl.n_vary > 0u) {
+        set_param(ctl.vary0, pvals[i * ctl.n_vary]);
+    }
+    if (ctl.n_vary > 1u) {
+        set_param(ctl.vary1, pvals[i * ctl.n_vary + 1u]);
+    }
+    zeno = consts[C_ZENO];
+    tol = consts[C_TOL];
+    dphi = consts[C_DPHI];
+    h = dphi / eta();
+
+    st.y = vec4<F>(ys[i], ys[n + i], ys[2u * n + i], ys[3u * n + i]);
+    st.mode = us[U_MODE * n + i];
+    st.impacts = us[U_IMPACTS * n + i];
+    st.sticks = us[U_STICKS * n + i];
+    st.locks = us[U_LOCKS * n + i];
+    st.overflows = us[U_OVERFLOWS * n + i];
+    st.nonfinite = us[U_NONFINITE * n + i];
+    var sample_impacts = us[U_SAMPLE_IMPACTS * n + i];
+
+    var q = 0u;
+    for (; q < ctl.periods; q++) {
+        if (st.nonfinite != 0u) {
+            break;
+        }
+        let before = st.impacts;
+        if (!period() && st.nonfinite == 0u) {
+            us[U_TRUNCATED * n + i] = 1u;
+            break;
+        }
+        let idx = ctl.period0 + q;
+        if (idx >= ctl.transient && st.nonfinite == 0u) {
+            let s = idx - ctl.transient;
+            sample_impacts += st.impacts - before;
+            if (ctl.store != 0u) {
+                let o = (i * ctl.samples + s) * 4u;
+                samples[o] = st.y.x;
+                samples[o + 1u] = st.y.y;
+                samples[o + 2u] = st.y.z;
+                samples[o + 3u] = st.y.w;
+            }
+            detector_push(i, st.y.x);
+        }
+    }
+    if (q != ctl.periods && st.nonfinite == 0u) {
+        us[U_TRUNCATED * n + i] = 1u;
+    }
+
+    ys[i] = st.y.x;
+    ys[n + i] = st.y.y;
+    ys[2u * n + i] = st.y.z;
+    ys[3u * n + i] = st.y.w;
+    us[U_MODE * n + i] = st.mode;
+    us[U_IMPACTS * n + i] = st.impacts;
+    us[U_SAMPLE_IMPACTS * n + i] = sample_impacts;
+    us[U_STICKS * n + i] = st.sticks;
+    us[U_LOCKS * n + i] = st.locks;
+    us[U_OVERFLOWS * n + i] = st.overflows;
+    us[U_NONFINITE * n + i] = st.nonfinite;
+}

@@ -1,0 +1,201 @@
+//! GPU kernel against its CPU twin. These tests need an adapter (Mesa lavapipe in CI); with
+//! RATTLE_REQUIRE_GPU=1 (set by CI) a missing adapter fails them instead of skipping.
+
+use indicatif::ProgressBar;
+use rattle::classify::{Class, classify};
+use rattle::gpu::{Gpu, GpuOutput, Job};
+use rattle::method::{Integrator, RunResult, Settings};
+use rattle::model::Params;
+use rattle::real::Real;
+use std::sync::{Mutex, OnceLock};
+
+/// One device for all tests of this binary (adapters are slow to open; tests run serially
+/// on it through the mutex).
+fn gpu() -> Option<&'static Mutex<Gpu>> {
+    static GPU: OnceLock<Option<Mutex<Gpu>>> = OnceLock::new();
+    GPU.get_or_init(|| match Gpu::new() {
+        Ok(g) => {
+            eprintln!("GPU tests on {}", rattle::gpu::describe(&g.info));
+            Some(Mutex::new(g))
+        }
+        Err(e) => {
+            if std::env::var("RATTLE_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+                panic!("RATTLE_REQUIRE_GPU=1 but no adapter: {e}");
+            }
+            eprintln!("SKIPPED: no GPU adapter ({e})");
+            None
+        }
+    })
+    .as_ref()
+}
+
+fn eta_job<'a>(etas: &'a [f64], s: Settings, transient: u32, samples: u32) -> Job<'a> {
+    Job {
+        base: Params::paper(1.5),
+        vary: &["eta"],
+        values: etas,
+        n_points: etas.len(),
+        y0: &[[0.0; 4]],
+        settings: s,
+        transient,
+        samples,
+        store_samples: true,
+        period_tol: 1e-4,
+        max_binding_bytes: None,
+        max_groups_per_dim: None,
+    }
+}
+
+fn run_gpu(job: &Job, f64: bool) -> Option<GpuOutput> {
+    let g = gpu()?.lock().unwrap();
+    Some(g.run(job, f64, &ProgressBar::hidden()).expect("GPU run"))
+}
+
+fn run_cpu<F: Real>(eta: f64, s: &Settings, transient: u32, samples: u32) -> RunResult {
+    Integrator::<F>::new(&Params::paper(eta), s).run([0.0; 4], transient, samples)
+}
+
+fn max_diff(a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    (0..4).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max)
+}
+
+/// Largest |GPU - CPU| state difference over the points after `periods` periods, and the
+/// number of points whose impact counts differ.
+fn compare(etas: &[f64], periods: u32, f64: bool) -> Option<(f64, usize)> {
+    let s = Settings::default();
+    let g = run_gpu(&eta_job(etas, s, periods, 0), f64)?;
+    let (mut d, mut mismatched) = (0.0f64, 0);
+    for (i, &eta) in etas.iter().enumerate() {
+        let c = if f64 {
+            run_cpu::<f64>(eta, &s, periods, 0)
+        } else {
+            run_cpu::<f32>(eta, &s, periods, 0)
+        };
+        d = d.max(max_diff(&g.results[i].final_y, &c.final_y));
+        mismatched += (g.results[i].diag.impacts != c.diag.impacts) as usize;
+    }
+    eprintln!(
+        "{} periods, {}: max |GPU-CPU| {d:.2e}, impact counts differ at {mismatched} of {} points",
+        periods,
+        if f64 { "f64" } else { "f32" },
+        etas.len()
+    );
+    Some((d, mismatched))
+}
+
+// Tolerances. Both sides evaluate the same operations in the same order from the same
+// tables; the GPU compiler may still contract a*b+c into fma or reassociate, so single
+// operations can differ by an ulp. Over one period (256 steps x ~100 operations, a few
+// events) such differences stay at a few ulp of the state (|y| ~ 1): observed 4e-7 in f32,
+// 1e-15 in f64; we allow 1e-5 and 1e-12 (about 100 ulp). Over 10 periods the chaotic points
+// (eta < 1.25) stretch differences by orders of magnitude, so longer horizons are compared on
+// periodic attractors only (eta in [1.3, 1.7]), where perturbations contract: observed 3e-6
+// (f32) and 4e-14 (f64); we allow 1e-4 and 1e-9.
+
+#[test]
+fn one_period_states_agree_with_cpu() {
+    let etas: Vec<f64> = (0..32).map(|i| 1.0 + 0.03 * i as f64).collect();
+    let Some((d32, m32)) = compare(&etas, 1, false) else {
+        return;
+    };
+    let (d64, m64) = compare(&etas, 1, true).unwrap();
+    assert!(d32 < 1e-5, "f32 GPU vs f32 CPU after 1 period: {d32:e}");
+    assert!(d64 < 1e-12, "f64 GPU vs f64 CPU after 1 period: {d64:e}");
+    assert_eq!((m32, m64), (0, 0), "impact counts differ");
+}
+
+#[test]
+fn ten_periods_on_periodic_attractors_agree_with_cpu() {
+    let etas: Vec<f64> = (0..16).map(|i| 1.3 + 0.025 * i as f64).collect();
+    let Some((d32, m32)) = compare(&etas, 10, false) else {
+        return;
+    };
+    let (d64, m64) = compare(&etas, 10, true).unwrap();
+    assert!(d32 < 1e-4, "f32 GPU vs f32 CPU after 10 periods: {d32:e}");
+    assert!(d64 < 1e-9, "f64 GPU vs f64 CPU after 10 periods: {d64:e}");
+    assert_eq!((m32, m64), (0, 0), "impact counts differ");
+}
+
+#[test]
+fn classes_agree_at_periodic_points_of_fig2() {
+    // Periodic points of Fig. 2 (CPU f64 reference), default transient and sampling.
+    let etas = [1.30, 1.35, 1.40, 1.45, 1.50, 1.55, 1.60, 1.65, 1.90];
+    let s = Settings::default();
+    for f64 in [false, true] {
+        let Some(g) = run_gpu(&eta_job(&etas, s, 500, 200), f64) else {
+            return;
+        };
+        for (i, &eta) in etas.iter().enumerate() {
+            let c = run_cpu::<f64>(eta, &s, 500, 200);
+            let cpu = classify(&c.samples, c.sample_impacts, c.diag.nonfinite, 1e-4);
+            let r = &g.results[i];
+            // The on-GPU detector and the host rule on the GPU's samples agree with each other,
+            // and with the CPU reference, including the impact count per period.
+            let host = classify(&r.samples, r.sample_impacts, r.diag.nonfinite, 1e-4);
+            assert_eq!(g.classes[i], host, "eta {eta}: detector vs samples");
+            assert_eq!(
+                g.classes[i],
+                cpu,
+                "eta {eta} ({}): GPU vs CPU",
+                if f64 { "f64" } else { "f32" }
+            );
+            assert!(
+                matches!(cpu, Class::Periodic(_) | Class::NoImpact),
+                "eta {eta}: {cpu:?}"
+            );
+            assert_eq!(r.sample_impacts, c.sample_impacts, "eta {eta}: impacts");
+        }
+    }
+}
+
+#[test]
+fn split_batches_and_2d_dispatch_give_identical_results() {
+    // 3000 points; force batches of 700 points and 8 workgroups per dimension (2-D grid).
+    let etas: Vec<f64> = (0..3000).map(|i| 1.0 + i as f64 / 3000.0).collect();
+    let s = Settings {
+        steps_per_period: 32,
+        ..Settings::default()
+    };
+    let job = eta_job(&etas, s, 3, 4);
+    let Some(whole) = run_gpu(&job, false) else {
+        return;
+    };
+    let split_job = Job {
+        max_binding_bytes: Some(700 * 66 * 4),
+        max_groups_per_dim: Some(8),
+        ..job.clone()
+    };
+    let split = run_gpu(&split_job, false).unwrap();
+    assert_eq!(whole.timings.batches, 1);
+    assert!(
+        split.timings.batches >= 5,
+        "batches {}",
+        split.timings.batches
+    );
+    for i in 0..etas.len() {
+        assert_eq!(
+            whole.results[i].final_y, split.results[i].final_y,
+            "point {i}"
+        );
+        assert_eq!(
+            whole.results[i].samples, split.results[i].samples,
+            "point {i}"
+        );
+        assert_eq!(whole.results[i].diag, split.results[i].diag, "point {i}");
+    }
+}
+
+#[test]
+fn non_finite_parameters_fail_the_point_only() {
+    let etas = [1.5, f64::NAN, 1.4];
+    let Some(g) = run_gpu(&eta_job(&etas, Settings::default(), 5, 5), false) else {
+        return;
+    };
+    assert_eq!(g.classes[1], Class::Failed);
+    assert!(g.results[1].diag.nonfinite);
+    assert!(matches!(
+        g.classes[0],
+        Class::Periodic(_) | Class::Aperiodic
+    ));
+    assert!(!g.results[2].diag.nonfinite);
+}
