@@ -77,8 +77,21 @@ struct Control {
 @group(0) @binding(5) var<storage, read_write> samples: array<F>;
 @group(0) @binding(6) var<storage, read_write> ring: array<F>;
 
-// Parameters in the order of the `consts` buffer and of model.rs `Params`.
-var<private> prm: array<F, 10>;
+// Parameters of this point (model.rs `Params`); scalars rather than an array so that the
+// per-point override below does not force every access through dynamically indexed memory.
+struct Params {
+    eta: F,
+    restitution: F,
+    fs: F,
+    fk: F,
+    l1: F,
+    l2: F,
+    r: F,
+    delta: F,
+    b1: F,
+    mu: F,
+}
+var<private> prm: Params;
 var<private> h: F;
 var<private> dphi: F;
 var<private> zeno: F;
@@ -95,16 +108,16 @@ struct PointState {
 }
 var<private> st: PointState;
 
-fn eta() -> F { return prm[0]; }
-fn restitution() -> F { return prm[1]; }
-fn fs() -> F { return prm[2]; }
-fn fk() -> F { return prm[3]; }
-fn l1() -> F { return prm[4]; }
-fn l2() -> F { return prm[5]; }
-fn r() -> F { return prm[6]; }
-fn delta() -> F { return prm[7]; }
-fn b1() -> F { return prm[8]; }
-fn mu() -> F { return prm[9]; }
+fn eta() -> F { return prm.eta; }
+fn restitution() -> F { return prm.restitution; }
+fn fs() -> F { return prm.fs; }
+fn fk() -> F { return prm.fk; }
+fn l1() -> F { return prm.l1; }
+fn l2() -> F { return prm.l2; }
+fn r() -> F { return prm.r; }
+fn delta() -> F { return prm.delta; }
+fn b1() -> F { return prm.b1; }
+fn mu() -> F { return prm.mu; }
 
 fn fabs(x: F) -> F { return select(-x, x, x >= F(0.0)); }
 fn fmax(a: F, b: F) -> F { return select(b, a, a > b); }
@@ -498,11 +511,22 @@ fn detector_push(i: u32, x: F) {
 }
 
 fn set_param(code: u32, v: F) {
-    if (code == VARY_LAMBDA) {
-        prm[2] = v;
-        prm[3] = v;
-    } else if (code < 10u) {
-        prm[code] = v;
+    switch code {
+        case 0u: { prm.eta = v; }
+        case 1u: { prm.restitution = v; }
+        case 2u: { prm.fs = v; }
+        case 3u: { prm.fk = v; }
+        case 4u: { prm.l1 = v; }
+        case 5u: { prm.l2 = v; }
+        case 6u: { prm.r = v; }
+        case 7u: { prm.delta = v; }
+        case 8u: { prm.b1 = v; }
+        case 9u: { prm.mu = v; }
+        case VARY_LAMBDA: {
+            prm.fs = v;
+            prm.fk = v;
+        }
+        default: {}
     }
 }
 
@@ -513,9 +537,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (i >= n) {
         return;
     }
-    for (var q = 0u; q < 10u; q++) {
-        prm[q] = consts[q];
-    }
+    prm = Params(consts[0], consts[1], consts[2], consts[3], consts[4], consts[5], consts[6],
+                 consts[7], consts[8], consts[9]);
     if (ctl.n_vary > 0u) {
         set_param(ctl.vary0, pvals[i * ctl.n_vary]);
     }

@@ -69,7 +69,10 @@ impl Precision {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Backend {
+    /// The WGSL kernel on the adapter chosen from WGPU_BACKEND / WGPU_ADAPTER_NAME.
     #[default]
+    Gpu,
+    /// The CPU twin of the kernel, in parallel over points (rayon).
     Cpu,
 }
 
@@ -148,7 +151,7 @@ impl Default for MethodConfig {
             max_events: s.max_events,
             zeno_speed: s.zeno_speed,
             precision: Precision::F64,
-            backend: Backend::Cpu,
+            backend: Backend::Gpu,
         }
     }
 }

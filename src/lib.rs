@@ -3,8 +3,10 @@
 //! One module per concept: [`model`] (equations), [`method`] (the CPU integrator, twin of
 //! `shaders/integrate.wgsl`), [`classify`], [`sweep`], [`config`], [`render`], [`output`].
 
+pub mod bench;
 pub mod classify;
 pub mod config;
+pub mod engine;
 pub mod gpu;
 pub mod method;
 pub mod model;

@@ -3,10 +3,11 @@
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use rattle::classify::classify;
-use rattle::config::{Config, Precision};
+use rattle::config::{Backend, Config, Precision};
+use rattle::engine::Engine;
 use rattle::output::{Staged, with_ext};
 use rattle::render::{DensityPlot, density_png};
-use rattle::sweep::{finish, plot_value, progress_bar, run_cpu, sweep_params};
+use rattle::sweep::{finish, plot_value, progress_bar};
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -40,6 +41,30 @@ enum Cmd {
         #[arg(long, default_value = "bifurcation")]
         out: PathBuf,
     },
+    /// List the adapters wgpu sees and the one rattle would use.
+    Adapters,
+    /// Run the same points on GPU and CPU and print the agreement table.
+    Validate {
+        #[command(flatten)]
+        common: Common,
+        /// Points for the state-difference rows (the class rows use the whole sweep).
+        #[arg(long, default_value_t = 64)]
+        state_points: usize,
+    },
+    /// Measure RK4 steps/s of every backend and precision in one run.
+    Bench {
+        #[command(flatten)]
+        common: Common,
+        /// Parameter points (eta spread over the config's sweep range).
+        #[arg(long, default_value_t = 2000)]
+        points: usize,
+        /// Forcing periods per point.
+        #[arg(long, default_value_t = 100)]
+        periods: u32,
+        /// Print the table as JSON too.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Args)]
@@ -63,7 +88,7 @@ struct Common {
     #[arg(long, value_parser = ["f32", "f64"])]
     precision: Option<String>,
     /// Compute backend.
-    #[arg(long, value_parser = ["cpu"])]
+    #[arg(long, value_parser = ["gpu", "cpu"])]
     backend: Option<String>,
 }
 
@@ -100,14 +125,65 @@ fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Point { common, json } => point(&common.load()?, json),
         Cmd::Bifurcation { common, out } => bifurcation(&common.load()?, &out),
+        Cmd::Adapters => {
+            let (all, chosen) = rattle::gpu::list_adapters();
+            if all.is_empty() {
+                println!("no adapters (install a Vulkan driver, e.g. mesa-vulkan-drivers)");
+            }
+            for a in &all {
+                println!("  {}", rattle::gpu::describe(a));
+            }
+            match chosen {
+                Some(a) => println!("would use: {}", rattle::gpu::describe(&a)),
+                None => println!("would use: cpu backend (no adapter)"),
+            }
+            Ok(())
+        }
+        Cmd::Validate {
+            common,
+            state_points,
+        } => {
+            let cfg = common.load()?;
+            print!(
+                "{}",
+                rattle::bench::validate(&cfg, state_points).map_err(anyhow::Error::msg)?
+            );
+            Ok(())
+        }
+        Cmd::Bench {
+            common,
+            points,
+            periods,
+            json,
+        } => {
+            let cfg = common.load()?;
+            anyhow::ensure!(
+                points >= 1 && periods >= 3,
+                "--points >= 1 and --periods >= 3"
+            );
+            let backends = match common.backend.as_deref() {
+                Some("cpu") => vec![Backend::Cpu],
+                Some(_) => vec![Backend::Gpu],
+                None => vec![Backend::Gpu, Backend::Cpu],
+            };
+            let rows = rattle::bench::bench(&cfg, points, periods, &backends);
+            print!("{}", rattle::bench::bench_table(&rows));
+            if json {
+                let ok: Vec<_> = rows.iter().flatten().collect();
+                println!("{}", serde_json::to_string_pretty(&ok)?);
+            }
+            Ok(())
+        }
     }
 }
 
 fn point(cfg: &Config, as_json: bool) -> Result<()> {
     let p = cfg.params();
+    let engine = Engine::open(cfg.method.backend);
     let t = Instant::now();
     let pb = progress_bar(1, "point");
-    let r = run_cpu(&[p], cfg, &pb).pop().context("no result")?;
+    let (mut rs, _) = engine.run(cfg, &[], &[], None, &pb)?;
+    let r = rs.pop().context("no result")?;
     pb.finish_and_clear();
     let secs = t.elapsed().as_secs_f64();
     let class = classify(
@@ -126,7 +202,8 @@ fn point(cfg: &Config, as_json: bool) -> Result<()> {
             "samples": r.samples,
             "final_mode": r.final_mode,
             "params": p,
-            "backend": "cpu",
+            "backend": engine.name(),
+            "device": engine.device(),
             "precision": cfg.method.precision.name(),
             "seconds": secs,
         });
@@ -144,7 +221,9 @@ fn point(cfg: &Config, as_json: bool) -> Result<()> {
         r.diag.impacts, r.diag.sticks, r.diag.locks, r.diag.overflows, r.diag.nonfinite
     );
     println!(
-        "backend            cpu ({}), {:.3} s",
+        "backend            {} on {} ({}), {:.3} s",
+        engine.name(),
+        engine.device(),
         cfg.method.precision.name(),
         secs
     );
@@ -164,14 +243,23 @@ fn point(cfg: &Config, as_json: bool) -> Result<()> {
 
 fn bifurcation(cfg: &Config, out: &std::path::Path) -> Result<()> {
     let t0 = Instant::now();
-    let params = sweep_params(cfg);
-    let pb = progress_bar(params.len() as u64, "bifurcation");
-    let t = Instant::now();
-    let results = run_cpu(&params, cfg, &pb);
-    let integration_s = t.elapsed().as_secs_f64();
+    let engine = Engine::open(cfg.method.backend);
+    let values = cfg.sweep_values();
+    let total = (cfg.run.transient_periods + cfg.run.sample_periods) as u64;
+    let pb = progress_bar(
+        values.len() as u64
+            * if matches!(engine, Engine::Gpu(_)) {
+                total
+            } else {
+                1
+            },
+        "bifurcation",
+    );
+    let (results, timings) = engine.run(cfg, &[cfg.sweep.param.as_str()], &values, None, &pb)?;
+    let integration_s = timings.integration_s;
     pb.finish_and_clear();
     let points = finish(cfg, results);
-    let steps = params.len() as f64
+    let steps = values.len() as f64
         * (cfg.run.transient_periods + cfg.run.sample_periods) as f64
         * cfg.method.steps_per_period as f64;
 
@@ -238,12 +326,15 @@ fn bifurcation(cfg: &Config, out: &std::path::Path) -> Result<()> {
     let j = json!({
         "version": env!("CARGO_PKG_VERSION"),
         "command": "bifurcation",
-        "backend": "cpu",
-        "adapter": serde_json::Value::Null,
+        "backend": engine.name(),
+        "device": engine.device(),
         "precision": cfg.method.precision.name(),
         "config": cfg,
         "timings": {
+            "setup_s": timings.setup_s,
             "integration_s": integration_s,
+            "readback_s": timings.readback_s,
+            "kernel_s": timings.kernel_s,
             "total_s": t0.elapsed().as_secs_f64(),
             "rk4_steps": steps,
             "steps_per_s": steps / integration_s,
@@ -263,10 +354,12 @@ fn bifurcation(cfg: &Config, out: &std::path::Path) -> Result<()> {
     )?;
     let files = staged.commit()?;
     eprintln!(
-        "bifurcation: {} points x {} periods x {} steps on cpu ({}) in {:.2} s ({:.3e} RK4 steps/s)",
-        params.len(),
+        "bifurcation: {} points x {} periods x {} steps on {} ({}, {}) in {:.2} s ({:.3e} RK4 steps/s)",
+        values.len(),
         cfg.run.transient_periods + cfg.run.sample_periods,
         cfg.method.steps_per_period,
+        engine.name(),
+        engine.device(),
         cfg.method.precision.name(),
         integration_s,
         steps / integration_s

@@ -29,25 +29,32 @@ pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
-/// Integrates every point on the CPU cores, from the same initial state.
-pub fn run_cpu(points: &[Params<f64>], cfg: &Config, pb: &ProgressBar) -> Vec<RunResult> {
+/// Integrates every point on the CPU cores, from `cfg.initial.y` or from one state per point.
+pub fn run_cpu(
+    points: &[Params<f64>],
+    cfg: &Config,
+    y0s: Option<&[[f64; 4]]>,
+    pb: &ProgressBar,
+) -> Vec<RunResult> {
     match cfg.method.precision {
-        Precision::F32 => run_cpu_typed::<f32>(points, cfg, pb),
-        Precision::F64 => run_cpu_typed::<f64>(points, cfg, pb),
+        Precision::F32 => run_cpu_typed::<f32>(points, cfg, y0s, pb),
+        Precision::F64 => run_cpu_typed::<f64>(points, cfg, y0s, pb),
     }
 }
 
 fn run_cpu_typed<F: Real>(
     points: &[Params<f64>],
     cfg: &Config,
+    y0s: Option<&[[f64; 4]]>,
     pb: &ProgressBar,
 ) -> Vec<RunResult> {
     let settings = cfg.settings();
     points
         .par_iter()
-        .map(|p| {
+        .enumerate()
+        .map(|(i, p)| {
             let r = Integrator::<F>::new(p, &settings).run(
-                cfg.initial.y,
+                y0s.map_or(cfg.initial.y, |y| y[i]),
                 cfg.run.transient_periods,
                 cfg.run.sample_periods,
             );

@@ -148,8 +148,13 @@ pub fn list_adapters() -> (Vec<wgpu::AdapterInfo>, Option<wgpu::AdapterInfo>) {
 }
 
 fn instance() -> wgpu::Instance {
-    // Backends and adapter come from WGPU_BACKEND / WGPU_ADAPTER_NAME when set.
-    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+    // Backends and adapter come from WGPU_BACKEND / WGPU_ADAPTER_NAME when set; otherwise the
+    // primary APIs (Vulkan, Metal, DX12): GL has no f64 and its probing is noisy headless.
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+    if wgpu::Backends::from_env().is_none() {
+        desc.backends = wgpu::Backends::PRIMARY;
+    }
+    wgpu::Instance::new(desc)
 }
 
 /// One-line description of an adapter.

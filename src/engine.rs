@@ -1,0 +1,108 @@
+//! Backend selection and running a set of parameter points on it: the GPU kernel by default,
+//! the CPU twin on request or as the fallback when no adapter exists.
+
+use crate::config::{Backend, Config, Precision};
+use crate::gpu::{Gpu, GpuError, Job, Timings};
+use crate::method::RunResult;
+use crate::model::Params;
+use crate::sweep::run_cpu;
+use indicatif::ProgressBar;
+use std::time::Instant;
+
+/// An opened backend.
+pub enum Engine {
+    Gpu(Box<Gpu>),
+    Cpu,
+}
+
+impl Engine {
+    /// Opens the configured backend; a GPU request without any adapter falls back to the CPU
+    /// with one warning line naming why.
+    pub fn open(backend: Backend) -> Engine {
+        match backend {
+            Backend::Cpu => Engine::Cpu,
+            Backend::Gpu => match Gpu::new() {
+                Ok(g) => {
+                    eprintln!("adapter: {}", crate::gpu::describe(&g.info));
+                    Engine::Gpu(Box::new(g))
+                }
+                Err(e) => {
+                    eprintln!("warning: {e}; falling back to the cpu backend");
+                    Engine::Cpu
+                }
+            },
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Engine::Gpu(_) => "gpu",
+            Engine::Cpu => "cpu",
+        }
+    }
+
+    /// Adapter name, or the CPU description.
+    pub fn device(&self) -> String {
+        match self {
+            Engine::Gpu(g) => g.adapter_name().to_string(),
+            Engine::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),
+        }
+    }
+
+    /// Runs points that differ from `cfg.params()` in the `vary` parameters (`values` holds
+    /// `vary.len()` numbers per point), with samples kept, from `cfg.initial.y` or from one
+    /// initial state per point.
+    pub fn run(
+        &self,
+        cfg: &Config,
+        vary: &[&str],
+        values: &[f64],
+        y0s: Option<&[[f64; 4]]>,
+        pb: &ProgressBar,
+    ) -> Result<(Vec<RunResult>, Timings), GpuError> {
+        let n = if vary.is_empty() {
+            1
+        } else {
+            values.len() / vary.len()
+        };
+        match self {
+            Engine::Gpu(g) => {
+                let job = Job {
+                    base: cfg.params(),
+                    vary,
+                    values,
+                    n_points: n,
+                    y0: y0s.unwrap_or(std::slice::from_ref(&cfg.initial.y)),
+                    settings: cfg.settings(),
+                    transient: cfg.run.transient_periods,
+                    samples: cfg.run.sample_periods,
+                    store_samples: true,
+                    period_tol: cfg.run.period_tol,
+                    max_binding_bytes: None,
+                    max_groups_per_dim: None,
+                };
+                let out = g.run(&job, cfg.method.precision == Precision::F64, pb)?;
+                Ok((out.results, out.timings))
+            }
+            Engine::Cpu => {
+                let params: Vec<Params<f64>> = (0..n)
+                    .map(|i| {
+                        let mut p = cfg.params();
+                        for (k, name) in vary.iter().enumerate() {
+                            p.set(name, values[i * vary.len() + k])
+                                .expect("validated parameter name");
+                        }
+                        p
+                    })
+                    .collect();
+                let t = Instant::now();
+                let results = run_cpu(&params, cfg, y0s, pb);
+                let timings = Timings {
+                    integration_s: t.elapsed().as_secs_f64(),
+                    ..Timings::default()
+                };
+                Ok((results, timings))
+            }
+        }
+    }
+}
