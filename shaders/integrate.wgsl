@@ -197,55 +197,34 @@ fn hermite(a0: F, a1: F, a2: F, a3: F, t: F) -> F {
     return a0 + t * (a1 + t * (a2 + t * a3));
 }
 
-fn illinois(a0: F, a1: F, a2: F, a3: F, lo_in: F, hi_in: F, plo_in: F, phi_in: F) -> F {
-    var lo = lo_in;
-    var hi = hi_in;
-    var plo = plo_in;
-    var phi = phi_in;
-    var side = 0;
-    for (var it = 0u; it < MAX_ROOT_ITERS; it++) {
-        if (hi - lo <= tol) {
-            break;
-        }
-        var m = (lo * phi - hi * plo) / (phi - plo);
-        if (!(m > lo && m < hi)) {
-            m = F(0.5) * (lo + hi);
-        }
-        let pm = hermite(a0, a1, a2, a3, m);
-        if (pm <= F(0.0)) {
-            hi = m;
-            phi = pm;
-            if (side == -1) {
-                plo = plo * F(0.5);
-            }
-            side = -1;
-            if (pm == F(0.0)) {
-                break;
-            }
-        } else {
-            lo = m;
-            plo = pm;
-            if (side == 1) {
-                phi = phi * F(0.5);
-            }
-            side = 1;
-        }
-    }
-    return hi;
+struct Bracket {
+    a0: F,
+    a1: F,
+    a2: F,
+    a3: F,
+    lo: F,
+    hi: F,
+    plo: F,
+    phi: F,
+    ev: u32,
 }
 
-fn first_crossing(g0: F, g1: F, m0: F, m1: F) -> F {
-    let none = F(2.0);
+fn no_bracket() -> Bracket {
+    return Bracket(F(0.0), F(0.0), F(0.0), F(0.0), F(2.0), F(2.0), F(0.0), F(0.0), EV_NONE);
+}
+
+fn bracket(g0: F, g1: F, m0: F, m1: F, ev: u32) -> Bracket {
     let d = g1 - g0;
     let bound = F(0.25) * fmax(fabs(m0 - d), fabs(m1 - d));
     if (fmin(g0, g1) > bound || fmax(g0, g1) < -bound) {
-        return none;
+        return no_bracket();
     }
     let a1 = m0;
     let a2 = F(3.0) * d - F(2.0) * m0 - m1;
     let a3 = m0 + m1 - F(2.0) * d;
     let qa = F(3.0) * a3;
     let qb = F(2.0) * a2;
+    let none = F(2.0);
     var t1 = none;
     var t2 = none;
     if (qa != F(0.0)) {
@@ -268,30 +247,65 @@ fn first_crossing(g0: F, g1: F, m0: F, m1: F) -> F {
         t2 = t;
     }
     // The three monotone pieces, unrolled: llvmpipe caps the loop iterations of one
-    // invocation, so the hot path avoids loops with a fixed small trip count.
-    let c1 = t1 > F(0.0) && t1 < F(1.0);
-    let b1v = select(F(1.0), t1, c1);
-    let p1 = hermite(g0, a1, a2, a3, b1v);
+    // invocation, so the hot path has no loops with a small fixed trip count.
+    let b1 = select(F(1.0), t1, t1 > F(0.0) && t1 < F(1.0));
+    let b2 = select(F(1.0), t2, t2 > b1 && t2 < F(1.0));
+    let p1 = hermite(g0, a1, a2, a3, b1);
     if (g0 > F(0.0) && p1 <= F(0.0)) {
-        return illinois(g0, a1, a2, a3, F(0.0), b1v, g0, p1);
+        return Bracket(g0, a1, a2, a3, F(0.0), b1, g0, p1, ev);
     }
-    if (b1v >= F(1.0)) {
-        return none;
+    if (b1 >= F(1.0)) {
+        return no_bracket();
     }
-    let c2 = t2 > b1v && t2 < F(1.0);
-    let b2v = select(F(1.0), t2, c2);
-    let p2 = hermite(g0, a1, a2, a3, b2v);
+    let p2 = hermite(g0, a1, a2, a3, b2);
     if (p1 > F(0.0) && p2 <= F(0.0)) {
-        return illinois(g0, a1, a2, a3, b1v, b2v, p1, p2);
+        return Bracket(g0, a1, a2, a3, b1, b2, p1, p2, ev);
     }
-    if (b2v >= F(1.0)) {
-        return none;
+    if (b2 >= F(1.0)) {
+        return no_bracket();
     }
     let p3 = hermite(g0, a1, a2, a3, F(1.0));
     if (p2 > F(0.0) && p3 <= F(0.0)) {
-        return illinois(g0, a1, a2, a3, b2v, F(1.0), p2, p3);
+        return Bracket(g0, a1, a2, a3, b2, F(1.0), p2, p3, ev);
     }
-    return none;
+    return no_bracket();
+}
+
+fn illinois(b: Bracket) -> F {
+    var lo = b.lo;
+    var hi = b.hi;
+    var plo = b.plo;
+    var phi = b.phi;
+    var side = 0;
+    for (var it = 0u; it < MAX_ROOT_ITERS; it++) {
+        if (hi - lo <= tol) {
+            break;
+        }
+        var m = (lo * phi - hi * plo) / (phi - plo);
+        if (!(m > lo && m < hi)) {
+            m = F(0.5) * (lo + hi);
+        }
+        let pm = hermite(b.a0, b.a1, b.a2, b.a3, m);
+        if (pm <= F(0.0)) {
+            hi = m;
+            phi = pm;
+            if (side == -1) {
+                plo = plo * F(0.5);
+            }
+            side = -1;
+            if (pm == F(0.0)) {
+                break;
+            }
+        } else {
+            lo = m;
+            plo = pm;
+            if (side == 1) {
+                phi = phi * F(0.5);
+            }
+            side = 1;
+        }
+    }
+    return hi;
 }
 
 fn forcing(k: u32, theta: F) -> vec2<F> {
@@ -325,18 +339,13 @@ struct Hit {
     ev: u32,
 }
 
-fn consider(hit: Hit, g0: F, g1: F, m0: F, m1: F, ev: u32) -> Hit {
-    let t = first_crossing(g0, g1, m0, m1);
-    if (t < hit.t) {
-        return Hit(t, ev);
-    }
-    return hit;
-}
-
 fn locate(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, k: u32, theta0: F,
           dtheta: F) -> Hit {
     let dt = dtheta * h;
-    var hit = Hit(F(2.0), EV_NONE);
+    // Up to three guards: (impact+, impact-, reversal) in slip, (release+, release-) else.
+    var b0 = no_bracket();
+    var b1 = no_bracket();
+    var b2 = no_bracket();
     if (is_slip(mode)) {
         if (ctl.naive == 0u) {
             let z0 = y0.z - y0.x;
@@ -349,12 +358,12 @@ fn locate(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, k: u32,
             if (r() + z0 <= F(0.0) && zd0 < F(0.0)) {
                 return Hit(F(0.0), EV_IMPACT_NEG);
             }
-            hit = consider(hit, r() - z0, r() - z1, -zd0, -zd1, EV_IMPACT_POS);
-            hit = consider(hit, r() + z0, r() + z1, zd0, zd1, EV_IMPACT_NEG);
+            b0 = bracket(r() - z0, r() - z1, -zd0, -zd1, EV_IMPACT_POS);
+            b1 = bracket(r() + z0, r() + z1, zd0, zd1, EV_IMPACT_NEG);
         }
         let s = select(F(-1.0), F(1.0), mode == MODE_SLIP_POS);
-        hit = consider(hit, s * (y0.y - y0.w), s * (y1.y - y1.w), s * (f0.y - f0.w) * dt,
-                       s * (f1.y - f1.w) * dt, EV_REVERSAL);
+        b2 = bracket(s * (y0.y - y0.w), s * (y1.y - y1.w), s * (f0.y - f0.w) * dt,
+                     s * (f1.y - f1.w) * dt, EV_REVERSAL);
     } else {
         let cs0 = forcing(k, theta0);
         let cs1 = forcing(k, theta0 + dtheta);
@@ -363,13 +372,55 @@ fn locate(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, k: u32,
         let td0 = needed_force_rate(y0, f0.y, cs0.y) * dt;
         let td1 = needed_force_rate(y1, f1.y, cs1.y) * dt;
         if (mode != MODE_LOCK_NEG) {
-            hit = consider(hit, fs() - tn0, fs() - tn1, -td0, -td1, EV_RELEASE_POS);
+            b0 = bracket(fs() - tn0, fs() - tn1, -td0, -td1, EV_RELEASE_POS);
         }
         if (mode != MODE_LOCK_POS) {
-            hit = consider(hit, fs() + tn0, fs() + tn1, td0, td1, EV_RELEASE_NEG);
+            b1 = bracket(fs() + tn0, fs() + tn1, td0, td1, EV_RELEASE_NEG);
         }
     }
-    return hit;
+    // Refine brackets in order of their left end while one can still hold an earlier root
+    // than the best so far. Almost every step has no bracket and skips this.
+    var best = Hit(F(2.0), EV_NONE);
+    if (b0.ev == EV_NONE && b1.ev == EV_NONE && b2.ev == EV_NONE) {
+        return best;
+    }
+    for (var round = 0u; round < 3u; round++) {
+        var pick = 3u;
+        var lo = best.t;
+        if (b0.ev != EV_NONE && b0.lo < lo) {
+            pick = 0u;
+            lo = b0.lo;
+        }
+        if (b1.ev != EV_NONE && b1.lo < lo) {
+            pick = 1u;
+            lo = b1.lo;
+        }
+        if (b2.ev != EV_NONE && b2.lo < lo) {
+            pick = 2u;
+            lo = b2.lo;
+        }
+        if (pick == 3u) {
+            break;
+        }
+        var b = b0;
+        if (pick == 1u) {
+            b = b1;
+        } else if (pick == 2u) {
+            b = b2;
+        }
+        let t = illinois(b);
+        if (t < best.t) {
+            best = Hit(t, b.ev);
+        }
+        if (pick == 0u) {
+            b0.ev = EV_NONE;
+        } else if (pick == 1u) {
+            b1.ev = EV_NONE;
+        } else {
+            b2.ev = EV_NONE;
+        }
+    }
+    return best;
 }
 
 fn after_impact(stop: i32, c: F) {

@@ -52,8 +52,9 @@ pub enum FrictionLaw {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {
-    F32,
+    /// The GPU's native precision, and the default.
     #[default]
+    F32,
     F64,
 }
 
@@ -150,7 +151,7 @@ impl Default for MethodConfig {
             impacts: s.impacts,
             max_events: s.max_events,
             zeno_speed: s.zeno_speed,
-            precision: Precision::F64,
+            precision: Precision::F32,
             backend: Backend::Gpu,
         }
     }

@@ -100,18 +100,52 @@ pub fn cos_sin_small<F: Real>(d: F) -> (F, F) {
     (c, s)
 }
 
-/// First time theta in (0, 1] where the cubic Hermite interpolant of a guard goes from > 0 to
-/// <= 0, or 2 when it does not. `g0, g1` are the guard at both ends, `m0, m1` its derivatives
-/// times the step length. The cubic is split at its extrema so that each piece is monotone:
-/// a grazing double crossing inside one step is not missed.
+/// The piece of a guard's cubic Hermite interpolant (power form `a0 + a1 t + a2 t^2 + a3 t^3`
+/// on the step, t in [0, 1]) that holds its first crossing from > 0 to <= 0: p(lo) > 0 >= p(hi).
+/// `ev` is the event the guard signals, EV_NONE when there is no crossing.
+#[derive(Clone, Copy, Debug)]
+pub struct Bracket<F> {
+    pub a0: F,
+    pub a1: F,
+    pub a2: F,
+    pub a3: F,
+    pub lo: F,
+    pub hi: F,
+    pub plo: F,
+    pub phi: F,
+    pub ev: u32,
+}
+
+impl<F: Real> Bracket<F> {
+    fn none() -> Self {
+        let z = F::zero();
+        Bracket {
+            a0: z,
+            a1: z,
+            a2: z,
+            a3: z,
+            lo: F::of(2.0),
+            hi: F::of(2.0),
+            plo: z,
+            phi: z,
+            ev: EV_NONE,
+        }
+    }
+}
+
+/// Brackets the first crossing of a guard: `g0, g1` are the guard at both ends of the step,
+/// `m0, m1` its time derivatives times the step length. The cubic is split at its extrema so
+/// that each piece is monotone: a grazing double crossing inside one step is not missed. Cheap
+/// when there is no crossing, which is almost every step; the root itself is refined only for
+/// the guards that can be the earliest event ([`Integrator::locate`]).
 #[inline(always)]
-pub fn first_crossing<F: Real>(g0: F, g1: F, m0: F, m1: F, tol: F) -> F {
-    let none = F::of(2.0);
+pub fn bracket<F: Real>(g0: F, g1: F, m0: F, m1: F, ev: u32) -> Bracket<F> {
+    let mut b = Bracket::none();
     let d = g1 - g0;
     // The Hermite cubic stays within max(|m0-d|,|m1-d|)/4 of its chord.
     let bound = F::of(0.25) * (m0 - d).abs().max((m1 - d).abs());
     if g0.min(g1) > bound || g0.max(g1) < -bound {
-        return none;
+        return b;
     }
     let a1 = m0;
     let a2 = F::of(3.0) * d - F::of(2.0) * m0 - m1;
@@ -119,6 +153,7 @@ pub fn first_crossing<F: Real>(g0: F, g1: F, m0: F, m1: F, tol: F) -> F {
     // Extrema: roots of 3 a3 t^2 + 2 a2 t + a1 (stable quadratic formula).
     let qa = F::of(3.0) * a3;
     let qb = F::of(2.0) * a2;
+    let none = F::of(2.0);
     let mut t1 = none;
     let mut t2 = none;
     if qa != F::zero() {
@@ -140,35 +175,40 @@ pub fn first_crossing<F: Real>(g0: F, g1: F, m0: F, m1: F, tol: F) -> F {
         std::mem::swap(&mut t1, &mut t2);
     }
     // The three monotone pieces, unrolled as in the shader.
+    let (mut lo, mut plo) = (F::zero(), g0);
     let b1 = if t1 > F::zero() && t1 < F::one() {
         t1
     } else {
         F::one()
     };
-    let p1 = hermite(g0, a1, a2, a3, b1);
-    if g0 > F::zero() && p1 <= F::zero() {
-        return illinois(g0, a1, a2, a3, F::zero(), b1, g0, p1, tol);
-    }
-    if b1 >= F::one() {
-        return none;
-    }
     let b2 = if t2 > b1 && t2 < F::one() {
         t2
     } else {
         F::one()
     };
-    let p2 = hermite(g0, a1, a2, a3, b2);
-    if p1 > F::zero() && p2 <= F::zero() {
-        return illinois(g0, a1, a2, a3, b1, b2, p1, p2, tol);
+    for hi in [b1, b2, F::one()] {
+        let phi = hermite(g0, a1, a2, a3, hi);
+        if plo > F::zero() && phi <= F::zero() {
+            b = Bracket {
+                a0: g0,
+                a1,
+                a2,
+                a3,
+                lo,
+                hi,
+                plo,
+                phi,
+                ev,
+            };
+            return b;
+        }
+        if hi >= F::one() {
+            break;
+        }
+        lo = hi;
+        plo = phi;
     }
-    if b2 >= F::one() {
-        return none;
-    }
-    let p3 = hermite(g0, a1, a2, a3, F::one());
-    if p2 > F::zero() && p3 <= F::zero() {
-        return illinois(g0, a1, a2, a3, b2, F::one(), p2, p3, tol);
-    }
-    none
+    b
 }
 
 #[inline(always)]
@@ -176,21 +216,11 @@ fn hermite<F: Real>(a0: F, a1: F, a2: F, a3: F, t: F) -> F {
     a0 + t * (a1 + t * (a2 + t * a3))
 }
 
-/// Illinois (modified regula falsi) on [lo, hi] with p(lo) > 0 >= p(hi); returns the right end
-/// of the final bracket, where the event condition already holds.
-#[allow(clippy::too_many_arguments)]
+/// Illinois (modified regula falsi) on a bracket; returns the right end of the final bracket,
+/// where the event condition already holds.
 #[inline(always)]
-fn illinois<F: Real>(
-    a0: F,
-    a1: F,
-    a2: F,
-    a3: F,
-    mut lo: F,
-    mut hi: F,
-    mut plo: F,
-    mut phi: F,
-    tol: F,
-) -> F {
+pub fn illinois<F: Real>(b: &Bracket<F>, tol: F) -> F {
+    let (mut lo, mut hi, mut plo, mut phi) = (b.lo, b.hi, b.plo, b.phi);
     let mut side = 0i32;
     for _ in 0..MAX_ROOT_ITERS {
         if hi - lo <= tol {
@@ -200,7 +230,7 @@ fn illinois<F: Real>(
         if !(m > lo && m < hi) {
             m = F::of(0.5) * (lo + hi);
         }
-        let pm = hermite(a0, a1, a2, a3, m);
+        let pm = hermite(b.a0, b.a1, b.a2, b.a3, m);
         if pm <= F::zero() {
             hi = m;
             phi = pm;
@@ -346,15 +376,8 @@ impl<F: Real> Integrator<F> {
     ) -> (F, u32) {
         let p = &self.p;
         let dt = dtheta * self.h;
-        let mut best = F::of(2.0);
-        let mut kind = EV_NONE;
-        let mut consider = |g0: F, g1: F, m0: F, m1: F, ev: u32| {
-            let t = first_crossing(g0, g1, m0, m1, self.tol);
-            if t < best {
-                best = t;
-                kind = ev;
-            }
-        };
+        // Up to three guards: (impact+, impact-, reversal) in slip, (release+, release-) else.
+        let mut b = [Bracket::none(); 3];
         if mode.is_slip() {
             if !self.naive {
                 // Impact guards r - z and r + z; z' = y4 - y2 comes with the state.
@@ -370,8 +393,8 @@ impl<F: Real> Integrator<F> {
                 if p.r + z0 <= F::zero() && zd0 < F::zero() {
                     return (F::zero(), EV_IMPACT_NEG);
                 }
-                consider(p.r - z0, p.r - z1, -zd0, -zd1, EV_IMPACT_POS);
-                consider(p.r + z0, p.r + z1, zd0, zd1, EV_IMPACT_NEG);
+                b[0] = bracket(p.r - z0, p.r - z1, -zd0, -zd1, EV_IMPACT_POS);
+                b[1] = bracket(p.r + z0, p.r + z1, zd0, zd1, EV_IMPACT_NEG);
             }
             // Slip reversal: s*v reaches 0.
             let s = if mode == Mode::SlipPos {
@@ -379,7 +402,7 @@ impl<F: Real> Integrator<F> {
             } else {
                 -F::one()
             };
-            consider(
+            b[2] = bracket(
                 s * (y0[1] - y0[3]),
                 s * (y1[1] - y1[3]),
                 s * (f0[1] - f0[3]) * dt,
@@ -395,13 +418,34 @@ impl<F: Real> Integrator<F> {
             let td0 = needed_force_rate(p, y0, f0[1], s0) * dt;
             let td1 = needed_force_rate(p, y1, f1[1], s1) * dt;
             if mode != Mode::LockNeg {
-                consider(p.fs - tn0, p.fs - tn1, -td0, -td1, EV_RELEASE_POS);
+                b[0] = bracket(p.fs - tn0, p.fs - tn1, -td0, -td1, EV_RELEASE_POS);
             }
             if mode != Mode::LockPos {
-                consider(p.fs + tn0, p.fs + tn1, td0, td1, EV_RELEASE_NEG);
+                b[1] = bracket(p.fs + tn0, p.fs + tn1, td0, td1, EV_RELEASE_NEG);
             }
         }
-        (best, kind)
+        // Refine brackets in order of their left end while one can still hold an earlier root
+        // than the best so far (a root lies in (lo, hi]).
+        let mut best = (F::of(2.0), EV_NONE);
+        for _ in 0..3 {
+            let mut pick = 3;
+            let mut lo = best.0;
+            for (i, bi) in b.iter().enumerate() {
+                if bi.ev != EV_NONE && bi.lo < lo {
+                    pick = i;
+                    lo = bi.lo;
+                }
+            }
+            if pick == 3 {
+                break;
+            }
+            let t = illinois(&b[pick], self.tol);
+            if t < best.0 {
+                best = (t, b[pick].ev);
+            }
+            b[pick].ev = EV_NONE;
+        }
+        best
     }
 
     /// Mode after an impact at `stop`: slip away, or lock when the rebound is below the Zeno
