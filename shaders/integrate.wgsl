@@ -37,6 +37,11 @@ const U_DET_HI: u32 = 9u;
 // Set when the driver cut a loop short (llvmpipe limits the loop iterations of one
 // invocation); the host then rejects the run instead of returning a wrong answer.
 const U_TRUNCATED: u32 = 10u;
+// Twin trajectory of the Lyapunov estimate: its mode and failure flag.
+const U_TWIN_MODE: u32 = 11u;
+const U_TWIN_BAD: u32 = 12u;
+// Slot of the Lyapunov log sum in `ring`, after the detector's ring, lo and hi.
+const R_LOG_SUM: u32 = 66u;
 
 // Layout of `consts`: parameters, method constants, then the forcing table (cos, sin) at
 // phases 2*pi*j/(2N), j = 0..2N.
@@ -44,6 +49,7 @@ const C_ZENO: u32 = 10u;
 const C_TOL: u32 = 11u;
 const C_PERIOD_TOL: u32 = 12u;
 const C_DPHI: u32 = 13u;
+const C_TWIN: u32 = 14u;
 const C_TABLE: u32 = 16u;
 
 // Parameter codes for per-point values (VARY_LAMBDA sets fs and fk).
@@ -64,7 +70,7 @@ struct Control {
     vary1: u32,
     naive: u32,
     row: u32,
-    pad0: u32,
+    lyap: u32,
     pad1: u32,
     pad2: u32,
 }
@@ -528,6 +534,29 @@ fn period() -> bool {
     return k == ctl.steps;
 }
 
+// Twin trajectory of the Lyapunov estimate, between periods.
+var<private> tw_y: vec4<F>;
+var<private> tw_mode: u32;
+var<private> tw_bad: u32;
+
+fn renormalize(main_y: vec4<F>, d0: F) -> F {
+    let e = tw_y - main_y;
+    let d = sqrt(e.x * e.x + e.y * e.y + e.z * e.z + e.w * e.w);
+    let floor = d0 * F(1e-12);
+    if (d > F(0.0)) {
+        tw_y = main_y + (tw_y - main_y) * (d0 / d);
+    } else {
+        tw_y = main_y;
+        tw_y.x += d0;
+        tw_mode = st.mode;
+    }
+    let v = tw_y.y - tw_y.w;
+    if (v != F(0.0)) {
+        tw_mode = slip(v);
+    }
+    return fmax(d, floor) / d0;
+}
+
 // ---- classify.rs: PeriodDetector::push on the section value y1 ----
 
 fn detector_push(i: u32, x: F) {
@@ -609,18 +638,31 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     st.overflows = us[U_OVERFLOWS * n + i];
     st.nonfinite = us[U_NONFINITE * n + i];
     var sample_impacts = us[U_SAMPLE_IMPACTS * n + i];
+    let d0 = consts[C_TWIN];
+    tw_y = vec4<F>(ys[4u * n + i], ys[5u * n + i], ys[6u * n + i], ys[7u * n + i]);
+    tw_mode = us[U_TWIN_MODE * n + i];
+    tw_bad = us[U_TWIN_BAD * n + i];
+    var log_sum = ring[R_LOG_SUM * n + i];
 
     var q = 0u;
     for (; q < ctl.periods; q++) {
         if (st.nonfinite != 0u) {
             break;
         }
+        let idx = ctl.period0 + q;
+        if (ctl.lyap != 0u && idx == ctl.transient) {
+            // Twin offset along y1 at the start of sampling.
+            tw_y = st.y;
+            tw_y.x += d0;
+            tw_mode = st.mode;
+            tw_bad = 0u;
+            log_sum = F(0.0);
+        }
         let before = st.impacts;
         if (!period() && st.nonfinite == 0u) {
             us[U_TRUNCATED * n + i] = 1u;
             break;
         }
-        let idx = ctl.period0 + q;
         if (idx >= ctl.transient && st.nonfinite == 0u) {
             let s = idx - ctl.transient;
             sample_impacts += st.impacts - before;
@@ -632,6 +674,22 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 samples[o + 3u] = st.y.w;
             }
             detector_push(i, st.y.x);
+            if (ctl.lyap != 0u && tw_bad == 0u) {
+                let main = st;
+                st.y = tw_y;
+                st.mode = tw_mode;
+                if (!period() && st.nonfinite == 0u) {
+                    us[U_TRUNCATED * n + i] = 1u;
+                }
+                tw_y = st.y;
+                tw_mode = st.mode;
+                tw_bad = st.nonfinite;
+                st = main;
+                if (tw_bad == 0u) {
+                    // f32 logarithm even in the f64 kernel (f64 log is unreliable on some drivers).
+                    log_sum += F(log(f32(renormalize(st.y, d0))));
+                }
+            }
         }
     }
     if (q != ctl.periods && st.nonfinite == 0u) {
@@ -642,6 +700,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     ys[n + i] = st.y.y;
     ys[2u * n + i] = st.y.z;
     ys[3u * n + i] = st.y.w;
+    ys[4u * n + i] = tw_y.x;
+    ys[5u * n + i] = tw_y.y;
+    ys[6u * n + i] = tw_y.z;
+    ys[7u * n + i] = tw_y.w;
+    us[U_TWIN_MODE * n + i] = tw_mode;
+    us[U_TWIN_BAD * n + i] = tw_bad;
+    ring[R_LOG_SUM * n + i] = log_sum;
     us[U_MODE * n + i] = st.mode;
     us[U_IMPACTS * n + i] = st.impacts;
     us[U_SAMPLE_IMPACTS * n + i] = sample_impacts;

@@ -164,6 +164,10 @@ pub struct RunConfig {
     pub sample_periods: u32,
     /// Period test tolerance relative to the attractor size.
     pub period_tol: f64,
+    /// Estimate the largest Lyapunov exponent (maps always do).
+    pub lyapunov: bool,
+    /// |exponent| below this (per unit time) counts as zero: quasi-periodic.
+    pub lyapunov_tol: f64,
 }
 
 impl Default for RunConfig {
@@ -172,6 +176,8 @@ impl Default for RunConfig {
             transient_periods: 500,
             sample_periods: 200,
             period_tol: 1e-4,
+            lyapunov: false,
+            lyapunov_tol: 0.01,
         }
     }
 }
@@ -269,6 +275,7 @@ impl Config {
             max_events: self.method.max_events,
             zeno_speed: self.method.zeno_speed,
             impacts: self.method.impacts,
+            lyapunov: self.run.lyapunov,
         }
     }
 
@@ -345,6 +352,9 @@ impl Config {
         }
         if !(r.period_tol.is_finite() && r.period_tol > 0.0 && r.period_tol < 1.0) {
             return Err(ConfigError::range("run.period_tol", r.period_tol, "(0, 1)"));
+        }
+        if !(r.lyapunov_tol.is_finite() && r.lyapunov_tol > 0.0) {
+            return Err(ConfigError::range("run.lyapunov_tol", r.lyapunov_tol, "(0, inf)"));
         }
         let s = &self.sweep;
         if !SWEEPABLE.contains(&s.param.as_str()) {

@@ -178,6 +178,9 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 fn point(cfg: &Config, as_json: bool) -> Result<()> {
+    let mut cfg = cfg.clone();
+    cfg.run.lyapunov = true;
+    let cfg = &cfg;
     let p = cfg.params();
     let engine = Engine::open(cfg.method.backend);
     let t = Instant::now();
@@ -198,6 +201,7 @@ fn point(cfg: &Config, as_json: bool) -> Result<()> {
             "class": class.name(),
             "period": class.period(),
             "impacts_per_period": ipp,
+            "lyapunov": r.lyapunov,
             "diagnostics": r.diag,
             "samples": r.samples,
             "final_mode": r.final_mode,
@@ -216,6 +220,7 @@ fn point(cfg: &Config, as_json: bool) -> Result<()> {
         class.period().map_or("-".into(), |n| n.to_string())
     );
     println!("impacts per period {ipp:.4}");
+    println!("lyapunov exponent  {:.5} (per unit time)", r.lyapunov);
     println!(
         "diagnostics        impacts {} sticks {} locks {} overflows {} nonfinite {}",
         r.diag.impacts, r.diag.sticks, r.diag.locks, r.diag.overflows, r.diag.nonfinite

@@ -34,6 +34,8 @@ pub struct Settings {
     pub max_events: u32,
     pub zeno_speed: f64,
     pub impacts: ImpactMethod,
+    /// Estimate the largest Lyapunov exponent over the sampled periods (twice the work there).
+    pub lyapunov: bool,
 }
 
 impl Default for Settings {
@@ -43,6 +45,7 @@ impl Default for Settings {
             max_events: 32,
             zeno_speed: 1e-4,
             impacts: ImpactMethod::Located,
+            lyapunov: false,
         }
     }
 }
@@ -270,6 +273,15 @@ pub struct RunResult {
     pub diag: Diagnostics,
     pub final_y: [f64; 4],
     pub final_mode: Mode,
+    /// Largest Lyapunov exponent per unit time over the sampled periods (NaN when not
+    /// computed or when the twin trajectory failed).
+    pub lyapunov: f64,
+}
+
+/// Offset of the twin trajectory of the Lyapunov estimate: sqrt(machine epsilon) balances
+/// round-off in the measured separation against the nonlinearity of a finite separation.
+pub fn twin_offset<F: Real>() -> F {
+    F::EPSILON.sqrt()
 }
 
 /// The CPU integrator for one parameter point.
@@ -286,6 +298,7 @@ pub struct Integrator<F> {
     zeno: F,
     naive: bool,
     tol: F,
+    lyapunov: bool,
 }
 
 impl<F: Real> Integrator<F> {
@@ -306,6 +319,7 @@ impl<F: Real> Integrator<F> {
             zeno: F::of(s.zeno_speed),
             naive: s.impacts == ImpactMethod::Naive,
             tol: F::EPSILON * F::of(16.0),
+            lyapunov: s.lyapunov,
         }
     }
 
@@ -591,6 +605,35 @@ impl<F: Real> Integrator<F> {
         self.run_from(&mut st, transient, samples)
     }
 
+    /// Rescales the twin trajectory of the Lyapunov estimate back to distance d0 from the main
+    /// one (Benettin's method, once per period at the stroboscopic section, where both are
+    /// normally away from an impact) and returns the growth factor of the separation. A twin
+    /// that coincides with the main trajectory is restarted along y1; a rescaled twin that
+    /// slips takes the slip mode of its own v.
+    pub fn renormalize(&self, main: &PointState<F>, twin: &mut PointState<F>, d0: F) -> F {
+        let mut dd = F::zero();
+        for i in 0..4 {
+            let e = twin.y[i] - main.y[i];
+            dd += e * e;
+        }
+        let d = dd.sqrt();
+        let floor = d0 * F::of(1e-12);
+        if d > F::zero() {
+            for i in 0..4 {
+                twin.y[i] = main.y[i] + (twin.y[i] - main.y[i]) * (d0 / d);
+            }
+        } else {
+            twin.y = main.y;
+            twin.y[0] += d0;
+            twin.mode = main.mode;
+        }
+        let v = twin.y[1] - twin.y[3];
+        if v != F::zero() {
+            twin.mode = Mode::slip(v);
+        }
+        d.max(floor) / d0
+    }
+
     /// As [`Integrator::run`], from a given state (continuation).
     pub fn run_from(&self, st: &mut PointState<F>, transient: u32, samples: u32) -> RunResult {
         for _ in 0..transient {
@@ -601,21 +644,41 @@ impl<F: Real> Integrator<F> {
         }
         let before = st.diag.impacts;
         let mut out = Vec::with_capacity(samples as usize);
+        // Twin trajectory for the Lyapunov estimate, offset along y1 at the start of sampling.
+        let d0 = twin_offset::<F>();
+        let mut twin = *st;
+        twin.y[0] += d0;
+        let mut log_sum = 0.0f64;
         for _ in 0..samples {
             if st.diag.nonfinite {
                 break;
             }
             self.period(st);
-            if !st.diag.nonfinite {
-                out.push(st.y.map(|v| v.to_f64()));
+            if st.diag.nonfinite {
+                break;
+            }
+            out.push(st.y.map(|v| v.to_f64()));
+            if self.lyapunov && !twin.diag.nonfinite {
+                self.period(&mut twin);
+                if !twin.diag.nonfinite {
+                    // The logarithm in f32, as on the GPU (f64 logarithms are unreliable there).
+                    log_sum += (self.renormalize(st, &mut twin, d0).to_f64() as f32).ln() as f64;
+                }
             }
         }
+        let period = 2.0 * std::f64::consts::PI / self.p.eta.to_f64();
+        let lyapunov = if self.lyapunov && !twin.diag.nonfinite && !out.is_empty() {
+            log_sum / (out.len() as f64 * period)
+        } else {
+            f64::NAN
+        };
         RunResult {
             samples: out,
             sample_impacts: st.diag.impacts - before,
             diag: st.diag,
             final_y: st.y.map(|v| v.to_f64()),
             final_mode: st.mode,
+            lyapunov,
         }
     }
 }

@@ -8,7 +8,7 @@
 //! max_storage_buffer_binding_size, and dispatches beyond 65535 workgroups use a 2-D grid.
 
 use crate::classify::{Class, MAX_PERIOD, PeriodDetector, class_of};
-use crate::method::{Diagnostics, ImpactMethod, RunResult, Settings, forcing_table};
+use crate::method::{Diagnostics, ImpactMethod, RunResult, Settings, forcing_table, twin_offset};
 use crate::model::{Mode, Params, initial_mode};
 use crate::real::Real;
 use bytemuck::Pod;
@@ -31,9 +31,11 @@ pub fn shader_source(f64: bool) -> String {
 
 const WORKGROUP: u32 = 64;
 /// u32 slots per point (see `U_*` in the shader).
-const U_SLOTS: u64 = 11;
-/// F slots per point of the period detector: 64 ring values, lo, hi.
-const RING_SLOTS: u64 = MAX_PERIOD as u64 + 2;
+const U_SLOTS: u64 = 13;
+/// F slots per point of the period detector (64 ring values, lo, hi) and the Lyapunov log sum.
+const RING_SLOTS: u64 = MAX_PERIOD as u64 + 3;
+/// F slots per point of the states: main and twin trajectory.
+const Y_SLOTS: u64 = 8;
 /// Offset of the forcing table in the constants buffer.
 const C_TABLE: usize = 16;
 const VARY_LAMBDA: u32 = 10;
@@ -73,7 +75,8 @@ struct Control {
     vary1: u32,
     naive: u32,
     row: u32,
-    pad: [u32; 3],
+    lyap: u32,
+    pad: [u32; 2],
 }
 
 /// Work description for the GPU: every point shares `base` except the `vary` parameters.
@@ -283,7 +286,7 @@ impl Gpu {
         };
         // Bytes per point of each binding; the largest decides the batch size.
         let per_point = [
-            4 * fsz,
+            Y_SLOTS * fsz,
             U_SLOTS * 4,
             RING_SLOTS * fsz,
             store_f,
@@ -343,6 +346,7 @@ impl Gpu {
             0.0,
             0.0,
         ];
+        consts[14] = twin_offset::<F>().to_f64();
         debug_assert_eq!(consts.len(), C_TABLE);
         consts.extend(forcing_table(nsteps).iter().flatten());
         let mut consts: Vec<F> = consts.into_iter().map(F::of).collect();
@@ -391,7 +395,7 @@ impl Gpu {
                     .map(|&v| F::of(v))
                     .collect()
             };
-            let mut ys = vec![F::zero(); 4 * m];
+            let mut ys = vec![F::zero(); Y_SLOTS as usize * m];
             let mut us = vec![0u32; U_SLOTS as usize * m];
             for i in 0..m {
                 let y0 = job.y0[if job.y0.len() == 1 { 0 } else { start + i }];
@@ -454,7 +458,8 @@ impl Gpu {
                 vary1: codes.get(1).copied().unwrap_or(VARY_NONE),
                 naive: (s.impacts == ImpactMethod::Naive) as u32,
                 row: gx * WORKGROUP,
-                pad: [0; 3],
+                lyap: s.lyapunov as u32,
+                pad: [0; 2],
             };
             self.check_error()?;
             timings.setup_s += t_batch.elapsed().as_secs_f64();
@@ -520,6 +525,11 @@ impl Gpu {
             // One readback per batch.
             let t_read = Instant::now();
             let ys: Vec<F> = self.read_storage(&ys_buf, 4 * m as u64 * fsz)?;
+            let ring: Vec<F> = if s.lyapunov {
+                self.read_storage(&ring_buf, m as u64 * RING_SLOTS * fsz)?
+            } else {
+                Vec::new()
+            };
             let us: Vec<u32> = self.read_storage(&us_buf, U_SLOTS * m as u64 * 4)?;
             let samples: Vec<F> = if job.store_samples {
                 self.read_storage(&samples_buf, m as u64 * store_f)?
@@ -559,7 +569,18 @@ impl Gpu {
                 classes.push(class_of(diag.nonfinite, u(7) as usize, u(2) as u64, || {
                     PeriodDetector::period_from(possible, u(7))
                 }));
+                let lyapunov = if s.lyapunov && u(12) == 0 && u(7) > 0 {
+                    let eta = codes
+                        .iter()
+                        .position(|&c| c == 0)
+                        .map_or(job.base.eta, |c| job.values[(start + i) * nv + c]);
+                    let period = 2.0 * std::f64::consts::PI / eta;
+                    ring[(RING_SLOTS as usize - 1) * m + i].to_f64() / (u(7) as f64 * period)
+                } else {
+                    f64::NAN
+                };
                 results.push(RunResult {
+                    lyapunov,
                     samples: smp,
                     sample_impacts: u(2) as u64,
                     diag,
