@@ -11,8 +11,14 @@ pub const MAX_PERIOD: usize = 64;
 pub enum Class {
     /// The section repeats after `n` forcing periods.
     Periodic(u32),
-    /// No period <= 64 found (quasi-periodic or chaotic).
+    /// No period <= 64 found, no Lyapunov estimate to tell quasi-periodic from chaotic.
     Aperiodic,
+    /// No period <= 64 and a Lyapunov exponent of about zero.
+    QuasiPeriodic,
+    /// No period <= 64 and a positive Lyapunov exponent.
+    Chaotic,
+    /// Period detector and Lyapunov exponent disagree (e.g. still converging, period > 64).
+    Unresolved,
     /// No impact during the sampled periods.
     NoImpact,
     /// Non-finite state, or too few samples to decide.
@@ -24,6 +30,9 @@ impl Class {
         match self {
             Class::Periodic(n) => format!("period-{n}"),
             Class::Aperiodic => "aperiodic".into(),
+            Class::QuasiPeriodic => "quasi_periodic".into(),
+            Class::Chaotic => "chaotic".into(),
+            Class::Unresolved => "unresolved".into(),
             Class::NoImpact => "no_impact".into(),
             Class::Failed => "failed".into(),
         }
@@ -34,13 +43,46 @@ impl Class {
             _ => None,
         }
     }
-    /// Compact numeric code for arrays: n > 0 period, 0 aperiodic, -1 no impact, -2 failed.
+    /// Compact numeric code for arrays: n > 0 period-n, 0 aperiodic, -1 no impact, -2 failed,
+    /// -3 quasi-periodic, -4 chaotic, -5 unresolved.
     pub fn code(&self) -> i32 {
         match self {
             Class::Periodic(n) => *n as i32,
             Class::Aperiodic => 0,
             Class::NoImpact => -1,
             Class::Failed => -2,
+            Class::QuasiPeriodic => -3,
+            Class::Chaotic => -4,
+            Class::Unresolved => -5,
+        }
+    }
+
+    pub fn from_code(c: i32) -> Class {
+        match c {
+            n if n > 0 => Class::Periodic(n as u32),
+            0 => Class::Aperiodic,
+            -1 => Class::NoImpact,
+            -3 => Class::QuasiPeriodic,
+            -4 => Class::Chaotic,
+            -5 => Class::Unresolved,
+            _ => Class::Failed,
+        }
+    }
+
+    /// Splits `Aperiodic` by the Lyapunov exponent `lyap` (per unit time): above `tol`
+    /// chaotic, within +-tol quasi-periodic, below -tol unresolved (contracting but no period
+    /// <= 64 found). A periodic class with a clearly positive exponent is unresolved too. A
+    /// NaN exponent (not computed, twin failed) leaves the class as it is.
+    pub fn with_lyapunov(self, lyap: f64, tol: f64) -> Class {
+        if lyap.is_nan() {
+            return self;
+        }
+        match self {
+            Class::Periodic(_) if lyap > tol => Class::Unresolved,
+            Class::Aperiodic if lyap > tol => Class::Chaotic,
+            Class::Aperiodic if lyap >= -tol => Class::QuasiPeriodic,
+            Class::Aperiodic => Class::Unresolved,
+            c => c,
         }
     }
 }

@@ -209,6 +209,38 @@ impl Default for SweepConfig {
     }
 }
 
+/// A 2-D map over two parameters.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct MapConfig {
+    pub x: String,
+    pub x_from: f64,
+    pub x_to: f64,
+    pub x_points: u32,
+    pub y: String,
+    pub y_from: f64,
+    pub y_to: f64,
+    pub y_points: u32,
+    /// Figure title; empty => generated.
+    pub title: String,
+}
+
+impl Default for MapConfig {
+    fn default() -> Self {
+        MapConfig {
+            x: "R".into(),
+            x_from: 0.5,
+            x_to: 0.7,
+            x_points: 128,
+            y: "lambda".into(),
+            y_from: 0.0,
+            y_to: 0.1,
+            y_points: 128,
+            title: String::new(),
+        }
+    }
+}
+
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Config {
@@ -217,7 +249,11 @@ pub struct Config {
     pub method: MethodConfig,
     pub run: RunConfig,
     pub sweep: SweepConfig,
+    pub map: MapConfig,
 }
+
+/// Largest map (cells), bounded by host memory for the per-cell results.
+pub const MAX_MAP_CELLS: u64 = 1 << 26;
 
 /// Largest sample array a sweep may hold in memory (points x samples x 4 x f64).
 pub const MAX_SAMPLE_BYTES: u64 = 4 << 30;
@@ -354,7 +390,11 @@ impl Config {
             return Err(ConfigError::range("run.period_tol", r.period_tol, "(0, 1)"));
         }
         if !(r.lyapunov_tol.is_finite() && r.lyapunov_tol > 0.0) {
-            return Err(ConfigError::range("run.lyapunov_tol", r.lyapunov_tol, "(0, inf)"));
+            return Err(ConfigError::range(
+                "run.lyapunov_tol",
+                r.lyapunov_tol,
+                "(0, inf)",
+            ));
         }
         let s = &self.sweep;
         if !SWEEPABLE.contains(&s.param.as_str()) {
@@ -406,6 +446,7 @@ impl Config {
                 )
             })?;
         }
+        self.validate_map()?;
         let bytes = s.points as u64 * r.sample_periods as u64 * 32;
         if bytes > MAX_SAMPLE_BYTES {
             return Err(ConfigError::range(
@@ -420,6 +461,78 @@ impl Config {
             ));
         }
         Ok(())
+    }
+}
+
+impl Config {
+    fn validate_map(&self) -> Result<(), ConfigError> {
+        let m = &self.map;
+        for (key, name) in [("map.x", &m.x), ("map.y", &m.y)] {
+            if !SWEEPABLE.contains(&name.as_str()) {
+                return Err(ConfigError::range(
+                    key,
+                    format!("\"{name}\""),
+                    &format!("one of {SWEEPABLE:?}"),
+                ));
+            }
+            if name == "lambda" && self.model.friction != FrictionLaw::Coulomb {
+                return Err(ConfigError::range(
+                    key,
+                    "\"lambda\"",
+                    "fs, fk, l1 or l2 with friction = \"stribeck\"",
+                ));
+            }
+        }
+        let same = m.x == m.y
+            || (["lambda", "fs", "fk"].contains(&m.x.as_str())
+                && ["lambda", "fs", "fk"].contains(&m.y.as_str())
+                && (m.x == "lambda" || m.y == "lambda"));
+        if same {
+            return Err(ConfigError::range(
+                "map.y",
+                format!("\"{}\"", m.y),
+                &format!("a parameter other than map.x = \"{}\"", m.x),
+            ));
+        }
+        for (key, n) in [("map.x_points", m.x_points), ("map.y_points", m.y_points)] {
+            if !(1..=65536).contains(&n) {
+                return Err(ConfigError::range(key, n, "[1, 65536]"));
+            }
+        }
+        let cells = m.x_points as u64 * m.y_points as u64;
+        if cells > MAX_MAP_CELLS {
+            return Err(ConfigError::range(
+                "map.x_points x map.y_points",
+                format!("{} x {} = {cells} cells", m.x_points, m.y_points),
+                &format!("at most {MAX_MAP_CELLS} cells"),
+            ));
+        }
+        for (key, name, v) in [
+            ("map.x_from", &m.x, m.x_from),
+            ("map.x_to", &m.x, m.x_to),
+            ("map.y_from", &m.y, m.y_from),
+            ("map.y_to", &m.y, m.y_to),
+        ] {
+            let mut p = self.params();
+            p.set(name, v).map_err(ConfigError::Parse)?;
+            p.validate()
+                .map_err(|e| ConfigError::range(key, v, &format!("{} for `{name}`", e.range)))?;
+        }
+        if m.x_from == m.x_to || m.y_from == m.y_to {
+            return Err(ConfigError::range(
+                "map range",
+                format!("x [{}, {}], y [{}, {}]", m.x_from, m.x_to, m.y_from, m.y_to),
+                "ranges of non-zero width",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Parameter values of map cell (ix, iy): grid points at cell centres.
+    pub fn map_axis(from: f64, to: f64, n: u32) -> Vec<f64> {
+        (0..n)
+            .map(|i| from + (to - from) * (i as f64 + 0.5) / n as f64)
+            .collect()
     }
 }
 

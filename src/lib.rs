@@ -8,6 +8,7 @@ pub mod classify;
 pub mod config;
 pub mod engine;
 pub mod gpu;
+pub mod map;
 pub mod method;
 pub mod model;
 pub mod output;

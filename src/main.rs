@@ -5,6 +5,7 @@ use clap::{Args, Parser, Subcommand};
 use rattle::classify::classify;
 use rattle::config::{Backend, Config, Precision};
 use rattle::engine::Engine;
+use rattle::map;
 use rattle::output::{Staged, with_ext};
 use rattle::render::{DensityPlot, density_png};
 use rattle::sweep::{finish, plot_value, progress_bar};
@@ -41,6 +42,50 @@ enum Cmd {
         #[arg(long, default_value = "bifurcation")]
         out: PathBuf,
     },
+    /// A 2-D map of attractor classes and Lyapunov exponents over two parameters.
+    Map {
+        #[command(flatten)]
+        common: Common,
+        /// Output prefix: PREFIX.png, PREFIX-lyapunov.png, PREFIX-*.npy, PREFIX.json.
+        #[arg(long, default_value = "map")]
+        out: PathBuf,
+        /// Compute only the contiguous share I of N (0-based) and write PREFIX.part-I-of-N.json.
+        #[arg(long, value_name = "I/N")]
+        shard: Option<String>,
+        /// Run in K shards, keeping each finished one on disk: an interrupted run started again
+        /// with the same arguments resumes from the completed shards.
+        #[arg(long, value_name = "K")]
+        checkpoint: Option<usize>,
+        /// Also compute the map of OTHER.toml (same grid) and render where the class differs.
+        #[arg(long, value_name = "OTHER.toml")]
+        compare: Option<PathBuf>,
+    },
+    /// Merge the partial outputs of a sharded map into the files a single run writes.
+    Merge {
+        /// PREFIX.part-I-of-N.json files.
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        #[arg(long, default_value = "map")]
+        out: PathBuf,
+    },
+    /// Figures for reports: `paper` renders Figs. 2, 3, 4a and 4b side by side.
+    Figure {
+        /// Which figure (only `paper`).
+        #[arg(value_parser = ["paper"])]
+        which: String,
+        /// Directory with fig2.toml, fig3.toml, fig4a.toml, fig4b.toml.
+        #[arg(long, default_value = "configs")]
+        configs: PathBuf,
+        /// Parameter points per panel (overrides sweep.points).
+        #[arg(long)]
+        points: Option<u32>,
+        #[arg(long, default_value = "paper.png")]
+        out: PathBuf,
+        #[arg(long, value_parser = ["gpu", "cpu"])]
+        backend: Option<String>,
+        #[arg(long, value_parser = ["f32", "f64"])]
+        precision: Option<String>,
+    },
     /// List the adapters wgpu sees and the one rattle would use.
     Adapters,
     /// Run the same points on GPU and CPU and print the agreement table.
@@ -67,7 +112,7 @@ enum Cmd {
     },
 }
 
-#[derive(Args)]
+#[derive(Args, Clone)]
 struct Common {
     /// TOML configuration (every key defaults to the paper's values).
     #[arg(long)]
@@ -125,6 +170,53 @@ fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Point { common, json } => point(&common.load()?, json),
         Cmd::Bifurcation { common, out } => bifurcation(&common.load()?, &out),
+        Cmd::Map {
+            common,
+            out,
+            shard,
+            checkpoint,
+            compare,
+        } => {
+            let cfg = common.load()?;
+            let other = compare
+                .map(|p| {
+                    let mut c = Common {
+                        config: p,
+                        ..common.clone()
+                    };
+                    c.eta = None;
+                    c.load()
+                })
+                .transpose()?;
+            map_cmd(&cfg, &out, shard.as_deref(), checkpoint, other.as_ref())
+        }
+        Cmd::Merge { parts, out } => {
+            let parts = parts
+                .iter()
+                .map(|p| map::read_part(p))
+                .collect::<Result<Vec<_>, _>>()?;
+            let (cfg, fields, parts) = map::merge(parts)?;
+            let devices: Vec<&str> = parts.iter().map(|p| p.device.as_str()).collect();
+            let secs: f64 = parts.iter().map(|p| p.timings.integration_s).sum();
+            let meta = json!({
+                "command": "map (merged)",
+                "shards": parts.len(),
+                "devices": devices,
+                "timings": { "integration_s_sum": secs },
+            });
+            for f in map::write_outputs(&out, &cfg, &fields, meta)? {
+                println!("{}", f.display());
+            }
+            Ok(())
+        }
+        Cmd::Figure {
+            which: _,
+            configs,
+            points,
+            out,
+            backend,
+            precision,
+        } => figure_paper(&configs, points, &out, backend, precision),
         Cmd::Adapters => {
             let (all, chosen) = rattle::gpu::list_adapters();
             if all.is_empty() {
@@ -402,4 +494,200 @@ fn default_title(cfg: &Config) -> String {
     )
     .replace("Coulomb", "Coulomb friction:")
     .replace("Stribeck", "Stribeck friction:")
+}
+
+fn parse_shard(s: &str) -> Result<(usize, usize)> {
+    let (i, n) = s.split_once('/').context("--shard must be I/N, e.g. 0/4")?;
+    let (i, n): (usize, usize) = (i.trim().parse()?, n.trim().parse()?);
+    anyhow::ensure!(n >= 1 && i < n, "--shard {s}: need 0 <= I < N");
+    Ok((i, n))
+}
+
+fn map_cmd(
+    cfg: &Config,
+    out: &std::path::Path,
+    shard: Option<&str>,
+    checkpoint: Option<usize>,
+    other: Option<&Config>,
+) -> Result<()> {
+    let engine = Engine::open(cfg.method.backend);
+    let cells = map::cell_count(cfg);
+    let total = (cfg.run.transient_periods + 2 * cfg.run.sample_periods) as u64;
+    let per_cell = if matches!(engine, Engine::Gpu(_)) {
+        total
+    } else {
+        1
+    };
+    let part = |i: usize, n: usize| -> Result<map::Part> {
+        let range = map::shard_range(cells, i, n);
+        let pb = progress_bar(
+            range.len() as u64 * per_cell,
+            &format!("map {}/{}", i + 1, n),
+        );
+        let (s, timings) = map::compute(&engine, cfg, range.clone(), &pb)?;
+        pb.finish_and_clear();
+        Ok(map::Part {
+            version: env!("CARGO_PKG_VERSION").into(),
+            config: cfg.clone(),
+            shard: (i, n),
+            range: (range.start, range.end),
+            device: engine.device(),
+            backend: engine.name().into(),
+            timings,
+            fields: map::Fields::from_summaries(&s),
+        })
+    };
+    if let Some(s) = shard {
+        let (i, n) = parse_shard(s)?;
+        let p = part(i, n)?;
+        let path = map::part_path(out, i, n);
+        map::write_part(&path, &p)?;
+        println!("{}", path.display());
+        return Ok(());
+    }
+    let n = checkpoint.unwrap_or(1).max(1);
+    let mut parts = Vec::with_capacity(n);
+    for i in 0..n {
+        let path = map::part_path(out, i, n);
+        // Resume: a finished shard of the same configuration is reused.
+        if n > 1 {
+            if let Ok(p) = map::read_part(&path) {
+                if serde_json::to_value(&p.config)? == serde_json::to_value(cfg)? {
+                    eprintln!("shard {}/{} already done: {}", i + 1, n, path.display());
+                    parts.push(p);
+                    continue;
+                }
+            }
+        }
+        let p = part(i, n)?;
+        if n > 1 {
+            map::write_part(&path, &p)?;
+        }
+        parts.push(p);
+    }
+    let (cfg, fields, parts) = map::merge(parts)?;
+    let secs: f64 = parts.iter().map(|p| p.timings.integration_s).sum();
+    let steps = cells as f64
+        * (cfg.run.transient_periods + 2 * cfg.run.sample_periods) as f64
+        * cfg.method.steps_per_period as f64;
+    let mut meta = json!({
+        "command": "map",
+        "backend": engine.name(),
+        "device": engine.device(),
+        "precision": cfg.method.precision.name(),
+        "cells": cells,
+        "timings": { "integration_s": secs, "rk4_steps": steps, "steps_per_s": steps / secs },
+    });
+    if let Some(o) = other {
+        anyhow::ensure!(
+            o.map == cfg.map,
+            "--compare: the other config must have the same [map] grid"
+        );
+        let pb = progress_bar(cells as u64 * per_cell, "map (compare)");
+        let (s, _) = map::compute(&engine, o, 0..cells, &pb)?;
+        pb.finish_and_clear();
+        let other_fields = map::Fields::from_summaries(&s);
+        let a = fields.classes();
+        let b = other_fields.classes();
+        let changed = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+        let frac = changed as f64 / cells as f64;
+        meta["compare"] = json!({
+            "other_config": o,
+            "cells_changed": changed,
+            "fraction_changed": frac,
+            "other_class_counts": other_fields.counts(),
+        });
+        let mut p = out.as_os_str().to_owned();
+        p.push("-compare");
+        let files = map::write_compare(std::path::Path::new(&p), &cfg, &a, &b)?;
+        for f in files {
+            println!("{}", f.display());
+        }
+        eprintln!(
+            "class changed in {changed} of {cells} cells ({:.2}%)",
+            100.0 * frac
+        );
+    }
+    let files = map::write_outputs(out, &cfg, &fields, meta)?;
+    if n > 1 {
+        for i in 0..n {
+            let _ = std::fs::remove_file(map::part_path(out, i, n));
+        }
+    }
+    eprintln!(
+        "map: {} x {} cells on {} ({}, {}) in {:.2} s; {:?}",
+        cfg.map.x_points,
+        cfg.map.y_points,
+        engine.name(),
+        engine.device(),
+        cfg.method.precision.name(),
+        secs,
+        fields.counts()
+    );
+    for f in files {
+        println!("{}", f.display());
+    }
+    Ok(())
+}
+
+fn figure_paper(
+    dir: &std::path::Path,
+    points: Option<u32>,
+    out: &std::path::Path,
+    backend: Option<String>,
+    precision: Option<String>,
+) -> Result<()> {
+    let mut o = Vec::new();
+    if let Some(p) = points {
+        o.push(format!("sweep.points={p}"));
+    }
+    if let Some(b) = backend {
+        o.push(format!("method.backend=\"{b}\""));
+    }
+    if let Some(p) = precision {
+        o.push(format!("method.precision=\"{p}\""));
+    }
+    let mut data = Vec::new();
+    for name in ["fig2", "fig3", "fig4a", "fig4b"] {
+        let cfg = Config::load(&dir.join(format!("{name}.toml")), &o)?;
+        let engine = Engine::open(cfg.method.backend);
+        let values = cfg.sweep_values();
+        let pb = progress_bar(values.len() as u64, name);
+        let (results, _) = engine.run(&cfg, &[cfg.sweep.param.as_str()], &values, None, &pb)?;
+        pb.finish_and_clear();
+        let var = cfg.sweep.plot.as_str();
+        let xy: Vec<(f64, f64)> = values
+            .iter()
+            .zip(&results)
+            .flat_map(|(v, r)| r.samples.iter().map(move |s| (*v, plot_value(var, s))))
+            .collect();
+        let title = if cfg.sweep.title.is_empty() {
+            default_title(&cfg)
+        } else {
+            cfg.sweep.title.clone()
+        };
+        data.push((cfg, xy, title));
+    }
+    let panels: Vec<DensityPlot> = data
+        .iter()
+        .map(|(cfg, xy, title)| DensityPlot {
+            title,
+            x_label: "eta",
+            y_label: &cfg.sweep.plot,
+            x_range: (
+                cfg.sweep.from.min(cfg.sweep.to),
+                cfg.sweep.from.max(cfg.sweep.to),
+            ),
+            y_range: None,
+            points: xy,
+            width: 1000,
+            height: 700,
+        })
+        .collect();
+    let mut st = Staged::new();
+    rattle::render::panels_png(&st.path(out), &panels, 2, 2000, 1400)?;
+    for f in st.commit()? {
+        println!("{}", f.display());
+    }
+    Ok(())
 }

@@ -199,3 +199,115 @@ fn non_finite_parameters_fail_the_point_only() {
     ));
     assert!(!g.results[2].diag.nonfinite);
 }
+
+#[test]
+fn lyapunov_exponents_and_classes_agree_with_cpu() {
+    // Chaotic, periodic, quasi-periodic (just past the Neimark-Sacker point) and chaotic again.
+    let etas = [1.10, 1.50, 1.71, 1.74];
+    let want = [
+        Class::Chaotic,
+        Class::Periodic(1),
+        Class::QuasiPeriodic,
+        Class::Chaotic,
+    ];
+    let s = Settings {
+        lyapunov: true,
+        ..Settings::default()
+    };
+    for f64 in [false, true] {
+        let Some(g) = run_gpu(&eta_job(&etas, s, 500, 400), f64) else {
+            return;
+        };
+        for (i, &eta) in etas.iter().enumerate() {
+            let c = Integrator::<f64>::new(&Params::paper(eta), &s).run([0.0; 4], 500, 400);
+            let cc =
+                classify(&c.samples, c.sample_impacts, false, 1e-4).with_lyapunov(c.lyapunov, 0.01);
+            let gc = g.classes[i].with_lyapunov(g.results[i].lyapunov, 0.01);
+            eprintln!(
+                "eta {eta} ({}): GPU {gc:?} {:.5}, CPU f64 {cc:?} {:.5}",
+                if f64 { "f64" } else { "f32" },
+                g.results[i].lyapunov,
+                c.lyapunov
+            );
+            assert_eq!(gc, want[i], "GPU eta {eta}");
+            assert_eq!(cc, want[i], "CPU eta {eta}");
+            if matches!(want[i], Class::Periodic(_)) {
+                // On a periodic attractor both estimate the same contraction rate.
+                assert!((g.results[i].lyapunov - c.lyapunov).abs() < 1e-3);
+            }
+        }
+    }
+}
+
+#[test]
+fn small_map_classes_agree_with_cpu() {
+    if gpu().is_none() {
+        return;
+    }
+    let text = "[model]\neta = 1.26\n[method]\nsteps_per_period = 128\n[run]\n\
+        transient_periods = 300\nsample_periods = 100\n[map]\nx = \"R\"\nx_from = 0.5\n\
+        x_to = 0.7\nx_points = 12\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 12\n";
+    let mut cfg = rattle::config::Config::from_toml(text, &[]).unwrap();
+    let cells = rattle::map::cell_count(&cfg);
+    let pb = ProgressBar::hidden();
+    for prec in [
+        rattle::config::Precision::F32,
+        rattle::config::Precision::F64,
+    ] {
+        cfg.method.precision = prec;
+        let cpu = rattle::map::compute(&rattle::engine::Engine::Cpu, &cfg, 0..cells, &pb)
+            .unwrap()
+            .0;
+        let g = gpu().unwrap().lock().unwrap();
+        let out = {
+            let mut c = cfg.clone();
+            c.run.lyapunov = true;
+            let values = rattle::map::cell_values(&c, 0..cells);
+            let job = Job {
+                base: c.params(),
+                vary: &["R", "lambda"],
+                values: &values,
+                n_points: cells,
+                y0: &[[0.0; 4]],
+                settings: c.settings(),
+                transient: 300,
+                samples: 100,
+                store_samples: false,
+                period_tol: 1e-4,
+                max_binding_bytes: None,
+                max_groups_per_dim: None,
+            };
+            g.run(&job, prec == rattle::config::Precision::F64, &pb)
+                .unwrap()
+        };
+        drop(g);
+        let gpu_classes: Vec<Class> = out
+            .classes
+            .iter()
+            .zip(&out.results)
+            .map(|(c, r)| c.with_lyapunov(r.lyapunov, 0.01))
+            .collect();
+        let agree = cpu
+            .iter()
+            .zip(&gpu_classes)
+            .filter(|(a, b)| a.class == **b)
+            .count();
+        let periodic: Vec<usize> = (0..cells)
+            .filter(|&i| matches!(cpu[i].class, Class::Periodic(_)))
+            .collect();
+        let pagree = periodic
+            .iter()
+            .filter(|&&i| gpu_classes[i] == cpu[i].class)
+            .count();
+        eprintln!(
+            "{}: class agreement {agree}/{cells}, periodic cells {pagree}/{}",
+            prec.name(),
+            periodic.len()
+        );
+        // Same precision on both sides: periodic cells must agree (chaotic ones may split
+        // between chaotic/quasi-periodic/unresolved at the band edges).
+        assert!(periodic.len() >= 40);
+        assert!(pagree as f64 >= 0.97 * periodic.len() as f64);
+        assert!(agree as f64 >= 0.85 * cells as f64);
+    }
+}

@@ -104,7 +104,7 @@ pub struct Job<'a> {
 }
 
 /// Timings of a GPU run, seconds.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Timings {
     pub setup_s: f64,
     pub integration_s: f64,
