@@ -550,14 +550,13 @@ fn map_cmd(
     for i in 0..n {
         let path = map::part_path(out, i, n);
         // Resume: a finished shard of the same configuration is reused.
-        if n > 1 {
-            if let Ok(p) = map::read_part(&path) {
-                if serde_json::to_value(&p.config)? == serde_json::to_value(cfg)? {
-                    eprintln!("shard {}/{} already done: {}", i + 1, n, path.display());
-                    parts.push(p);
-                    continue;
-                }
-            }
+        if n > 1
+            && let Ok(p) = map::read_part(&path)
+            && serde_json::to_value(&p.config)? == serde_json::to_value(cfg)?
+        {
+            eprintln!("shard {}/{} already done: {}", i + 1, n, path.display());
+            parts.push(p);
+            continue;
         }
         let p = part(i, n)?;
         if n > 1 {

@@ -49,9 +49,9 @@ fn fig2_landmarks() {
         let (c, _) = class_at(&cfg, eta, n);
         let got = match c {
             Class::Periodic(_) => "periodic",
-            Class::Aperiodic => "aperiodic",
-            Class::NoImpact => "no_impact",
             Class::Failed => "failed",
+            Class::NoImpact => "no_impact",
+            _ => "aperiodic",
         };
         eprintln!("eta {eta}: {}", c.name());
         assert_eq!(got, want, "eta = {eta}: {}", c.name());
