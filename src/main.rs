@@ -6,9 +6,10 @@ use rattle::classify::classify;
 use rattle::config::{Backend, Config, Precision};
 use rattle::engine::Engine;
 use rattle::map;
+use rattle::method::RunResult;
 use rattle::output::{Staged, with_ext};
 use rattle::render::{DensityPlot, density_png};
-use rattle::sweep::{finish, plot_value, progress_bar};
+use rattle::sweep::{Direction, finish, plot_value, progress_bar};
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -41,6 +42,9 @@ enum Cmd {
         /// Output prefix: writes PREFIX.png, PREFIX.csv, PREFIX.json.
         #[arg(long, default_value = "bifurcation")]
         out: PathBuf,
+        /// Parameter continuation: each point starts from its neighbour's final state.
+        #[arg(long, value_parser = ["up", "down", "both"])]
+        continuation: Option<String>,
     },
     /// A 2-D map of attractor classes and Lyapunov exponents over two parameters.
     Map {
@@ -59,6 +63,10 @@ enum Cmd {
         /// Also compute the map of OTHER.toml (same grid) and render where the class differs.
         #[arg(long, value_name = "OTHER.toml")]
         compare: Option<PathBuf>,
+        /// K initial states per cell; cells whose starts end on different attractors are
+        /// marked "coexisting attractors".
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+        starts: u32,
     },
     /// Merge the partial outputs of a sharded map into the files a single run writes.
     Merge {
@@ -169,13 +177,18 @@ fn main() {
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Point { common, json } => point(&common.load()?, json),
-        Cmd::Bifurcation { common, out } => bifurcation(&common.load()?, &out),
+        Cmd::Bifurcation {
+            common,
+            out,
+            continuation,
+        } => bifurcation(&common.load()?, &out, continuation.as_deref()),
         Cmd::Map {
             common,
             out,
             shard,
             checkpoint,
             compare,
+            starts,
         } => {
             let cfg = common.load()?;
             let other = compare
@@ -188,7 +201,14 @@ fn run(cli: Cli) -> Result<()> {
                     c.load()
                 })
                 .transpose()?;
-            map_cmd(&cfg, &out, shard.as_deref(), checkpoint, other.as_ref())
+            map_cmd(
+                &cfg,
+                &out,
+                shard.as_deref(),
+                checkpoint,
+                other.as_ref(),
+                starts as usize,
+            )
         }
         Cmd::Merge { parts, out } => {
             let parts = parts
@@ -338,71 +358,107 @@ fn point(cfg: &Config, as_json: bool) -> Result<()> {
     Ok(())
 }
 
-fn bifurcation(cfg: &Config, out: &std::path::Path) -> Result<()> {
+fn bifurcation(cfg: &Config, out: &std::path::Path, continuation: Option<&str>) -> Result<()> {
     let t0 = Instant::now();
     let engine = Engine::open(cfg.method.backend);
     let values = cfg.sweep_values();
     let total = (cfg.run.transient_periods + cfg.run.sample_periods) as u64;
-    let pb = progress_bar(
-        values.len() as u64
-            * if matches!(engine, Engine::Gpu(_)) {
-                total
-            } else {
-                1
-            },
-        "bifurcation",
-    );
-    let (results, timings) = engine.run(cfg, &[cfg.sweep.param.as_str()], &values, None, &pb)?;
-    let integration_s = timings.integration_s;
-    pb.finish_and_clear();
-    let points = finish(cfg, results);
-    let steps = values.len() as f64
+    let gpu = matches!(engine, Engine::Gpu(_));
+    let t = Instant::now();
+    // One run per direction: ("", independent points) or ("up"/"down", continuation chains).
+    let (runs, timings): (Vec<(&str, Vec<RunResult>)>, Option<rattle::gpu::Timings>) =
+        match continuation {
+            None => {
+                let pb = progress_bar(
+                    values.len() as u64 * if gpu { total } else { 1 },
+                    "bifurcation",
+                );
+                let (r, t) = engine.run(cfg, &[cfg.sweep.param.as_str()], &values, None, &pb)?;
+                pb.finish_and_clear();
+                (vec![("", r)], Some(t))
+            }
+            Some(dir) => {
+                let dirs: Vec<(&str, Direction)> = match dir {
+                    "up" => vec![("up", Direction::Up)],
+                    "down" => vec![("down", Direction::Down)],
+                    _ => vec![("up", Direction::Up), ("down", Direction::Down)],
+                };
+                let pb = progress_bar(values.len() as u64, "continuation");
+                let d: Vec<Direction> = dirs.iter().map(|d| d.1).collect();
+                let r = rattle::sweep::continuation(&engine, cfg, &d, &pb)?;
+                pb.finish_and_clear();
+                (dirs.iter().map(|d| d.0).zip(r).collect(), None)
+            }
+        };
+    let integration_s = timings.map_or(t.elapsed().as_secs_f64(), |t| t.integration_s);
+    let runs: Vec<(&str, Vec<rattle::sweep::SweepPoint>)> =
+        runs.into_iter().map(|(d, r)| (d, finish(cfg, r))).collect();
+    let steps = (runs.len() * values.len()) as f64
         * (cfg.run.transient_periods + cfg.run.sample_periods) as f64
         * cfg.method.steps_per_period as f64;
 
     let mut staged = Staged::new();
-    // CSV: parameter, sample index, state.
+    // CSV: parameter, sample index, state (and the direction of a continuation).
     let csv_path = with_ext(out, "csv");
     {
         let mut w = csv::Writer::from_path(staged.path(&csv_path))
             .with_context(|| format!("cannot write {}", csv_path.display()))?;
-        w.write_record([cfg.sweep.param.as_str(), "sample", "y1", "y2", "y3", "y4"])?;
-        for pt in &points {
-            for (i, s) in pt.result.samples.iter().enumerate() {
-                w.write_record(&[
-                    pt.value.to_string(),
-                    i.to_string(),
-                    s[0].to_string(),
-                    s[1].to_string(),
-                    s[2].to_string(),
-                    s[3].to_string(),
-                ])?;
+        let mut head = vec![cfg.sweep.param.as_str(), "sample", "y1", "y2", "y3", "y4"];
+        if continuation.is_some() {
+            head.insert(0, "direction");
+        }
+        w.write_record(&head)?;
+        for (dir, points) in &runs {
+            for pt in points {
+                for (i, s) in pt.result.samples.iter().enumerate() {
+                    let mut rec = vec![
+                        pt.value.to_string(),
+                        i.to_string(),
+                        s[0].to_string(),
+                        s[1].to_string(),
+                        s[2].to_string(),
+                        s[3].to_string(),
+                    ];
+                    if continuation.is_some() {
+                        rec.insert(0, dir.to_string());
+                    }
+                    w.write_record(&rec)?;
+                }
             }
         }
         w.flush()?;
     }
-    // PNG: density-shaded stroboscopic samples.
+    // PNG: density-shaded stroboscopic samples, one panel per direction.
     let var = cfg.sweep.plot.as_str();
-    let xy: Vec<(f64, f64)> = points
-        .iter()
-        .flat_map(|pt| {
-            pt.result
-                .samples
-                .iter()
-                .map(|s| (pt.value, plot_value(var, s)))
-        })
-        .collect();
-    let title = if cfg.sweep.title.is_empty() {
+    let base_title = if cfg.sweep.title.is_empty() {
         default_title(cfg)
     } else {
         cfg.sweep.title.clone()
     };
-    let png_path = with_ext(out, "png");
     let x_label = sweep_label(&cfg.sweep.param);
-    density_png(
-        &staged.path(&png_path),
-        &DensityPlot {
-            title: &title,
+    let data: Vec<(String, Vec<(f64, f64)>)> = runs
+        .iter()
+        .map(|(dir, points)| {
+            let xy = points
+                .iter()
+                .flat_map(|pt| {
+                    pt.result
+                        .samples
+                        .iter()
+                        .map(|s| (pt.value, plot_value(var, s)))
+                })
+                .collect();
+            let title = match *dir {
+                "" => base_title.clone(),
+                d => format!("{base_title} [continuation {d}]"),
+            };
+            (title, xy)
+        })
+        .collect();
+    let panels: Vec<DensityPlot> = data
+        .iter()
+        .map(|(title, xy)| DensityPlot {
+            title,
             x_label: &x_label,
             y_label: var,
             x_range: (
@@ -410,17 +466,39 @@ fn bifurcation(cfg: &Config, out: &std::path::Path) -> Result<()> {
                 cfg.sweep.from.max(cfg.sweep.to),
             ),
             y_range: None,
-            points: &xy,
+            points: xy,
             width: 1200,
             height: 800,
-        },
-    )?;
+        })
+        .collect();
+    let png_path = staged.path(&with_ext(out, "png"));
+    if panels.len() == 1 {
+        density_png(&png_path, &panels[0])?;
+    } else {
+        rattle::render::panels_png(&png_path, &panels, 1, 1200, 1400)?;
+    }
     // JSON: config, timings, per-point class.
     let mut counts = std::collections::BTreeMap::<String, usize>::new();
-    for pt in &points {
-        *counts.entry(pt.class.name()).or_default() += 1;
+    for (_, points) in &runs {
+        for pt in points {
+            *counts.entry(pt.class.name()).or_default() += 1;
+        }
     }
-    let j = json!({
+    let point_json = |points: &[rattle::sweep::SweepPoint]| -> Vec<serde_json::Value> {
+        points
+            .iter()
+            .map(|pt| {
+                json!({
+                    "value": pt.value,
+                    "class": pt.class.name(),
+                    "period": pt.class.period(),
+                    "impacts_per_period": pt.impacts_per_period(),
+                    "diagnostics": pt.result.diag,
+                })
+            })
+            .collect()
+    };
+    let mut j = json!({
         "version": env!("CARGO_PKG_VERSION"),
         "command": "bifurcation",
         "backend": engine.name(),
@@ -428,23 +506,41 @@ fn bifurcation(cfg: &Config, out: &std::path::Path) -> Result<()> {
         "precision": cfg.method.precision.name(),
         "config": cfg,
         "timings": {
-            "setup_s": timings.setup_s,
+            "setup_s": timings.map(|t| t.setup_s),
             "integration_s": integration_s,
-            "readback_s": timings.readback_s,
-            "kernel_s": timings.kernel_s,
+            "readback_s": timings.map(|t| t.readback_s),
+            "kernel_s": timings.and_then(|t| t.kernel_s),
             "total_s": t0.elapsed().as_secs_f64(),
             "rk4_steps": steps,
             "steps_per_s": steps / integration_s,
         },
         "class_counts": counts,
-        "points": points.iter().map(|pt| json!({
-            "value": pt.value,
-            "class": pt.class.name(),
-            "period": pt.class.period(),
-            "impacts_per_period": pt.impacts_per_period(),
-            "diagnostics": pt.result.diag,
-        })).collect::<Vec<_>>(),
     });
+    if continuation.is_none() {
+        j["points"] = point_json(&runs[0].1).into();
+    } else {
+        for (dir, points) in &runs {
+            j[format!("points_{dir}")] = point_json(points).into();
+        }
+        if runs.len() == 2 {
+            // Hysteresis: the two directions end on different attractors.
+            let differ: Vec<f64> = runs[0]
+                .1
+                .iter()
+                .zip(&runs[1].1)
+                .filter(|(a, b)| {
+                    a.class != b.class || a.result.sample_impacts != b.result.sample_impacts
+                })
+                .map(|(a, _)| a.value)
+                .collect();
+            eprintln!(
+                "continuation: up and down differ at {} of {} points",
+                differ.len(),
+                values.len()
+            );
+            j["hysteresis_values"] = differ.into();
+        }
+    }
     staged.write(
         &with_ext(out, "json"),
         serde_json::to_string_pretty(&j)?.as_bytes(),
@@ -452,7 +548,7 @@ fn bifurcation(cfg: &Config, out: &std::path::Path) -> Result<()> {
     let files = staged.commit()?;
     eprintln!(
         "bifurcation: {} points x {} periods x {} steps on {} ({}, {}) in {:.2} s ({:.3e} RK4 steps/s)",
-        values.len(),
+        values.len() * runs.len(),
         cfg.run.transient_periods + cfg.run.sample_periods,
         cfg.method.steps_per_period,
         engine.name(),
@@ -509,6 +605,7 @@ fn map_cmd(
     shard: Option<&str>,
     checkpoint: Option<usize>,
     other: Option<&Config>,
+    starts: usize,
 ) -> Result<()> {
     let engine = Engine::open(cfg.method.backend);
     let cells = map::cell_count(cfg);
@@ -524,7 +621,7 @@ fn map_cmd(
             range.len() as u64 * per_cell,
             &format!("map {}/{}", i + 1, n),
         );
-        let (s, timings) = map::compute(&engine, cfg, range.clone(), &pb)?;
+        let (s, timings) = map::compute(&engine, cfg, range.clone(), starts, &pb)?;
         pb.finish_and_clear();
         Ok(map::Part {
             version: env!("CARGO_PKG_VERSION").into(),
@@ -534,7 +631,7 @@ fn map_cmd(
             device: engine.device(),
             backend: engine.name().into(),
             timings,
-            fields: map::Fields::from_summaries(&s),
+            fields: map::Fields::from_cells(&s),
         })
     };
     if let Some(s) = shard {
@@ -583,9 +680,9 @@ fn map_cmd(
             "--compare: the other config must have the same [map] grid"
         );
         let pb = progress_bar(cells as u64 * per_cell, "map (compare)");
-        let (s, _) = map::compute(&engine, o, 0..cells, &pb)?;
+        let (s, _) = map::compute(&engine, o, 0..cells, 1, &pb)?;
         pb.finish_and_clear();
-        let other_fields = map::Fields::from_summaries(&s);
+        let other_fields = map::Fields::from_cells(&s);
         let a = fields.classes();
         let b = other_fields.classes();
         let changed = a.iter().zip(&b).filter(|(x, y)| x != y).count();

@@ -50,18 +50,57 @@ pub fn cell_values(cfg: &Config, range: Range<usize>) -> Vec<f64> {
         .collect()
 }
 
-/// Computes the cells in `range` (Lyapunov estimate on).
+/// Initial states of `--starts K`: start 0 is `initial.y`; the others spread m2 over the
+/// clearance (golden-ratio sequence) with relative velocities in [-1, 1], m1 at rest.
+pub fn start_states(cfg: &Config, k: usize) -> Vec<[f64; 4]> {
+    (0..k)
+        .map(|j| {
+            if j == 0 {
+                return cfg.initial.y;
+            }
+            let u = (j as f64 * 0.618_033_988_749_895).fract();
+            let w = (j as f64 * 0.754_877_666_246_693).fract();
+            [0.0, 0.0, 0.9 * cfg.model.r * (2.0 * u - 1.0), 2.0 * w - 1.0]
+        })
+        .collect()
+}
+
+/// Computes the cells in `range` (Lyapunov estimate on) from `starts` initial states each.
+/// The summary of a cell is that of its first start; the second value counts the distinct
+/// attractors the starts ended on (different class or impacts per period).
 pub fn compute(
     engine: &Engine,
     cfg: &Config,
     range: Range<usize>,
+    starts: usize,
     pb: &ProgressBar,
-) -> Result<(Vec<Summary>, Timings), MapError> {
+) -> Result<(Vec<(Summary, u8)>, Timings), MapError> {
     let mut c = cfg.clone();
     c.run.lyapunov = true;
-    let values = cell_values(&c, range);
+    let k = starts.max(1);
+    let cells = cell_values(&c, range);
+    let values: Vec<f64> = cells
+        .chunks(2)
+        .flat_map(|xy| std::iter::repeat_n([xy[0], xy[1]], k).flatten())
+        .collect();
+    let y0 = start_states(&c, k);
+    let y0s: Vec<[f64; 4]> = (0..values.len() / 2).map(|i| y0[i % k]).collect();
     let vary = [c.map.x.as_str(), c.map.y.as_str()];
-    Ok(engine.run_summaries(&c, &vary, &values, None, pb)?)
+    let (s, t) = engine.run_summaries(&c, &vary, &values, Some(&y0s), pb)?;
+    let out = s
+        .chunks(k)
+        .map(|g| {
+            let mut seen: Vec<(Class, i64)> = Vec::new();
+            for x in g {
+                let key = (x.class, (x.impacts_per_period * 1e6).round() as i64);
+                if !seen.contains(&key) {
+                    seen.push(key);
+                }
+            }
+            (g[0], seen.len().min(255) as u8)
+        })
+        .collect();
+    Ok((out, t))
 }
 
 /// Per-cell fields as stored in partial outputs and NPY files.
@@ -77,11 +116,23 @@ pub struct Fields {
     pub locks: Vec<u64>,
     pub overflows: Vec<u64>,
     pub nonfinite: Vec<u8>,
+    /// Distinct attractors reached from the `--starts` initial states (1 without).
+    #[serde(default)]
+    pub attractors: Vec<u8>,
 }
 
 impl Fields {
+    pub fn from_cells(cells: &[(Summary, u8)]) -> Fields {
+        let s: Vec<Summary> = cells.iter().map(|c| c.0).collect();
+        Fields {
+            attractors: cells.iter().map(|c| c.1).collect(),
+            ..Fields::from_summaries(&s)
+        }
+    }
+
     pub fn from_summaries(s: &[Summary]) -> Fields {
         Fields {
+            attractors: vec![1; s.len()],
             class: s.iter().map(|c| c.class.code()).collect(),
             period: s
                 .iter()
@@ -118,6 +169,7 @@ impl Fields {
         self.locks.extend(o.locks);
         self.overflows.extend(o.overflows);
         self.nonfinite.extend(o.nonfinite);
+        self.attractors.extend(o.attractors);
     }
 
     pub fn classes(&self) -> Vec<Class> {
@@ -241,6 +293,7 @@ fn categories() -> Vec<(u16, String, [u8; 3])> {
         (103, "unresolved".to_string(), [240, 150, 200]),
         (104, "failed".to_string(), [230, 0, 0]),
         (105, "aperiodic".to_string(), [90, 90, 90]),
+        (106, "coexisting attractors".to_string(), [0, 200, 220]),
     ]);
     v
 }
@@ -294,7 +347,12 @@ pub fn write_outputs(
         .iter()
         .map(|(c, l, rgb)| (*c, l.as_str(), *rgb))
         .collect();
-    let cells: Vec<u16> = fields.classes().into_iter().map(category).collect();
+    let cells: Vec<u16> = fields
+        .classes()
+        .into_iter()
+        .zip(&fields.attractors)
+        .map(|(c, &a)| if a > 1 { 106 } else { category(c) })
+        .collect();
     let (xr, yr) = ((m.x_from, m.x_to), (m.y_from, m.y_to));
     let ordered = |r: (f64, f64)| (r.0.min(r.1), r.0.max(r.1));
     category_map_png(
@@ -318,6 +376,7 @@ pub fn write_outputs(
         .iter()
         .map(|v| v.unwrap_or(f64::NAN))
         .collect();
+    let lyap_raw = &lyap;
     if lyap.iter().any(|v| v.is_finite()) {
         let mut p = prefix.as_os_str().to_owned();
         p.push("-lyapunov");
@@ -377,21 +436,19 @@ pub fn write_outputs(
         w.extend(data.iter().copied())?;
         w.finish()
     }
-    npy(&mut st, "class", &|p| save(p, &shape, &fields.class))?;
-    npy(&mut st, "period", &|p| save(p, &shape, &fields.period))?;
+    let f = fields;
+    npy(&mut st, "class", &|p| save(p, &shape, &f.class))?;
+    npy(&mut st, "period", &|p| save(p, &shape, &f.period))?;
     npy(&mut st, "impacts_per_period", &|p| {
-        save(p, &shape, &fields.impacts_per_period)
+        save(p, &shape, &f.impacts_per_period)
     })?;
-    npy(&mut st, "lyapunov", &|p| save(p, &shape, &lyap))?;
-    npy(&mut st, "impacts", &|p| save(p, &shape, &fields.impacts))?;
-    npy(&mut st, "sticks", &|p| save(p, &shape, &fields.sticks))?;
-    npy(&mut st, "locks", &|p| save(p, &shape, &fields.locks))?;
-    npy(&mut st, "overflows", &|p| {
-        save(p, &shape, &fields.overflows)
-    })?;
-    npy(&mut st, "nonfinite", &|p| {
-        save(p, &shape, &fields.nonfinite)
-    })?;
+    npy(&mut st, "lyapunov", &|p| save(p, &shape, lyap_raw))?;
+    npy(&mut st, "impacts", &|p| save(p, &shape, &f.impacts))?;
+    npy(&mut st, "sticks", &|p| save(p, &shape, &f.sticks))?;
+    npy(&mut st, "locks", &|p| save(p, &shape, &f.locks))?;
+    npy(&mut st, "overflows", &|p| save(p, &shape, &f.overflows))?;
+    npy(&mut st, "nonfinite", &|p| save(p, &shape, &f.nonfinite))?;
+    npy(&mut st, "attractors", &|p| save(p, &shape, &f.attractors))?;
     let mut j = meta;
     j["version"] = env!("CARGO_PKG_VERSION").into();
     j["config"] = serde_json::to_value(cfg).map_err(|e| MapError::Merge(e.to_string()))?;

@@ -121,3 +121,46 @@ pub fn plot_value(var: &str, y: &[f64; 4]) -> f64 {
         _ => y[1] - y[3],
     }
 }
+
+/// Direction of a continuation sweep.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Direction {
+    Up,
+    Down,
+}
+
+/// Parameter continuation: each point starts from the final state of its neighbour in the
+/// sweep direction (the first from `cfg.initial.y`), to follow one attractor and show
+/// hysteresis. Independent chains (one per direction) advance together, one point each per
+/// engine call. Results come back in ascending parameter order for each direction.
+pub fn continuation(
+    engine: &crate::engine::Engine,
+    cfg: &Config,
+    directions: &[Direction],
+    pb: &ProgressBar,
+) -> Result<Vec<Vec<RunResult>>, crate::gpu::GpuError> {
+    let values = cfg.sweep_values();
+    let n = values.len();
+    let index = |d: Direction, j: usize| if d == Direction::Up { j } else { n - 1 - j };
+    let mut y: Vec<[f64; 4]> = vec![cfg.initial.y; directions.len()];
+    let mut out: Vec<Vec<Option<RunResult>>> = vec![vec![None; n]; directions.len()];
+    for j in 0..n {
+        let vals: Vec<f64> = directions.iter().map(|&d| values[index(d, j)]).collect();
+        let (rs, _) = engine.run(
+            cfg,
+            &[cfg.sweep.param.as_str()],
+            &vals,
+            Some(&y),
+            &ProgressBar::hidden(),
+        )?;
+        for (c, r) in rs.into_iter().enumerate() {
+            y[c] = r.final_y;
+            out[c][index(directions[c], j)] = Some(r);
+        }
+        pb.inc(1);
+    }
+    Ok(out
+        .into_iter()
+        .map(|v| v.into_iter().map(|r| r.expect("every point ran")).collect())
+        .collect())
+}

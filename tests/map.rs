@@ -183,3 +183,89 @@ fn bad_map_configs_are_rejected_with_the_key() {
         "no output on error"
     );
 }
+
+#[test]
+fn starts_keep_the_first_start_and_count_attractors() {
+    let d = scratch("starts");
+    let cfg = d.join("small.toml");
+    std::fs::write(&cfg, SMALL).unwrap();
+    for (k, out) in [("1", "one"), ("4", "four")] {
+        ok(rattle()
+            .args([
+                "map",
+                "--backend",
+                "cpu",
+                "--precision",
+                "f64",
+                "--starts",
+                k,
+                "--config",
+            ])
+            .arg(&cfg)
+            .arg("--out")
+            .arg(d.join(out)));
+    }
+    // Start 0 is initial.y, so the class field is the plain map's.
+    let a = std::fs::read(d.join("one-class.npy")).unwrap();
+    let b = std::fs::read(d.join("four-class.npy")).unwrap();
+    assert!(a == b);
+    let att = std::fs::read(d.join("four-attractors.npy")).unwrap();
+    let npy = npyz::NpyFile::new(&att[..]).unwrap();
+    let v: Vec<u8> = npy.into_vec().unwrap();
+    assert!(v.iter().all(|&n| (1..=4).contains(&n)));
+    let one: Vec<u8> =
+        npyz::NpyFile::new(&std::fs::read(d.join("one-attractors.npy")).unwrap()[..])
+            .unwrap()
+            .into_vec()
+            .unwrap();
+    assert!(one.iter().all(|&n| n == 1));
+    eprintln!(
+        "cells with coexisting attractors: {}",
+        v.iter().filter(|&&n| n > 1).count()
+    );
+}
+
+#[test]
+fn continuation_follows_the_attractor_in_both_directions() {
+    let d = scratch("cont");
+    let cfg = d.join("c.toml");
+    std::fs::write(
+        &cfg,
+        "[run]\ntransient_periods = 100\nsample_periods = 20\n[sweep]\nfrom = 1.42\nto = 1.6\npoints = 12\n",
+    )
+    .unwrap();
+    ok(rattle()
+        .args([
+            "bifurcation",
+            "--backend",
+            "cpu",
+            "--continuation",
+            "both",
+            "--config",
+        ])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(d.join("c")));
+    let csv = std::fs::read_to_string(d.join("c.csv")).unwrap();
+    assert!(csv.starts_with("direction,eta,sample"));
+    assert_eq!(
+        csv.lines().filter(|l| l.starts_with("up,")).count(),
+        12 * 20
+    );
+    assert_eq!(
+        csv.lines().filter(|l| l.starts_with("down,")).count(),
+        12 * 20
+    );
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("c.json")).unwrap()).unwrap();
+    // On this periodic branch both directions follow the same period-1 orbit.
+    for dir in ["points_up", "points_down"] {
+        let pts = j[dir].as_array().unwrap();
+        assert_eq!(pts.len(), 12);
+        assert!(
+            pts.iter().all(|p| p["class"] == "period-1"),
+            "{dir}: {pts:?}"
+        );
+    }
+    assert_eq!(j["hysteresis_values"].as_array().unwrap().len(), 0);
+}

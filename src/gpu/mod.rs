@@ -131,6 +131,8 @@ pub struct Gpu {
     timestamps: bool,
     limits: wgpu::Limits,
     error: Arc<Mutex<Option<String>>>,
+    /// Compiled kernels, [f32, f64], built on first use (continuation runs many small jobs).
+    pipelines: Mutex<[Option<wgpu::ComputePipeline>; 2]>,
     /// Longest wait for one dispatch before giving up.
     pub timeout: Duration,
 }
@@ -209,6 +211,7 @@ impl Gpu {
             timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
             limits,
             error,
+            pipelines: Mutex::new([None, None]),
             timeout: Duration::from_secs(120),
         })
     }
@@ -306,22 +309,29 @@ impl Gpu {
         }
         let batch = batch.min(n.max(1));
 
-        let module = self
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("integrate"),
-                source: wgpu::ShaderSource::Wgsl(shader_source(F::NAME == "f64").into()),
-            });
-        let pipeline = self
-            .device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("integrate"),
-                layout: None,
-                module: &module,
-                entry_point: Some("main"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
+        let is_f64 = F::NAME == "f64";
+        let pipeline = {
+            let mut cache = self.pipelines.lock().unwrap();
+            cache[is_f64 as usize]
+                .get_or_insert_with(|| {
+                    let module = self
+                        .device
+                        .create_shader_module(wgpu::ShaderModuleDescriptor {
+                            label: Some("integrate"),
+                            source: wgpu::ShaderSource::Wgsl(shader_source(is_f64).into()),
+                        });
+                    self.device
+                        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                            label: Some("integrate"),
+                            layout: None,
+                            module: &module,
+                            entry_point: Some("main"),
+                            compilation_options: Default::default(),
+                            cache: None,
+                        })
+                })
+                .clone()
+        };
         self.check_error()?;
 
         // Constants: parameters, method constants, forcing table.
