@@ -255,9 +255,13 @@ fn small_map_classes_agree_with_cpu() {
         rattle::config::Precision::F64,
     ] {
         cfg.method.precision = prec;
-        let cpu = rattle::map::compute(&rattle::engine::Engine::Cpu, &cfg, 0..cells, &pb)
-            .unwrap()
-            .0;
+        let cpu: Vec<_> =
+            rattle::map::compute(&rattle::engine::Engine::Cpu, &cfg, 0..cells, 1, &pb)
+                .unwrap()
+                .0
+                .into_iter()
+                .map(|c| c.0)
+                .collect();
         let g = gpu().unwrap().lock().unwrap();
         let out = {
             let mut c = cfg.clone();
