@@ -3,6 +3,7 @@
 //! One module per concept: [`model`] (equations), [`method`] (the CPU integrator, twin of
 //! `shaders/integrate.wgsl`), [`classify`], [`sweep`], [`config`], [`render`], [`output`].
 
+pub mod accuracy;
 pub mod bench;
 pub mod classify;
 pub mod config;

@@ -94,6 +94,23 @@ enum Cmd {
         #[arg(long, value_parser = ["f32", "f64"])]
         precision: Option<String>,
     },
+    /// Work-precision chart and failure fractions of every method, precision and backend.
+    Accuracy {
+        #[command(flatten)]
+        common: Common,
+        /// Output prefix: PREFIX.csv, PREFIX.png (work-precision), PREFIX-failure.png, PREFIX.json.
+        #[arg(long, default_value = "accuracy")]
+        out: PathBuf,
+        /// Copies of the test point run together for the timing.
+        #[arg(long, default_value_t = 64)]
+        ensemble: usize,
+        /// Sweep points of the failure study.
+        #[arg(long, default_value_t = 100)]
+        failure_points: u32,
+        /// Transient periods before the section point is taken.
+        #[arg(long, default_value_t = 300)]
+        transient: u32,
+    },
     /// List the adapters wgpu sees and the one rattle would use.
     Adapters,
     /// Run the same points on GPU and CPU and print the agreement table.
@@ -237,6 +254,13 @@ fn run(cli: Cli) -> Result<()> {
             backend,
             precision,
         } => figure_paper(&configs, points, &out, backend, precision),
+        Cmd::Accuracy {
+            common,
+            out,
+            ensemble,
+            failure_points,
+            transient,
+        } => accuracy_cmd(&common, &out, ensemble, failure_points, transient),
         Cmd::Adapters => {
             let (all, chosen) = rattle::gpu::list_adapters();
             if all.is_empty() {
@@ -782,6 +806,183 @@ fn figure_paper(
         .collect();
     let mut st = Staged::new();
     rattle::render::panels_png(&st.path(out), &panels, 2, 2000, 1400)?;
+    for f in st.commit()? {
+        println!("{}", f.display());
+    }
+    Ok(())
+}
+
+fn accuracy_cmd(
+    common: &Common,
+    out: &std::path::Path,
+    ensemble: usize,
+    failure_points: u32,
+    transient: u32,
+) -> Result<()> {
+    use rattle::accuracy::{Options, observed_order, study};
+    use rattle::render::{LinePlot, Series, line_plot_png};
+    let cfg = common.load()?;
+    anyhow::ensure!(
+        ensemble >= 1 && failure_points >= 2,
+        "--ensemble >= 1, --failure-points >= 2"
+    );
+    let backends = match common.backend.as_deref() {
+        Some("cpu") => vec![Backend::Cpu],
+        Some(_) => vec![Backend::Gpu],
+        None => vec![Backend::Gpu, Backend::Cpu],
+    };
+    let t0 = Instant::now();
+    let (rows, mut meta) = study(
+        &cfg,
+        &Options {
+            ensemble,
+            transient,
+            failure_points,
+            backends,
+        },
+        &mut |s| eprintln!("accuracy: {s} ({:.0} s)", t0.elapsed().as_secs_f64()),
+    )
+    .map_err(anyhow::Error::msg)?;
+    let mut st = Staged::new();
+    {
+        let mut w = csv::Writer::from_path(st.path(&with_ext(out, "csv")))?;
+        for r in &rows {
+            w.serialize(r)?;
+        }
+        w.flush()?;
+    }
+    // Work-precision chart of the configured point: one line per method/precision/backend.
+    let case = meta["reference"]["case"].as_str().unwrap_or("").to_string();
+    let mut series = Vec::new();
+    let mut orders = Vec::new();
+    let mut keys: Vec<(String, String, String)> = rows
+        .iter()
+        .filter(|r| r.kind == "error")
+        .map(|r| (r.method.clone(), r.precision.clone(), r.backend.clone()))
+        .collect();
+    keys.dedup();
+    keys.sort();
+    keys.dedup();
+    for (i, (m, p, b)) in keys.iter().enumerate() {
+        let line: Vec<&rattle::accuracy::Row> = rows
+            .iter()
+            .filter(|r| {
+                r.kind == "error"
+                    && r.case == case
+                    && &r.method == m
+                    && &r.precision == p
+                    && &r.backend == b
+            })
+            .collect();
+        let err_n: Vec<(u32, f64)> = line
+            .iter()
+            .filter_map(|r| r.error.map(|e| (r.n, e)))
+            .collect();
+        // Order over the range above the precision's noise floor.
+        let floor = if p == "f32" { 1e-6 } else { 1e-12 };
+        let q = observed_order(&err_n, floor);
+        let exact: Vec<&rattle::accuracy::Row> = rows
+            .iter()
+            .filter(|r| {
+                r.kind == "error"
+                    && r.case != case
+                    && &r.method == m
+                    && &r.precision == p
+                    && &r.backend == b
+            })
+            .collect();
+        let qx = observed_order(
+            &exact
+                .iter()
+                .filter_map(|r| r.error.map(|e| (r.n, e)))
+                .collect::<Vec<_>>(),
+            floor,
+        );
+        orders.push(json!({"method": m, "precision": p, "backend": b, "order": q, "order_frictionless_exact": qx}));
+        series.push(Series {
+            label: format!(
+                "{m} {p} {b} (order {})",
+                q.map_or("-".to_string(), |q| format!("{q:.2}"))
+            ),
+            points: line
+                .iter()
+                .filter_map(|r| Some((r.seconds_per_point?, r.error?)))
+                .collect(),
+            color_index: i,
+            dashed: m == "naive",
+        });
+    }
+    let title = format!("work-precision at {case} (section point of the attractor)");
+    line_plot_png(
+        &st.path(&with_ext(out, "png")),
+        &LinePlot {
+            title: &title,
+            x_label: "seconds per parameter point",
+            y_label: "max |error| of the section point",
+            log_x: true,
+            log_y: true,
+            series: &series,
+            width: 1200,
+            height: 800,
+        },
+    )?;
+    // Failure chart: class mismatch against the reference, per method and precision.
+    let mut fseries = Vec::new();
+    for (i, m) in ["located", "naive"].iter().enumerate() {
+        for (j, p) in ["f32", "f64"].iter().enumerate() {
+            let pts: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.kind == "failure" && r.method == *m && r.precision == *p)
+                .filter_map(|r| Some((r.n as f64, 100.0 * r.class_mismatch?)))
+                .collect();
+            fseries.push(Series {
+                label: format!("{m} {p}: class differs from reference"),
+                points: pts,
+                color_index: 2 * i + j,
+                dashed: *m == "naive",
+            });
+            let ov: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.kind == "failure" && r.method == *m && r.precision == *p)
+                .filter_map(|r| {
+                    Some((
+                        r.n as f64,
+                        100.0 * (r.overflow_fraction? + r.nonfinite_fraction?),
+                    ))
+                })
+                .collect();
+            if ov.iter().any(|p| p.1 > 0.0) {
+                fseries.push(Series {
+                    label: format!("{m} {p}: overflow or non-finite"),
+                    points: ov,
+                    color_index: 4 + 2 * i + j,
+                    dashed: true,
+                });
+            }
+        }
+    }
+    let mut fp = out.as_os_str().to_owned();
+    fp.push("-failure");
+    line_plot_png(
+        &st.path(&with_ext(std::path::Path::new(&fp), "png")),
+        &LinePlot {
+            title: "classification failures over the sweep (reference: located, f64, N = 4096)",
+            x_label: "steps per forcing period N",
+            y_label: "% of sweep points",
+            log_x: true,
+            log_y: false,
+            series: &fseries,
+            width: 1200,
+            height: 800,
+        },
+    )?;
+    meta["orders"] = orders.into();
+    meta["config"] = serde_json::to_value(&cfg)?;
+    meta["seconds"] = t0.elapsed().as_secs_f64().into();
+    st.write(
+        &with_ext(out, "json"),
+        serde_json::to_string_pretty(&meta)?.as_bytes(),
+    )?;
     for f in st.commit()? {
         println!("{}", f.display());
     }

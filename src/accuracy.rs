@@ -1,0 +1,402 @@
+//! `rattle accuracy`: what each second buys in accuracy (work-precision chart) and where cheap
+//! settings stop being trustworthy (failure fractions and stress cases).
+
+use crate::classify::{Class, classify};
+use crate::config::{Backend, Config, Precision};
+use crate::engine::Engine;
+use crate::method::{ImpactMethod, Integrator, RunResult, Settings};
+use crate::model::Params;
+use crate::reference::{FrictionlessParams, exact_frictionless};
+use indicatif::ProgressBar;
+use serde::Serialize;
+
+/// Steps per period of the study and of the reference.
+pub const NS: [u32; 9] = [16, 32, 64, 128, 256, 512, 1024, 2048, 4096];
+pub const N_REF: u32 = 4096;
+
+/// One row of the CSV.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Row {
+    /// "error", "failure" or "stress".
+    pub kind: String,
+    pub case: String,
+    pub method: String,
+    pub precision: String,
+    pub backend: String,
+    pub n: u32,
+    /// Max-norm error of the state against the reference (error rows).
+    pub error: Option<f64>,
+    pub seconds_per_point: Option<f64>,
+    pub steps_per_s: Option<f64>,
+    /// Fraction of sweep points classified differently from the reference (failure rows).
+    pub class_mismatch: Option<f64>,
+    pub overflow_fraction: Option<f64>,
+    pub nonfinite_fraction: Option<f64>,
+    /// Stress rows: class and impacts per period, and whether both match the reference.
+    pub class: Option<String>,
+    pub impacts_per_period: Option<f64>,
+    pub matches_reference: Option<bool>,
+    /// Why a row could not be measured.
+    pub note: Option<String>,
+}
+
+/// A stress case: a parameter point where fixed-step methods are known to struggle.
+#[derive(Clone, Debug)]
+pub struct Stress {
+    pub name: &'static str,
+    pub params: Params<f64>,
+}
+
+pub fn stress_cases() -> Vec<Stress> {
+    let mut chatter = Params::paper(0.8);
+    chatter.restitution = 0.3;
+    chatter.fs = 0.1;
+    chatter.fk = 0.1;
+    let mut stick = Params::paper(1.0);
+    stick.fs = 0.3;
+    stick.fk = 0.3;
+    vec![
+        Stress {
+            name: "grazing eta=1.775",
+            params: Params::paper(1.775),
+        },
+        Stress {
+            name: "chatter into lock R=0.3 eta=0.8",
+            params: chatter,
+        },
+        Stress {
+            name: "sticking lambda=0.3 eta=1.0",
+            params: stick,
+        },
+        Stress {
+            name: "periodic eta=1.5",
+            params: Params::paper(1.5),
+        },
+    ]
+}
+
+/// A stress outcome matches the reference when the class is the same and so is the impact count
+/// per period (exactly on periodic attractors, within 0.1 as a long-run average otherwise).
+pub fn stress_match(c: Class, ipp: f64, c_ref: Class, ipp_ref: f64) -> bool {
+    let tol = if matches!(c_ref, Class::Periodic(_)) {
+        1e-9
+    } else {
+        0.1
+    };
+    c == c_ref && (ipp - ipp_ref).abs() <= tol
+}
+
+/// Class and impacts per period of a point (CPU, given method, precision and N).
+pub fn point_outcome(
+    p: &Params<f64>,
+    n: u32,
+    impacts: ImpactMethod,
+    f64: bool,
+    transient: u32,
+    samples: u32,
+) -> (Class, f64, RunResult) {
+    let s = Settings {
+        steps_per_period: n,
+        impacts,
+        ..Settings::default()
+    };
+    let r = if f64 {
+        Integrator::<f64>::new(p, &s).run([0.0; 4], transient, samples)
+    } else {
+        Integrator::<f32>::new(p, &s).run([0.0; 4], transient, samples)
+    };
+    let c = classify(&r.samples, r.sample_impacts, r.diag.nonfinite, 1e-4);
+    let ipp = r.sample_impacts as f64 / r.samples.len().max(1) as f64;
+    (c, ipp, r)
+}
+
+fn method_name(m: ImpactMethod) -> &'static str {
+    match m {
+        ImpactMethod::Located => "located",
+        ImpactMethod::Naive => "naive",
+    }
+}
+
+fn max_diff(a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    (0..4).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max)
+}
+
+/// Least-squares slope of -log(error) against log(N) over the points above `floor`.
+pub fn observed_order(points: &[(u32, f64)], floor: f64) -> Option<f64> {
+    let xy: Vec<(f64, f64)> = points
+        .iter()
+        .filter(|(_, e)| *e > floor && e.is_finite())
+        .map(|&(n, e)| ((n as f64).ln(), e.ln()))
+        .collect();
+    if xy.len() < 2 {
+        return None;
+    }
+    let k = xy.len() as f64;
+    let mx = xy.iter().map(|p| p.0).sum::<f64>() / k;
+    let my = xy.iter().map(|p| p.1).sum::<f64>() / k;
+    let sxy: f64 = xy.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = xy.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    Some(-sxy / sxx)
+}
+
+/// Options of a study.
+pub struct Options {
+    pub ensemble: usize,
+    pub transient: u32,
+    pub failure_points: u32,
+    pub backends: Vec<Backend>,
+}
+
+/// The whole study: error rows (frictionless exact case and a periodic Fig. 2 point),
+/// failure rows over a reduced Fig. 2 sweep, stress rows. `log` receives progress lines.
+pub fn study(
+    cfg: &Config,
+    o: &Options,
+    log: &mut dyn FnMut(&str),
+) -> Result<(Vec<Row>, serde_json::Value), String> {
+    let mut rows = Vec::new();
+    let engines: Vec<Engine> = o.backends.iter().map(|&b| Engine::open(b)).collect();
+    let combos = || {
+        let mut v = Vec::new();
+        for e in &engines {
+            for m in [ImpactMethod::Located, ImpactMethod::Naive] {
+                for p in [Precision::F32, Precision::F64] {
+                    v.push((e, m, p));
+                }
+            }
+        }
+        v
+    };
+
+    // (b) Reference for the full model: CPU f64 at N_REF, checked against 2 N_REF.
+    let base = cfg.params();
+    let p0 = base;
+    let (_, _, r_ref) = point_outcome(&p0, N_REF, ImpactMethod::Located, true, o.transient, 1);
+    let (c_ref, _, _) = point_outcome(&p0, N_REF, ImpactMethod::Located, true, o.transient, 100);
+    let (_, _, r_ref2) = point_outcome(&p0, 2 * N_REF, ImpactMethod::Located, true, o.transient, 1);
+    let ref_change = max_diff(&r_ref.final_y, &r_ref2.final_y);
+    log(&format!(
+        "reference at eta = {}: {} (N = {N_REF} vs {}: change {ref_change:.2e})",
+        p0.eta,
+        c_ref.name(),
+        2 * N_REF
+    ));
+    // (a) Frictionless exact case (closed form, exact impacts), 3 periods.
+    let fp = Params {
+        eta: 0.9,
+        restitution: 0.7,
+        fs: 0.0,
+        fk: 0.0,
+        l1: 0.0,
+        l2: 0.0,
+        r: 1.0,
+        delta: 0.0,
+        b1: 0.2,
+        mu: 0.5,
+    };
+    let t_end = 3.0 * 2.0 * std::f64::consts::PI / fp.eta;
+    let (exact, _) = exact_frictionless(
+        &FrictionlessParams {
+            eta: fp.eta,
+            b1: fp.b1,
+            restitution: fp.restitution,
+            r: fp.r,
+            mu: fp.mu,
+        },
+        [0.0; 4],
+        0.0,
+        t_end,
+    )?;
+
+    let case_main = format!(
+        "{} eta={}",
+        if cfg.params().l1 > 0.0 {
+            "stribeck"
+        } else {
+            "coulomb"
+        },
+        p0.eta
+    );
+    for (engine, m, prec) in combos() {
+        for &n in &NS {
+            for (case, params, transient, reference) in [
+                ("frictionless exact, 3 periods", fp, 2u32, exact),
+                (case_main.as_str(), p0, o.transient, r_ref.final_y),
+            ] {
+                let mut c = cfg.clone();
+                c.method.steps_per_period = n;
+                c.method.impacts = m;
+                c.method.precision = prec;
+                c.run.transient_periods = transient;
+                c.run.sample_periods = 1;
+                c.initial.y = [0.0; 4];
+                // The ensemble: the same point repeated, to time a realistic batch.
+                let mut row = Row {
+                    kind: "error".into(),
+                    case: case.into(),
+                    method: method_name(m).into(),
+                    precision: prec.name().into(),
+                    backend: engine.name().into(),
+                    n,
+                    ..Row::default()
+                };
+                // The ensemble repeats the point, to time a realistic batch; all parameters go
+                // into the config (Coulomb friction is the Stribeck law with fs = fk).
+                c.model.eta = params.eta;
+                c.model.restitution = params.restitution;
+                c.model.friction = crate::config::FrictionLaw::Stribeck;
+                c.model.fs = params.fs;
+                c.model.fk = params.fk;
+                c.model.l1 = params.l1;
+                c.model.l2 = params.l2;
+                c.model.r = params.r;
+                c.model.delta = params.delta;
+                c.model.b1 = params.b1;
+                c.model.mu = params.mu;
+                let etas = vec![params.eta; o.ensemble];
+                match engine.run(&c, &["eta"], &etas, None, &ProgressBar::hidden()) {
+                    Ok((rs, t)) => {
+                        let secs = t.kernel_s.unwrap_or(t.integration_s);
+                        let steps = o.ensemble as f64 * (transient + 1) as f64 * n as f64;
+                        row.error = Some(max_diff(&rs[0].final_y, &reference));
+                        row.seconds_per_point = Some(secs / o.ensemble as f64);
+                        row.steps_per_s = Some(steps / secs);
+                    }
+                    Err(e) => row.note = Some(e.to_string()),
+                }
+                rows.push(row);
+            }
+        }
+        log(&format!(
+            "error rows done: {} {} {}",
+            engine.name(),
+            method_name(m),
+            prec.name()
+        ));
+    }
+
+    // Failure fractions over a reduced sweep of the configuration, against CPU f64 at N_REF.
+    let mut c = cfg.clone();
+    c.sweep.points = o.failure_points;
+    c.run.transient_periods = o.transient;
+    c.run.sample_periods = 100;
+    let values = c.sweep_values();
+    let classes_of = |rs: &[RunResult]| -> Vec<Class> {
+        rs.iter()
+            .map(|r| {
+                classify(
+                    &r.samples,
+                    r.sample_impacts,
+                    r.diag.nonfinite,
+                    c.run.period_tol,
+                )
+            })
+            .collect()
+    };
+    let mut cref = c.clone();
+    cref.method.steps_per_period = N_REF;
+    cref.method.precision = Precision::F64;
+    cref.method.impacts = ImpactMethod::Located;
+    let (rref, _) = Engine::Cpu
+        .run(
+            &cref,
+            &[c.sweep.param.as_str()],
+            &values,
+            None,
+            &ProgressBar::hidden(),
+        )
+        .map_err(|e| e.to_string())?;
+    let class_ref = classes_of(&rref);
+    log("failure reference done");
+    let engine = &engines[0];
+    for m in [ImpactMethod::Located, ImpactMethod::Naive] {
+        for prec in [Precision::F32, Precision::F64] {
+            for &n in &NS {
+                let mut cc = c.clone();
+                cc.method.steps_per_period = n;
+                cc.method.impacts = m;
+                cc.method.precision = prec;
+                let mut row = Row {
+                    kind: "failure".into(),
+                    case: format!("{} sweep, {} points", c.sweep.param, values.len()),
+                    method: method_name(m).into(),
+                    precision: prec.name().into(),
+                    backend: engine.name().into(),
+                    n,
+                    ..Row::default()
+                };
+                match engine.run(
+                    &cc,
+                    &[c.sweep.param.as_str()],
+                    &values,
+                    None,
+                    &ProgressBar::hidden(),
+                ) {
+                    Ok((rs, t)) => {
+                        let cl = classes_of(&rs);
+                        let k = values.len() as f64;
+                        row.class_mismatch = Some(
+                            cl.iter().zip(&class_ref).filter(|(a, b)| a != b).count() as f64 / k,
+                        );
+                        row.overflow_fraction =
+                            Some(rs.iter().filter(|r| r.diag.overflows > 0).count() as f64 / k);
+                        row.nonfinite_fraction =
+                            Some(rs.iter().filter(|r| r.diag.nonfinite).count() as f64 / k);
+                        let secs = t.kernel_s.unwrap_or(t.integration_s);
+                        row.seconds_per_point = Some(secs / k);
+                        row.steps_per_s = Some(k * (o.transient + 100) as f64 * n as f64 / secs);
+                    }
+                    Err(e) => row.note = Some(e.to_string()),
+                }
+                rows.push(row);
+            }
+            log(&format!(
+                "failure rows done: {} {}",
+                method_name(m),
+                prec.name()
+            ));
+        }
+    }
+
+    // Stress cases (CPU; classes and impact counts against the N_REF reference).
+    for s in stress_cases() {
+        let (cr, ir, _) = point_outcome(
+            &s.params,
+            N_REF,
+            ImpactMethod::Located,
+            true,
+            o.transient,
+            100,
+        );
+        for m in [ImpactMethod::Located, ImpactMethod::Naive] {
+            for &n in &NS[..6] {
+                let (cl, ipp, _) = point_outcome(&s.params, n, m, true, o.transient, 100);
+                rows.push(Row {
+                    kind: "stress".into(),
+                    case: s.name.into(),
+                    method: method_name(m).into(),
+                    precision: "f64".into(),
+                    backend: "cpu".into(),
+                    n,
+                    class: Some(cl.name()),
+                    impacts_per_period: Some(ipp),
+                    matches_reference: Some(stress_match(cl, ipp, cr, ir)),
+                    note: Some(format!(
+                        "reference {} with {ir} impacts per period",
+                        cr.name()
+                    )),
+                    ..Row::default()
+                });
+            }
+        }
+    }
+    let meta = serde_json::json!({
+        "reference": {
+            "case": case_main,
+            "class": c_ref.name(),
+            "n": N_REF,
+            "change_at_2n": ref_change,
+        },
+    });
+    Ok((rows, meta))
+}

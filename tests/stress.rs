@@ -1,0 +1,94 @@
+//! Stress cases of fixed-step methods: grazing impacts, chattering into lock, sticking, coarse
+//! grids. The event-located method must keep the reference class and impact count; the naive
+//! end-of-step impact must be detected as wrong (so the accuracy chart's claims are tested).
+
+use rattle::accuracy::{N_REF, point_outcome, stress_cases, stress_match};
+use rattle::method::ImpactMethod;
+
+#[test]
+fn located_keeps_class_and_impacts_naive_is_detected_wrong() {
+    for s in stress_cases() {
+        let (cr, ir, _) = point_outcome(&s.params, N_REF, ImpactMethod::Located, true, 300, 100);
+        // Located: the default grid and a coarse one (chaotic cases only on the default).
+        let chaotic = !matches!(cr, rattle::classify::Class::Periodic(_));
+        let grids: &[u32] = if chaotic { &[256] } else { &[16, 64, 256] };
+        for &n in grids {
+            let (c, ipp, r) = point_outcome(&s.params, n, ImpactMethod::Located, true, 300, 100);
+            eprintln!(
+                "{}: located N={n}: {} {ipp} (reference {} {ir})",
+                s.name,
+                c.name(),
+                cr.name()
+            );
+            assert!(
+                stress_match(c, ipp, cr, ir),
+                "{}: located N={n} gives {} {ipp}, reference {} {ir}",
+                s.name,
+                c.name(),
+                cr.name()
+            );
+            assert_eq!(r.diag.overflows, 0, "{}: event budget ran out", s.name);
+        }
+        // Naive: wrong at most grid sizes.
+        let wrong = [16u32, 64, 256]
+            .iter()
+            .filter(|&&n| {
+                let (c, ipp, _) = point_outcome(&s.params, n, ImpactMethod::Naive, true, 300, 100);
+                eprintln!("{}: naive N={n}: {} {ipp}", s.name, c.name());
+                !stress_match(c, ipp, cr, ir)
+            })
+            .count();
+        assert!(
+            wrong >= 2,
+            "{}: naive matched the reference at {} of 3 grids",
+            s.name,
+            3 - wrong
+        );
+    }
+}
+
+#[test]
+fn accuracy_command_writes_charts_with_observed_orders() {
+    let d = std::env::temp_dir().join(format!("rattle-acc-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rattle"))
+        .args([
+            "accuracy",
+            "--backend",
+            "cpu",
+            "--ensemble",
+            "2",
+            "--failure-points",
+            "8",
+        ])
+        .args(["--transient", "60", "--config"])
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/fig2.toml"))
+        .arg("--out")
+        .arg(d.join("a"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in ["a.csv", "a.png", "a-failure.png", "a.json"] {
+        assert!(d.join(f).exists(), "{f}");
+    }
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("a.json")).unwrap()).unwrap();
+    let order = |m: &str, p: &str, key: &str| {
+        j["orders"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|o| o["method"] == m && o["precision"] == p)
+            .and_then(|o| o[key].as_f64())
+            .unwrap()
+    };
+    assert!(order("located", "f64", "order_frictionless_exact") > 3.5);
+    assert!(order("located", "f64", "order") > 3.5);
+    let naive = order("naive", "f64", "order_frictionless_exact");
+    assert!((0.6..1.5).contains(&naive), "naive {naive}");
+}
