@@ -10,6 +10,31 @@ use crate::sweep::run_cpu;
 use indicatif::ProgressBar;
 use std::time::Instant;
 
+/// The GPU job of `n` points of `cfg` varying `vary`.
+fn job<'a>(
+    cfg: &'a Config,
+    vary: &'a [&'a str],
+    values: &'a [f64],
+    n: usize,
+    y0s: Option<&'a [[f64; 4]]>,
+    store_samples: bool,
+) -> Job<'a> {
+    Job {
+        base: cfg.params(),
+        vary,
+        values,
+        n_points: n,
+        y0: y0s.unwrap_or(std::slice::from_ref(&cfg.initial.y)),
+        settings: cfg.settings(),
+        transient: cfg.run.transient_periods,
+        samples: cfg.run.sample_periods,
+        store_samples,
+        period_tol: cfg.run.period_tol,
+        max_binding_bytes: None,
+        max_groups_per_dim: None,
+    }
+}
+
 /// An opened backend.
 pub enum Engine {
     Gpu(Box<Gpu>),
@@ -68,20 +93,7 @@ impl Engine {
         };
         match self {
             Engine::Gpu(g) => {
-                let job = Job {
-                    base: cfg.params(),
-                    vary,
-                    values,
-                    n_points: n,
-                    y0: y0s.unwrap_or(std::slice::from_ref(&cfg.initial.y)),
-                    settings: cfg.settings(),
-                    transient: cfg.run.transient_periods,
-                    samples: cfg.run.sample_periods,
-                    store_samples: true,
-                    period_tol: cfg.run.period_tol,
-                    max_binding_bytes: None,
-                    max_groups_per_dim: None,
-                };
+                let job = job(cfg, vary, values, n, y0s, true);
                 let out = g.run(&job, cfg.method.precision == Precision::F64, pb)?;
                 Ok((out.results, out.timings))
             }
@@ -142,20 +154,7 @@ impl Engine {
         };
         match self {
             Engine::Gpu(g) => {
-                let job = Job {
-                    base: cfg.params(),
-                    vary,
-                    values,
-                    n_points: n,
-                    y0: y0s.unwrap_or(std::slice::from_ref(&cfg.initial.y)),
-                    settings: cfg.settings(),
-                    transient: cfg.run.transient_periods,
-                    samples: cfg.run.sample_periods,
-                    store_samples: false,
-                    period_tol: cfg.run.period_tol,
-                    max_binding_bytes: None,
-                    max_groups_per_dim: None,
-                };
+                let job = job(cfg, vary, values, n, y0s, false);
                 let out = g.run(&job, cfg.method.precision == Precision::F64, pb)?;
                 let s = out
                     .results

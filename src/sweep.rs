@@ -64,20 +64,6 @@ fn run_cpu_typed<F: Real>(
         .collect()
 }
 
-/// Parameter sets of a sweep over `cfg.sweep.param`.
-pub fn sweep_params(cfg: &Config) -> Vec<Params<f64>> {
-    let base = cfg.params();
-    cfg.sweep_values()
-        .into_iter()
-        .map(|v| {
-            let mut p = base;
-            p.set(&cfg.sweep.param, v)
-                .expect("validated sweep parameter");
-            p
-        })
-        .collect()
-}
-
 /// One point of a finished sweep.
 #[derive(Clone, Debug)]
 pub struct SweepPoint {
