@@ -446,7 +446,6 @@ impl Config {
                 )
             })?;
         }
-        self.validate_map()?;
         let bytes = s.points as u64 * r.sample_periods as u64 * 32;
         if bytes > MAX_SAMPLE_BYTES {
             return Err(ConfigError::range(
@@ -465,7 +464,9 @@ impl Config {
 }
 
 impl Config {
-    fn validate_map(&self) -> Result<(), ConfigError> {
+    /// Checks the `[map]` section (only maps need it: the defaults name lambda, which a
+    /// Stribeck bifurcation config does not have).
+    pub fn validate_map(&self) -> Result<(), ConfigError> {
         let m = &self.map;
         for (key, name) in [("map.x", &m.x), ("map.y", &m.y)] {
             if !SWEEPABLE.contains(&name.as_str()) {

@@ -208,6 +208,7 @@ fn run(cli: Cli) -> Result<()> {
             starts,
         } => {
             let cfg = common.load()?;
+            cfg.validate_map()?;
             let other = compare
                 .map(|p| {
                     let mut c = Common {
@@ -215,7 +216,9 @@ fn run(cli: Cli) -> Result<()> {
                         ..common.clone()
                     };
                     c.eta = None;
-                    c.load()
+                    let o = c.load()?;
+                    o.validate_map()?;
+                    anyhow::Ok(o)
                 })
                 .transpose()?;
             map_cmd(

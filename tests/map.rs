@@ -163,7 +163,10 @@ fn bad_map_configs_are_rejected_with_the_key() {
         ("[map]\nx = \"zeta\"\n", "map.x"),
     ];
     for (text, key) in cases {
-        let e = Config::from_toml(text, &[]).unwrap_err().to_string();
+        let e = Config::from_toml(text, &[])
+            .and_then(|c| c.validate_map())
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(key), "{text}: `{e}` must name {key}");
     }
     let d = scratch("bad");
@@ -268,4 +271,21 @@ fn continuation_follows_the_attractor_in_both_directions() {
         );
     }
     assert_eq!(j["hysteresis_values"].as_array().unwrap().len(), 0);
+}
+
+#[test]
+fn every_shipped_config_loads() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
+    let mut n = 0;
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let p = e.unwrap().path();
+        let cfg = Config::load(&p, &[]).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        let text = std::fs::read_to_string(&p).unwrap();
+        if text.contains("[map]") {
+            cfg.validate_map()
+                .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        }
+        n += 1;
+    }
+    assert!(n >= 8, "{n} configs");
 }
