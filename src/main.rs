@@ -63,6 +63,9 @@ enum Cmd {
         /// Also compute the map of OTHER.toml (same grid) and render where the class differs.
         #[arg(long, value_name = "OTHER.toml")]
         compare: Option<PathBuf>,
+        /// `all`: split the cells over every adapter of the machine, computed concurrently.
+        #[arg(long, value_parser = ["one", "all"], default_value = "one")]
+        adapters: String,
         /// K initial states per cell; cells whose starts end on different attractors are
         /// marked "coexisting attractors".
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
@@ -206,6 +209,7 @@ fn run(cli: Cli) -> Result<()> {
             checkpoint,
             compare,
             starts,
+            adapters,
         } => {
             let cfg = common.load()?;
             cfg.validate_map()?;
@@ -221,6 +225,13 @@ fn run(cli: Cli) -> Result<()> {
                     anyhow::Ok(o)
                 })
                 .transpose()?;
+            if adapters == "all" {
+                anyhow::ensure!(
+                    shard.is_none() && checkpoint.is_none() && other.is_none(),
+                    "--adapters all combines with neither --shard, --checkpoint nor --compare"
+                );
+                return map_all_adapters(&cfg, &out, starts as usize);
+            }
             map_cmd(
                 &cfg,
                 &out,
@@ -989,5 +1000,68 @@ fn accuracy_cmd(
     for f in st.commit()? {
         println!("{}", f.display());
     }
+    Ok(())
+}
+
+/// A map split over every adapter of the machine: one contiguous share per adapter, computed
+/// concurrently, merged as shards are.
+fn map_all_adapters(cfg: &Config, out: &std::path::Path, starts: usize) -> Result<()> {
+    let gpus = rattle::gpu::Gpu::all()?;
+    let n = gpus.len();
+    for g in &gpus {
+        eprintln!("adapter: {}", rattle::gpu::describe(&g.info));
+    }
+    let engines: Vec<Engine> = gpus.into_iter().map(|g| Engine::Gpu(Box::new(g))).collect();
+    let cells = map::cell_count(cfg);
+    let t = Instant::now();
+    let parts: Vec<Result<map::Part>> = std::thread::scope(|s| {
+        let handles: Vec<_> = engines
+            .iter()
+            .enumerate()
+            .map(|(i, engine)| {
+                s.spawn(move || -> Result<map::Part> {
+                    let range = map::shard_range(cells, i, n);
+                    let (c, timings) = map::compute(
+                        engine,
+                        cfg,
+                        range.clone(),
+                        starts,
+                        &indicatif::ProgressBar::hidden(),
+                    )?;
+                    Ok(map::Part {
+                        version: env!("CARGO_PKG_VERSION").into(),
+                        config: cfg.clone(),
+                        shard: (i, n),
+                        range: (range.start, range.end),
+                        device: engine.device(),
+                        backend: engine.name().into(),
+                        timings,
+                        fields: map::Fields::from_cells(&c),
+                    })
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("adapter thread panicked")))
+            })
+            .collect()
+    });
+    let parts = parts.into_iter().collect::<Result<Vec<_>>>()?;
+    let devices: Vec<String> = parts.iter().map(|p| p.device.clone()).collect();
+    let (cfg, fields, _) = map::merge(parts)?;
+    let meta = json!({
+        "command": "map",
+        "backend": "gpu",
+        "devices": devices,
+        "cells": cells,
+        "timings": { "wall_s": t.elapsed().as_secs_f64() },
+    });
+    for f in map::write_outputs(out, &cfg, &fields, meta)? {
+        println!("{}", f.display());
+    }
+    eprintln!("map on {n} adapters in {:.2} s", t.elapsed().as_secs_f64());
     Ok(())
 }

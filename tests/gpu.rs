@@ -315,3 +315,43 @@ fn small_map_classes_agree_with_cpu() {
         assert!(agree as f64 >= 0.85 * cells as f64);
     }
 }
+
+#[test]
+fn map_over_all_adapters_equals_the_single_adapter_map() {
+    if gpu().is_none() {
+        return;
+    }
+    let d = std::env::temp_dir().join(format!("rattle-adapters-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/r_lambda.toml");
+    for (extra, out) in [(&["--adapters", "all"][..], "all"), (&[][..], "one")] {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_rattle"))
+            .args([
+                "map",
+                "--config",
+                cfg,
+                "--set",
+                "map.x_points=6",
+                "--set",
+                "map.y_points=5",
+            ])
+            .args([
+                "--set",
+                "run.transient_periods=30",
+                "--set",
+                "run.sample_periods=10",
+            ])
+            .args(extra)
+            .arg("--out")
+            .arg(d.join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    for f in ["class", "lyapunov", "impacts"] {
+        let a = std::fs::read(d.join(format!("all-{f}.npy"))).unwrap();
+        let b = std::fs::read(d.join(format!("one-{f}.npy"))).unwrap();
+        assert!(a == b, "{f}");
+    }
+}

@@ -178,6 +178,20 @@ impl Gpu {
             &instance, None,
         ))
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        Gpu::open(adapter)
+    }
+
+    /// Opens every adapter of the selected backends (for `--adapters all`).
+    pub fn all() -> Result<Vec<Gpu>, GpuError> {
+        let instance = instance();
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        if adapters.is_empty() {
+            return Err(GpuError::NoAdapter("no adapter enumerated".into()));
+        }
+        adapters.into_iter().map(Gpu::open).collect()
+    }
+
+    fn open(adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
         let info = adapter.get_info();
         let wanted = wgpu::Features::SHADER_F64 | wgpu::Features::TIMESTAMP_QUERY;
         let features = adapter.features() & wanted;
