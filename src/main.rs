@@ -166,6 +166,15 @@ struct Common {
 }
 
 impl Common {
+    /// Backends a comparison command measures: the one named, or both.
+    fn backends(&self) -> Vec<Backend> {
+        match self.backend.as_deref() {
+            Some("cpu") => vec![Backend::Cpu],
+            Some(_) => vec![Backend::Gpu],
+            None => vec![Backend::Gpu, Backend::Cpu],
+        }
+    }
+
     fn load(&self) -> Result<Config> {
         let mut o = self.set.clone();
         if let Some(v) = self.eta {
@@ -311,11 +320,7 @@ fn run(cli: Cli) -> Result<()> {
                 points >= 1 && periods >= 3,
                 "--points >= 1 and --periods >= 3"
             );
-            let backends = match common.backend.as_deref() {
-                Some("cpu") => vec![Backend::Cpu],
-                Some(_) => vec![Backend::Gpu],
-                None => vec![Backend::Gpu, Backend::Cpu],
-            };
+            let backends = common.backends();
             let rows = rattle::bench::bench(&cfg, points, periods, &backends);
             print!("{}", rattle::bench::bench_table(&rows));
             if json {
@@ -840,11 +845,7 @@ fn accuracy_cmd(
         ensemble >= 1 && failure_points >= 2,
         "--ensemble >= 1, --failure-points >= 2"
     );
-    let backends = match common.backend.as_deref() {
-        Some("cpu") => vec![Backend::Cpu],
-        Some(_) => vec![Backend::Gpu],
-        None => vec![Backend::Gpu, Backend::Cpu],
-    };
+    let backends = common.backends();
     let t0 = Instant::now();
     let (rows, mut meta) = study(
         &cfg,
