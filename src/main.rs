@@ -659,23 +659,11 @@ fn map_cmd(
         1
     };
     let part = |i: usize, n: usize| -> Result<map::Part> {
-        let range = map::shard_range(cells, i, n);
-        let pb = progress_bar(
-            range.len() as u64 * per_cell,
-            &format!("map {}/{}", i + 1, n),
-        );
-        let (s, timings) = map::compute(&engine, cfg, range.clone(), starts, &pb)?;
+        let len = map::shard_range(cells, i, n).len() as u64;
+        let pb = progress_bar(len * per_cell, &format!("map {}/{}", i + 1, n));
+        let p = map::compute_part(&engine, cfg, (i, n), starts, &pb)?;
         pb.finish_and_clear();
-        Ok(map::Part {
-            version: env!("CARGO_PKG_VERSION").into(),
-            config: cfg.clone(),
-            shard: (i, n),
-            range: (range.start, range.end),
-            device: engine.device(),
-            backend: engine.name().into(),
-            timings,
-            fields: map::Fields::from_cells(&s),
-        })
+        Ok(p)
     };
     if let Some(s) = shard {
         let (i, n) = parse_shard(s)?;
@@ -1021,24 +1009,8 @@ fn map_all_adapters(cfg: &Config, out: &std::path::Path, starts: usize) -> Resul
             .enumerate()
             .map(|(i, engine)| {
                 s.spawn(move || -> Result<map::Part> {
-                    let range = map::shard_range(cells, i, n);
-                    let (c, timings) = map::compute(
-                        engine,
-                        cfg,
-                        range.clone(),
-                        starts,
-                        &indicatif::ProgressBar::hidden(),
-                    )?;
-                    Ok(map::Part {
-                        version: env!("CARGO_PKG_VERSION").into(),
-                        config: cfg.clone(),
-                        shard: (i, n),
-                        range: (range.start, range.end),
-                        device: engine.device(),
-                        backend: engine.name().into(),
-                        timings,
-                        fields: map::Fields::from_cells(&c),
-                    })
+                    let pb = indicatif::ProgressBar::hidden();
+                    Ok(map::compute_part(engine, cfg, (i, n), starts, &pb)?)
                 })
             })
             .collect();

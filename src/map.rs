@@ -209,6 +209,28 @@ pub struct Part {
     pub fields: Fields,
 }
 
+/// Computes shard `i` of `n` of the map and packs it as a partial output.
+pub fn compute_part(
+    engine: &Engine,
+    cfg: &Config,
+    (i, n): (usize, usize),
+    starts: usize,
+    pb: &ProgressBar,
+) -> Result<Part, MapError> {
+    let range = shard_range(cell_count(cfg), i, n);
+    let (cells, timings) = compute(engine, cfg, range.clone(), starts, pb)?;
+    Ok(Part {
+        version: env!("CARGO_PKG_VERSION").into(),
+        config: cfg.clone(),
+        shard: (i, n),
+        range: (range.start, range.end),
+        device: engine.device(),
+        backend: engine.name().into(),
+        timings,
+        fields: Fields::from_cells(&cells),
+    })
+}
+
 /// `PREFIX.part-I-of-N.json`.
 pub fn part_path(prefix: &Path, i: usize, n: usize) -> PathBuf {
     with_ext(prefix, &format!("part-{i}-of-{n}.json"))
