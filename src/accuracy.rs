@@ -1,13 +1,15 @@
 //! `rattle accuracy`: what each second buys in accuracy (work-precision chart) and where cheap
 //! settings stop being trustworthy (failure fractions and stress cases).
 
-use crate::classify::{Class, classify};
+use crate::classify::Class;
 use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
+use crate::error::Result;
 use crate::method::{ImpactMethod, Integrator, RunResult, Settings};
-use crate::model::Params;
+use crate::model::{Param, Params};
+use crate::progress::Silent;
 use crate::reference::{FrictionlessParams, exact_frictionless};
-use indicatif::ProgressBar;
+use crate::spec::{Points, RunSpec};
 use serde::Serialize;
 
 /// Steps per period of the study and of the reference.
@@ -105,9 +107,7 @@ pub fn point_outcome(
     } else {
         Integrator::<f32>::new(p, &s).run([0.0; 4], transient, samples)
     };
-    let c = classify(&r.samples, r.sample_impacts, r.diag.nonfinite, 1e-4);
-    let ipp = r.sample_impacts as f64 / r.samples.len().max(1) as f64;
-    (c, ipp, r)
+    (r.class(1e-4), r.impacts_per_period(), r)
 }
 
 fn method_name(m: ImpactMethod) -> &'static str {
@@ -153,7 +153,7 @@ pub fn study(
     cfg: &Config,
     o: &Options,
     log: &mut dyn FnMut(&str),
-) -> Result<(Vec<Row>, serde_json::Value), String> {
+) -> Result<(Vec<Row>, serde_json::Value)> {
     let mut rows = Vec::new();
     let engines: Vec<Engine> = o.backends.iter().map(|&b| Engine::open(b)).collect();
     let combos = || {
@@ -223,14 +223,14 @@ pub fn study(
                 ("frictionless exact, 3 periods", fp, 2u32, exact),
                 (case_main.as_str(), p0, o.transient, r_ref.final_y),
             ] {
-                let mut c = cfg.clone();
-                c.method.steps_per_period = n;
-                c.method.impacts = m;
-                c.method.precision = prec;
-                c.run.transient_periods = transient;
-                c.run.sample_periods = 1;
-                c.initial.y = [0.0; 4];
-                // The ensemble: the same point repeated, to time a realistic batch.
+                let mut spec = RunSpec::new(cfg);
+                spec.settings.steps_per_period = n;
+                spec.settings.impacts = m;
+                spec.precision = prec;
+                spec.transient = transient;
+                spec.samples = 1;
+                spec.y0 = [0.0; 4];
+                spec.params = params;
                 let mut row = Row {
                     kind: "error".into(),
                     case: case.into(),
@@ -240,21 +240,9 @@ pub fn study(
                     n,
                     ..Row::default()
                 };
-                // The ensemble repeats the point, to time a realistic batch; all parameters go
-                // into the config (Coulomb friction is the Stribeck law with fs = fk).
-                c.model.eta = params.eta;
-                c.model.restitution = params.restitution;
-                c.model.friction = crate::config::FrictionLaw::Stribeck;
-                c.model.fs = params.fs;
-                c.model.fk = params.fk;
-                c.model.l1 = params.l1;
-                c.model.l2 = params.l2;
-                c.model.r = params.r;
-                c.model.delta = params.delta;
-                c.model.b1 = params.b1;
-                c.model.mu = params.mu;
+                // The ensemble repeats the point, to time a realistic batch.
                 let etas = vec![params.eta; o.ensemble];
-                match engine.run(&c, &["eta"], &etas, None, &ProgressBar::hidden()) {
+                match engine.run(&spec, &Points::along(&[Param::Eta], &etas), &Silent) {
                     Ok((rs, t)) => {
                         let secs = t.kernel_s.unwrap_or(t.integration_s);
                         let steps = o.ensemble as f64 * (transient + 1) as f64 * n as f64;
@@ -276,62 +264,39 @@ pub fn study(
     }
 
     // Failure fractions over a reduced sweep of the configuration, against CPU f64 at N_REF.
-    let mut c = cfg.clone();
-    c.sweep.points = o.failure_points;
-    c.run.transient_periods = o.transient;
-    c.run.sample_periods = 100;
-    let values = c.sweep_values();
-    let classes_of = |rs: &[RunResult]| -> Vec<Class> {
-        rs.iter()
-            .map(|r| {
-                classify(
-                    &r.samples,
-                    r.sample_impacts,
-                    r.diag.nonfinite,
-                    c.run.period_tol,
-                )
-            })
-            .collect()
-    };
-    let mut cref = c.clone();
-    cref.method.steps_per_period = N_REF;
-    cref.method.precision = Precision::F64;
-    cref.method.impacts = ImpactMethod::Located;
-    let (rref, _) = Engine::Cpu
-        .run(
-            &cref,
-            &[c.sweep.param.as_str()],
-            &values,
-            None,
-            &ProgressBar::hidden(),
-        )
-        .map_err(|e| e.to_string())?;
+    let mut spec = RunSpec::new(cfg);
+    spec.transient = o.transient;
+    spec.samples = 100;
+    let values = cfg.sweep_values_n(o.failure_points);
+    let vary = [cfg.sweep.param];
+    let points = Points::along(&vary, &values);
+    let classes_of =
+        |rs: &[RunResult]| -> Vec<Class> { rs.iter().map(|r| r.class(spec.period_tol)).collect() };
+    let mut sref = spec.clone();
+    sref.settings.steps_per_period = N_REF;
+    sref.settings.impacts = ImpactMethod::Located;
+    sref.precision = Precision::F64;
+    let (rref, _) = Engine::Cpu.run(&sref, &points, &Silent)?;
     let class_ref = classes_of(&rref);
     log("failure reference done");
     let engine = &engines[0];
     for m in [ImpactMethod::Located, ImpactMethod::Naive] {
         for prec in [Precision::F32, Precision::F64] {
             for &n in &NS {
-                let mut cc = c.clone();
-                cc.method.steps_per_period = n;
-                cc.method.impacts = m;
-                cc.method.precision = prec;
+                let mut sc = spec.clone();
+                sc.settings.steps_per_period = n;
+                sc.settings.impacts = m;
+                sc.precision = prec;
                 let mut row = Row {
                     kind: "failure".into(),
-                    case: format!("{} sweep, {} points", c.sweep.param, values.len()),
+                    case: format!("{} sweep, {} points", cfg.sweep.param, values.len()),
                     method: method_name(m).into(),
                     precision: prec.name().into(),
                     backend: engine.name().into(),
                     n,
                     ..Row::default()
                 };
-                match engine.run(
-                    &cc,
-                    &[c.sweep.param.as_str()],
-                    &values,
-                    None,
-                    &ProgressBar::hidden(),
-                ) {
+                match engine.run(&sc, &points, &Silent) {
                     Ok((rs, t)) => {
                         let cl = classes_of(&rs);
                         let k = values.len() as f64;

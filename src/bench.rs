@@ -1,12 +1,15 @@
 //! `rattle bench` and `rattle validate`: speed of every backend and precision measured in one
 //! run, and agreement of the GPU kernel with its CPU twin.
 
-use crate::classify::{Class, classify};
+use crate::classify::Class;
 use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
+use crate::error::{Error, Result};
 use crate::gpu::Timings;
 use crate::method::{Diagnostics, RunResult};
-use indicatif::ProgressBar;
+use crate::model::Param;
+use crate::progress::Silent;
+use crate::spec::{Points, RunSpec};
 use std::fmt::Write;
 
 /// One row of the benchmark table.
@@ -31,29 +34,29 @@ pub fn bench(
     points: usize,
     periods: u32,
     backends: &[Backend],
-) -> Vec<Result<BenchRow, String>> {
-    let mut c = cfg.clone();
-    c.run.transient_periods = periods.saturating_sub(2);
-    c.run.sample_periods = 2;
-    c.sweep.points = points as u32;
-    let values = c.sweep_values();
+) -> Vec<Result<BenchRow>> {
+    let mut spec = RunSpec::new(cfg);
+    spec.transient = periods.saturating_sub(2);
+    spec.samples = 2;
+    let values = cfg.sweep_values_n(points as u32);
+    let n_steps = spec.settings.steps_per_period;
     let mut rows = Vec::new();
     for &b in backends {
         let engine = Engine::open(b);
         for prec in [Precision::F32, Precision::F64] {
-            c.method.precision = prec;
+            spec.precision = prec;
             let res = engine
-                .run(&c, &["eta"], &values, None, &ProgressBar::hidden())
-                .map_err(|e| e.to_string())
+                .run(&spec, &Points::along(&[Param::Eta], &values), &Silent)
+                .map_err(Error::from)
                 .map(|(_, t)| {
-                    let steps = points as f64 * periods as f64 * c.method.steps_per_period as f64;
+                    let steps = points as f64 * periods as f64 * n_steps as f64;
                     BenchRow {
                         backend: engine.name().into(),
                         device: engine.device(),
                         precision: prec.name().into(),
                         points,
                         periods,
-                        steps_per_period: c.method.steps_per_period,
+                        steps_per_period: n_steps,
                         rk4_steps: steps,
                         timings: t,
                         steps_per_s: steps / t.integration_s,
@@ -65,7 +68,7 @@ pub fn bench(
     rows
 }
 
-pub fn bench_table(rows: &[Result<BenchRow, String>]) -> String {
+pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -152,42 +155,37 @@ fn run(
     samples: u32,
     values: &[f64],
     y0s: Option<&[[f64; 4]]>,
-) -> Result<Vec<RunResult>, String> {
-    let mut c = cfg.clone();
-    c.method.precision = prec;
-    c.run.transient_periods = transient;
-    c.run.sample_periods = samples;
-    engine
-        .run(
-            &c,
-            &[cfg.sweep.param.as_str()],
-            values,
-            y0s,
-            &ProgressBar::hidden(),
-        )
-        .map(|r| r.0)
-        .map_err(|e| e.to_string())
+) -> Result<Vec<RunResult>> {
+    let mut spec = RunSpec::new(cfg);
+    spec.precision = prec;
+    spec.transient = transient;
+    spec.samples = samples;
+    let vary = [cfg.sweep.param];
+    let mut points = Points::along(&vary, values);
+    points.y0s = y0s;
+    Ok(engine.run(&spec, &points, &Silent)?.0)
 }
 
 /// The validation report: state differences after 1, 10 and 100 periods from the same start
 /// (`state_points` points spread over the sweep), and class agreement over the whole sweep.
-pub fn validate(cfg: &Config, state_points: usize) -> Result<String, String> {
+pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
     let gpu = Engine::open(Backend::Gpu);
     if !matches!(gpu, Engine::Gpu(_)) {
-        return Err("validate needs a GPU adapter (none found)".into());
+        return Err(Error::Invalid(
+            "validate needs a GPU adapter (none found)".into(),
+        ));
     }
     let cpu = Engine::Cpu;
     let mut out = String::new();
-    let mut c = cfg.clone();
-    c.sweep.points = state_points as u32;
-    let values = c.sweep_values();
+    let c = cfg;
+    let values = cfg.sweep_values_n(state_points as u32);
     // Chaotic motion (also the chaotic transients that precede periodic attractors) amplifies
     // any difference, so the table also starts every point on its attractor: from the state
     // the CPU f64 reference reaches after the configured transient, and takes the maximum over
     // the points whose reference attractor is periodic.
     let reference = run(
         &cpu,
-        &c,
+        c,
         Precision::F64,
         cfg.run.transient_periods,
         cfg.run.sample_periods,
@@ -197,17 +195,7 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String, String> {
     let on_attractor: Vec<[f64; 4]> = reference.iter().map(|r| r.final_y).collect();
     let periodic: Vec<bool> = reference
         .iter()
-        .map(|r| {
-            matches!(
-                classify(
-                    &r.samples,
-                    r.sample_impacts,
-                    r.diag.nonfinite,
-                    cfg.run.period_tol
-                ),
-                Class::Periodic(_)
-            )
-        })
+        .map(|r| matches!(r.class(cfg.run.period_tol), Class::Periodic(_)))
         .collect();
     let all = vec![true; values.len()];
     let _ = writeln!(
@@ -239,10 +227,10 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String, String> {
         for periods in [1u32, 10, 100] {
             let a = Some(on_attractor.as_slice());
             let cell = match (
-                run(&gpu, &c, pg, periods - 1, 1, &values, None),
-                run(&cpu, &c, pc, periods - 1, 1, &values, None),
-                run(&gpu, &c, pg, periods - 1, 1, &values, a),
-                run(&cpu, &c, pc, periods - 1, 1, &values, a),
+                run(&gpu, c, pg, periods - 1, 1, &values, None),
+                run(&cpu, c, pc, periods - 1, 1, &values, None),
+                run(&gpu, c, pg, periods - 1, 1, &values, a),
+                run(&cpu, c, pc, periods - 1, 1, &values, a),
             ) {
                 (Ok(g), Ok(h), Ok(ga), Ok(ha)) => format!(
                     "{:>21}",
@@ -284,16 +272,7 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String, String> {
         None,
     )?;
     let classes = |rs: &[RunResult]| -> Vec<Class> {
-        rs.iter()
-            .map(|r| {
-                classify(
-                    &r.samples,
-                    r.sample_impacts,
-                    r.diag.nonfinite,
-                    cfg.run.period_tol,
-                )
-            })
-            .collect()
+        rs.iter().map(|r| r.class(cfg.run.period_tol)).collect()
     };
     let cref = classes(&reference);
     let _ = writeln!(

@@ -2,7 +2,7 @@
 //! overrides, and validation with messages that name the key and its allowed range.
 
 use crate::method::{ImpactMethod, Settings};
-use crate::model::{ParamError, Params, SWEEPABLE};
+use crate::model::{Param, ParamError, Params};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -185,8 +185,8 @@ impl Default for RunConfig {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SweepConfig {
-    /// Swept parameter, one of [`SWEEPABLE`].
-    pub param: String,
+    /// Swept parameter.
+    pub param: Param,
     pub from: f64,
     pub to: f64,
     pub points: u32,
@@ -199,7 +199,7 @@ pub struct SweepConfig {
 impl Default for SweepConfig {
     fn default() -> Self {
         SweepConfig {
-            param: "eta".into(),
+            param: Param::Eta,
             from: 1.0,
             to: 2.0,
             points: 2000,
@@ -213,11 +213,11 @@ impl Default for SweepConfig {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct MapConfig {
-    pub x: String,
+    pub x: Param,
     pub x_from: f64,
     pub x_to: f64,
     pub x_points: u32,
-    pub y: String,
+    pub y: Param,
     pub y_from: f64,
     pub y_to: f64,
     pub y_points: u32,
@@ -228,11 +228,11 @@ pub struct MapConfig {
 impl Default for MapConfig {
     fn default() -> Self {
         MapConfig {
-            x: "R".into(),
+            x: Param::R,
             x_from: 0.5,
             x_to: 0.7,
             x_points: 128,
-            y: "lambda".into(),
+            y: Param::Lambda,
             y_from: 0.0,
             y_to: 0.1,
             y_points: 128,
@@ -317,12 +317,17 @@ impl Config {
 
     /// Parameter values of the sweep (inclusive of both ends).
     pub fn sweep_values(&self) -> Vec<f64> {
+        self.sweep_values_n(self.sweep.points)
+    }
+
+    /// `points` values over the sweep range (inclusive of both ends).
+    pub fn sweep_values_n(&self, points: u32) -> Vec<f64> {
         let s = &self.sweep;
-        if s.points == 1 {
+        if points == 1 {
             return vec![s.from];
         }
-        (0..s.points)
-            .map(|i| s.from + (s.to - s.from) * i as f64 / (s.points - 1) as f64)
+        (0..points)
+            .map(|i| s.from + (s.to - s.from) * i as f64 / (points - 1) as f64)
             .collect()
     }
 
@@ -397,14 +402,7 @@ impl Config {
             ));
         }
         let s = &self.sweep;
-        if !SWEEPABLE.contains(&s.param.as_str()) {
-            return Err(ConfigError::range(
-                "sweep.param",
-                format!("\"{}\"", s.param),
-                &format!("one of {SWEEPABLE:?}"),
-            ));
-        }
-        if s.param == "lambda" && m.friction != FrictionLaw::Coulomb {
+        if s.param == Param::Lambda && m.friction != FrictionLaw::Coulomb {
             return Err(ConfigError::range(
                 "sweep.param",
                 "\"lambda\"",
@@ -433,7 +431,7 @@ impl Config {
         // Every swept value must be a valid model point.
         for v in [s.from, s.to] {
             let mut p = self.params();
-            p.set(&s.param, v).map_err(ConfigError::Parse)?;
+            s.param.set(&mut p, v);
             p.validate().map_err(|e| {
                 ConfigError::range(
                     if v == s.from {
@@ -468,15 +466,8 @@ impl Config {
     /// Stribeck bifurcation config does not have).
     pub fn validate_map(&self) -> Result<(), ConfigError> {
         let m = &self.map;
-        for (key, name) in [("map.x", &m.x), ("map.y", &m.y)] {
-            if !SWEEPABLE.contains(&name.as_str()) {
-                return Err(ConfigError::range(
-                    key,
-                    format!("\"{name}\""),
-                    &format!("one of {SWEEPABLE:?}"),
-                ));
-            }
-            if name == "lambda" && self.model.friction != FrictionLaw::Coulomb {
+        for (key, name) in [("map.x", m.x), ("map.y", m.y)] {
+            if name == Param::Lambda && self.model.friction != FrictionLaw::Coulomb {
                 return Err(ConfigError::range(
                     key,
                     "\"lambda\"",
@@ -484,11 +475,7 @@ impl Config {
                 ));
             }
         }
-        let same = m.x == m.y
-            || (["lambda", "fs", "fk"].contains(&m.x.as_str())
-                && ["lambda", "fs", "fk"].contains(&m.y.as_str())
-                && (m.x == "lambda" || m.y == "lambda"));
-        if same {
+        if m.x.overlaps(m.y) {
             return Err(ConfigError::range(
                 "map.y",
                 format!("\"{}\"", m.y),
@@ -509,13 +496,13 @@ impl Config {
             ));
         }
         for (key, name, v) in [
-            ("map.x_from", &m.x, m.x_from),
-            ("map.x_to", &m.x, m.x_to),
-            ("map.y_from", &m.y, m.y_from),
-            ("map.y_to", &m.y, m.y_to),
+            ("map.x_from", m.x, m.x_from),
+            ("map.x_to", m.x, m.x_to),
+            ("map.y_from", m.y, m.y_from),
+            ("map.y_to", m.y, m.y_to),
         ] {
             let mut p = self.params();
-            p.set(name, v).map_err(ConfigError::Parse)?;
+            name.set(&mut p, v);
             p.validate()
                 .map_err(|e| ConfigError::range(key, v, &format!("{} for `{name}`", e.range)))?;
         }

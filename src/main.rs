@@ -2,6 +2,7 @@
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rattle::classify::classify;
 use rattle::config::{Backend, Config, Precision};
 use rattle::engine::Engine;
@@ -9,8 +10,10 @@ use rattle::map;
 use rattle::method::RunResult;
 use rattle::output::{Staged, with_ext};
 use rattle::render::{DensityPlot, density_png};
-use rattle::sweep::{Direction, finish, plot_value, progress_bar};
+use rattle::spec::{Points, RunSpec};
+use rattle::sweep::{Direction, finish, plot_value};
 use serde_json::json;
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -303,10 +306,7 @@ fn run(cli: Cli) -> Result<()> {
             state_points,
         } => {
             let cfg = common.load()?;
-            print!(
-                "{}",
-                rattle::bench::validate(&cfg, state_points).map_err(anyhow::Error::msg)?
-            );
+            print!("{}", rattle::bench::validate(&cfg, state_points)?);
             Ok(())
         }
         Cmd::Bench {
@@ -340,7 +340,7 @@ fn point(cfg: &Config, as_json: bool) -> Result<()> {
     let engine = Engine::open(cfg.method.backend);
     let t = Instant::now();
     let pb = progress_bar(1, "point");
-    let (mut rs, _) = engine.run(cfg, &[], &[], None, &pb)?;
+    let (mut rs, _) = engine.run(&RunSpec::new(cfg), &Points::single(), &|n| pb.inc(n))?;
     let r = rs.pop().context("no result")?;
     pb.finish_and_clear();
     let secs = t.elapsed().as_secs_f64();
@@ -416,7 +416,11 @@ fn bifurcation(cfg: &Config, out: &std::path::Path, continuation: Option<&str>) 
                     values.len() as u64 * if gpu { total } else { 1 },
                     "bifurcation",
                 );
-                let (r, t) = engine.run(cfg, &[cfg.sweep.param.as_str()], &values, None, &pb)?;
+                let (r, t) = engine.run(
+                    &RunSpec::new(cfg),
+                    &Points::along(&[cfg.sweep.param], &values),
+                    &|n| pb.inc(n),
+                )?;
                 pb.finish_and_clear();
                 (vec![("", r)], Some(t))
             }
@@ -428,7 +432,7 @@ fn bifurcation(cfg: &Config, out: &std::path::Path, continuation: Option<&str>) 
                 };
                 let pb = progress_bar(values.len() as u64, "continuation");
                 let d: Vec<Direction> = dirs.iter().map(|d| d.1).collect();
-                let r = rattle::sweep::continuation(&engine, cfg, &d, &pb)?;
+                let r = rattle::sweep::continuation(&engine, cfg, &d, &|n| pb.inc(n))?;
                 pb.finish_and_clear();
                 (dirs.iter().map(|d| d.0).zip(r).collect(), None)
             }
@@ -446,7 +450,7 @@ fn bifurcation(cfg: &Config, out: &std::path::Path, continuation: Option<&str>) 
     {
         let mut w = csv::Writer::from_path(staged.path(&csv_path))
             .with_context(|| format!("cannot write {}", csv_path.display()))?;
-        let mut head = vec![cfg.sweep.param.as_str(), "sample", "y1", "y2", "y3", "y4"];
+        let mut head = vec![cfg.sweep.param.name(), "sample", "y1", "y2", "y3", "y4"];
         if continuation.is_some() {
             head.insert(0, "direction");
         }
@@ -478,7 +482,7 @@ fn bifurcation(cfg: &Config, out: &std::path::Path, continuation: Option<&str>) 
     } else {
         cfg.sweep.title.clone()
     };
-    let x_label = sweep_label(&cfg.sweep.param);
+    let x_label = cfg.sweep.param.label();
     let data: Vec<(String, Vec<(f64, f64)>)> = runs
         .iter()
         .map(|(dir, points)| {
@@ -606,15 +610,6 @@ fn bifurcation(cfg: &Config, out: &std::path::Path, continuation: Option<&str>) 
     Ok(())
 }
 
-fn sweep_label(param: &str) -> String {
-    match param {
-        "eta" => "eta (forcing frequency)".into(),
-        "R" => "R (restitution)".into(),
-        "lambda" => "lambda (friction)".into(),
-        p => p.into(),
-    }
-}
-
 fn default_title(cfg: &Config) -> String {
     let m = &cfg.model;
     let friction = match m.friction {
@@ -661,7 +656,7 @@ fn map_cmd(
     let part = |i: usize, n: usize| -> Result<map::Part> {
         let len = map::shard_range(cells, i, n).len() as u64;
         let pb = progress_bar(len * per_cell, &format!("map {}/{}", i + 1, n));
-        let p = map::compute_part(&engine, cfg, (i, n), starts, &pb)?;
+        let p = map::compute_part(&engine, cfg, (i, n), starts, &|n| pb.inc(n))?;
         pb.finish_and_clear();
         Ok(p)
     };
@@ -711,7 +706,7 @@ fn map_cmd(
             "--compare: the other config must have the same [map] grid"
         );
         let pb = progress_bar(cells as u64 * per_cell, "map (compare)");
-        let (s, _) = map::compute(&engine, o, 0..cells, 1, &pb)?;
+        let (s, _) = map::compute(&engine, o, 0..cells, 1, &|n| pb.inc(n))?;
         pb.finish_and_clear();
         let other_fields = map::Fields::from_cells(&s);
         let a = fields.classes();
@@ -780,7 +775,11 @@ fn figure_paper(
         let engine = Engine::open(cfg.method.backend);
         let values = cfg.sweep_values();
         let pb = progress_bar(values.len() as u64, name);
-        let (results, _) = engine.run(&cfg, &[cfg.sweep.param.as_str()], &values, None, &pb)?;
+        let (results, _) = engine.run(
+            &RunSpec::new(&cfg),
+            &Points::along(&[cfg.sweep.param], &values),
+            &|n| pb.inc(n),
+        )?;
         pb.finish_and_clear();
         let var = cfg.sweep.plot.as_str();
         let xy: Vec<(f64, f64)> = values
@@ -844,8 +843,7 @@ fn accuracy_cmd(
             backends,
         },
         &mut |s| eprintln!("accuracy: {s} ({:.0} s)", t0.elapsed().as_secs_f64()),
-    )
-    .map_err(anyhow::Error::msg)?;
+    )?;
     let mut st = Staged::new();
     {
         let mut w = csv::Writer::from_path(st.path(&with_ext(out, "csv")))?;
@@ -1009,8 +1007,13 @@ fn map_all_adapters(cfg: &Config, out: &std::path::Path, starts: usize) -> Resul
             .enumerate()
             .map(|(i, engine)| {
                 s.spawn(move || -> Result<map::Part> {
-                    let pb = indicatif::ProgressBar::hidden();
-                    Ok(map::compute_part(engine, cfg, (i, n), starts, &pb)?)
+                    Ok(map::compute_part(
+                        engine,
+                        cfg,
+                        (i, n),
+                        starts,
+                        &rattle::progress::Silent,
+                    )?)
                 })
             })
             .collect();
@@ -1037,4 +1040,23 @@ fn map_all_adapters(cfg: &Config, out: &std::path::Path, starts: usize) -> Resul
     }
     eprintln!("map on {n} adapters in {:.2} s", t.elapsed().as_secs_f64());
     Ok(())
+}
+
+/// Progress bar on stderr, hidden when stdout is not a terminal (pipes, CI, tests).
+fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::with_draw_target(
+        Some(len),
+        if std::io::stdout().is_terminal() {
+            ProgressDrawTarget::stderr()
+        } else {
+            ProgressDrawTarget::hidden()
+        },
+    );
+    pb.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    pb.set_message(what.to_string());
+    pb
 }

@@ -7,8 +7,9 @@ use crate::engine::{Engine, Summary};
 use crate::gpu::Timings;
 use crate::method::Diagnostics;
 use crate::output::{Staged, with_ext};
+use crate::progress::Progress;
 use crate::render::{CategoryMap, ScalarMap, category_map_png, period_palette, scalar_map_png};
-use indicatif::ProgressBar;
+use crate::spec::{Points, RunSpec};
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -25,6 +26,8 @@ pub enum MapError {
     Read { path: String, message: String },
     #[error("{0}")]
     Merge(String),
+    #[error("JSON: {0}")]
+    Json(#[from] serde_json::Error),
 }
 
 /// Number of cells of the configured map.
@@ -73,20 +76,20 @@ pub fn compute(
     cfg: &Config,
     range: Range<usize>,
     starts: usize,
-    pb: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<(Vec<(Summary, u8)>, Timings), MapError> {
-    let mut c = cfg.clone();
-    c.run.lyapunov = true;
+    let spec = RunSpec::new(cfg).with_lyapunov();
     let k = starts.max(1);
-    let cells = cell_values(&c, range);
+    let cells = cell_values(cfg, range);
     let values: Vec<f64> = cells
         .chunks(2)
         .flat_map(|xy| std::iter::repeat_n([xy[0], xy[1]], k).flatten())
         .collect();
-    let y0 = start_states(&c, k);
+    let y0 = start_states(cfg, k);
     let y0s: Vec<[f64; 4]> = (0..values.len() / 2).map(|i| y0[i % k]).collect();
-    let vary = [c.map.x.as_str(), c.map.y.as_str()];
-    let (s, t) = engine.run_summaries(&c, &vary, &values, Some(&y0s), pb)?;
+    let vary = [cfg.map.x, cfg.map.y];
+    let points = Points::along(&vary, &values).with_states(&y0s);
+    let (s, t) = engine.run_summaries(&spec, &points, progress)?;
     let out = s
         .chunks(k)
         .map(|g| {
@@ -215,10 +218,10 @@ pub fn compute_part(
     cfg: &Config,
     (i, n): (usize, usize),
     starts: usize,
-    pb: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<Part, MapError> {
     let range = shard_range(cell_count(cfg), i, n);
-    let (cells, timings) = compute(engine, cfg, range.clone(), starts, pb)?;
+    let (cells, timings) = compute(engine, cfg, range.clone(), starts, progress)?;
     Ok(Part {
         version: env!("CARGO_PKG_VERSION").into(),
         config: cfg.clone(),
@@ -238,7 +241,7 @@ pub fn part_path(prefix: &Path, i: usize, n: usize) -> PathBuf {
 
 pub fn write_part(path: &Path, part: &Part) -> Result<(), MapError> {
     let mut st = Staged::new();
-    let text = serde_json::to_string(part).map_err(|e| MapError::Merge(e.to_string()))?;
+    let text = serde_json::to_string(part).map_err(MapError::Json)?;
     st.write(path, text.as_bytes())?;
     st.commit()?;
     Ok(())
@@ -258,11 +261,10 @@ pub fn merge(mut parts: Vec<Part>) -> Result<(Config, Fields, Vec<Part>), MapErr
     let first = parts
         .first()
         .ok_or_else(|| MapError::Merge("no parts given".into()))?;
-    let cfg_json =
-        serde_json::to_value(&first.config).map_err(|e| MapError::Merge(e.to_string()))?;
+    let cfg_json = serde_json::to_value(&first.config).map_err(MapError::Json)?;
     let n = first.shard.1;
     for p in &parts {
-        let v = serde_json::to_value(&p.config).map_err(|e| MapError::Merge(e.to_string()))?;
+        let v = serde_json::to_value(&p.config).map_err(MapError::Json)?;
         if v != cfg_json || p.shard.1 != n {
             return Err(MapError::Merge(format!(
                 "part {}/{} has a different config or shard count than part {}/{}",
@@ -320,15 +322,6 @@ fn categories() -> Vec<(u16, String, [u8; 3])> {
     v
 }
 
-fn label(p: &str) -> String {
-    match p {
-        "eta" => "eta (forcing frequency)".into(),
-        "R" => "R (restitution)".into(),
-        "lambda" => "lambda (Coulomb friction)".into(),
-        p => p.into(),
-    }
-}
-
 pub fn title(cfg: &Config) -> String {
     if !cfg.map.title.is_empty() {
         return cfg.map.title.clone();
@@ -344,7 +337,7 @@ pub fn title(cfg: &Config) -> String {
         ("b1", m.b1),
         ("mu", m.mu),
     ] {
-        if k != cfg.map.x && k != cfg.map.y {
+        if k != cfg.map.x.name() && k != cfg.map.y.name() {
             fixed.push(format!("{k}={v}"));
         }
     }
@@ -363,7 +356,7 @@ pub fn write_outputs(
     let (nx, ny) = (m.x_points as usize, m.y_points as usize);
     let mut st = Staged::new();
     let t = title(cfg);
-    let (xl, yl) = (label(&m.x), label(&m.y));
+    let (xl, yl) = (m.x.label(), m.y.label());
     let cats = categories();
     let cat_refs: Vec<(u16, &str, [u8; 3])> = cats
         .iter()
@@ -473,7 +466,7 @@ pub fn write_outputs(
     npy(&mut st, "attractors", &|p| save(p, &shape, &f.attractors))?;
     let mut j = meta;
     j["version"] = env!("CARGO_PKG_VERSION").into();
-    j["config"] = serde_json::to_value(cfg).map_err(|e| MapError::Merge(e.to_string()))?;
+    j["config"] = serde_json::to_value(cfg).map_err(MapError::Json)?;
     j["class_counts"] = serde_json::to_value(fields.counts()).unwrap_or_default();
     j["class_codes"] = "n > 0 period-n, 0 aperiodic, -1 no_impact, -2 failed, -3 quasi_periodic, -4 chaotic, -5 unresolved".into();
     j["axes"] = serde_json::json!({
@@ -484,7 +477,7 @@ pub fn write_outputs(
     st.write(
         &with_ext(prefix, "json"),
         serde_json::to_string_pretty(&j)
-            .map_err(|e| MapError::Merge(e.to_string()))?
+            .map_err(MapError::Json)?
             .as_bytes(),
     )?;
     Ok(st.commit()?)
@@ -521,7 +514,7 @@ pub fn write_compare(
     ];
     let ordered = |r: (f64, f64)| (r.0.min(r.1), r.0.max(r.1));
     let t = format!("class changes: {}", title(cfg));
-    let (xl, yl) = (label(&m.x), label(&m.y));
+    let (xl, yl) = (m.x.label(), m.y.label());
     let mut st = Staged::new();
     category_map_png(
         &st.path(&with_ext(prefix, "png")),

@@ -278,6 +278,23 @@ pub struct RunResult {
     pub lyapunov: f64,
 }
 
+impl RunResult {
+    /// Class of the run by its samples (period detector, impacts, finiteness).
+    pub fn class(&self, period_tol: f64) -> crate::classify::Class {
+        crate::classify::classify(
+            &self.samples,
+            self.sample_impacts,
+            self.diag.nonfinite,
+            period_tol,
+        )
+    }
+
+    /// Mean impacts per sampled period.
+    pub fn impacts_per_period(&self) -> f64 {
+        self.sample_impacts as f64 / self.samples.len().max(1) as f64
+    }
+}
+
 /// Offset of the twin trajectory of the Lyapunov estimate: sqrt(machine epsilon) balances
 /// round-off in the measured separation against the nonlinearity of a finite separation.
 pub fn twin_offset<F: Real>() -> F {

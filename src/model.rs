@@ -6,7 +6,7 @@
 //! so the CPU integrator and the shader need one friction law only.
 
 use crate::real::Real;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Motion mode. The mode, not sign(v), fixes the friction direction inside a step.
 /// The numeric values are shared with the shader (`MODE_*` constants).
@@ -159,34 +159,145 @@ impl Params<f64> {
             mu: F::of(self.mu),
         }
     }
+}
 
-    /// Sets a parameter by its config name; used by sweeps.
-    pub fn set(&mut self, name: &str, value: f64) -> Result<(), String> {
-        match name {
-            "eta" => self.eta = value,
-            "R" => self.restitution = value,
-            "lambda" => {
-                self.fs = value;
-                self.fk = value;
-            }
-            "fs" => self.fs = value,
-            "fk" => self.fk = value,
-            "l1" => self.l1 = value,
-            "l2" => self.l2 = value,
-            "r" => self.r = value,
-            "delta" => self.delta = value,
-            "b1" => self.b1 = value,
-            "mu" => self.mu = value,
-            _ => return Err(format!("unknown parameter `{name}`")),
+/// A model parameter that sweeps and maps vary: the one vocabulary of config keys, command
+/// line, kernel codes and plot labels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Param {
+    #[serde(rename = "eta")]
+    Eta,
+    /// Restitution coefficient.
+    R,
+    /// Coulomb coefficient: sets both Stribeck levels fs and fk.
+    #[serde(rename = "lambda")]
+    Lambda,
+    #[serde(rename = "fs")]
+    Fs,
+    #[serde(rename = "fk")]
+    Fk,
+    #[serde(rename = "l1")]
+    L1,
+    #[serde(rename = "l2")]
+    L2,
+    /// Clearance.
+    #[serde(rename = "r")]
+    Clearance,
+    #[serde(rename = "delta")]
+    Delta,
+    #[serde(rename = "b1")]
+    B1,
+    #[serde(rename = "mu")]
+    Mu,
+}
+
+impl Param {
+    pub const ALL: [Param; 11] = [
+        Param::Eta,
+        Param::R,
+        Param::Lambda,
+        Param::Fs,
+        Param::Fk,
+        Param::L1,
+        Param::L2,
+        Param::Clearance,
+        Param::Delta,
+        Param::B1,
+        Param::Mu,
+    ];
+
+    /// The config and command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Param::Eta => "eta",
+            Param::R => "R",
+            Param::Lambda => "lambda",
+            Param::Fs => "fs",
+            Param::Fk => "fk",
+            Param::L1 => "l1",
+            Param::L2 => "l2",
+            Param::Clearance => "r",
+            Param::Delta => "delta",
+            Param::B1 => "b1",
+            Param::Mu => "mu",
         }
-        Ok(())
+    }
+
+    /// Axis label of plots.
+    pub fn label(self) -> String {
+        match self {
+            Param::Eta => "eta (forcing frequency)".into(),
+            Param::R => "R (restitution)".into(),
+            Param::Lambda => "lambda (Coulomb friction)".into(),
+            p => p.name().into(),
+        }
+    }
+
+    /// Code of the parameter in the kernel's `set_param` (`VARY_*` in the shader).
+    pub fn code(self) -> u32 {
+        match self {
+            Param::Eta => 0,
+            Param::R => 1,
+            Param::Fs => 2,
+            Param::Fk => 3,
+            Param::L1 => 4,
+            Param::L2 => 5,
+            Param::Clearance => 6,
+            Param::Delta => 7,
+            Param::B1 => 8,
+            Param::Mu => 9,
+            Param::Lambda => 10,
+        }
+    }
+
+    /// Whether a map over `self` and `other` varies one quantity twice (lambda is fs and fk).
+    pub fn overlaps(self, other: Param) -> bool {
+        let fric = |p: Param| matches!(p, Param::Lambda | Param::Fs | Param::Fk);
+        self == other
+            || (fric(self) && fric(other) && (self == Param::Lambda || other == Param::Lambda))
+    }
+
+    /// Sets this parameter of `p` (the host twin of the kernel's `set_param`).
+    pub fn set<F: Copy>(self, p: &mut Params<F>, v: F) {
+        match self {
+            Param::Eta => p.eta = v,
+            Param::R => p.restitution = v,
+            Param::Lambda => {
+                p.fs = v;
+                p.fk = v;
+            }
+            Param::Fs => p.fs = v,
+            Param::Fk => p.fk = v,
+            Param::L1 => p.l1 = v,
+            Param::L2 => p.l2 = v,
+            Param::Clearance => p.r = v,
+            Param::Delta => p.delta = v,
+            Param::B1 => p.b1 = v,
+            Param::Mu => p.mu = v,
+        }
     }
 }
 
-/// Names accepted by [`Params::set`] (sweeps and maps).
-pub const SWEEPABLE: &[&str] = &[
-    "eta", "R", "lambda", "fs", "fk", "l1", "l2", "r", "delta", "b1", "mu",
-];
+impl std::fmt::Display for Param {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// An unknown parameter name.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("unknown parameter `{0}` (one of eta, R, lambda, fs, fk, l1, l2, r, delta, b1, mu)")]
+pub struct UnknownParam(pub String);
+
+impl std::str::FromStr for Param {
+    type Err = UnknownParam;
+    fn from_str(s: &str) -> Result<Param, UnknownParam> {
+        Param::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| UnknownParam(s.to_string()))
+    }
+}
 
 /// Slip friction magnitude at slip speed |v| (the mode supplies the sign).
 #[inline(always)]

@@ -1,12 +1,14 @@
 //! GPU kernel against its CPU twin. These tests need an adapter (Mesa lavapipe in CI); with
 //! RATTLE_REQUIRE_GPU=1 (set by CI) a missing adapter fails them instead of skipping.
 
-use indicatif::ProgressBar;
 use rattle::classify::{Class, classify};
+use rattle::config::Precision;
 use rattle::gpu::{Gpu, GpuOutput, Job};
 use rattle::method::{Integrator, RunResult, Settings};
-use rattle::model::Params;
+use rattle::model::{Param, Params};
+use rattle::progress::Silent;
 use rattle::real::Real;
+use rattle::spec::{Points, RunSpec};
 use std::sync::{Mutex, OnceLock};
 
 /// One device for all tests of this binary (adapters are slow to open; tests run serially
@@ -29,26 +31,34 @@ fn gpu() -> Option<&'static Mutex<Gpu>> {
     .as_ref()
 }
 
-fn eta_job<'a>(etas: &'a [f64], s: Settings, transient: u32, samples: u32) -> Job<'a> {
-    Job {
-        base: Params::paper(1.5),
-        vary: &["eta"],
-        values: etas,
-        n_points: etas.len(),
-        y0: &[[0.0; 4]],
+fn eta_spec(s: Settings, transient: u32, samples: u32, f64: bool) -> RunSpec {
+    RunSpec {
+        params: Params::paper(1.5),
+        y0: [0.0; 4],
         settings: s,
         transient,
         samples,
-        store_samples: true,
         period_tol: 1e-4,
-        max_binding_bytes: None,
-        max_groups_per_dim: None,
+        lyapunov_tol: 0.01,
+        precision: if f64 { Precision::F64 } else { Precision::F32 },
     }
 }
 
-fn run_gpu(job: &Job, f64: bool) -> Option<GpuOutput> {
+fn run_job(job: &Job) -> Option<GpuOutput> {
     let g = gpu()?.lock().unwrap();
-    Some(g.run(job, f64, &ProgressBar::hidden()).expect("GPU run"))
+    Some(g.run(job, &Silent).expect("GPU run"))
+}
+
+/// Points of the paper's Fig. 2 at the given eta values, samples kept.
+fn run_gpu(
+    etas: &[f64],
+    s: Settings,
+    transient: u32,
+    samples: u32,
+    f64: bool,
+) -> Option<GpuOutput> {
+    let spec = eta_spec(s, transient, samples, f64);
+    run_job(&Job::new(&spec, Points::along(&[Param::Eta], etas), true))
 }
 
 fn run_cpu<F: Real>(eta: f64, s: &Settings, transient: u32, samples: u32) -> RunResult {
@@ -63,7 +73,7 @@ fn max_diff(a: &[f64; 4], b: &[f64; 4]) -> f64 {
 /// number of points whose impact counts differ.
 fn compare(etas: &[f64], periods: u32, f64: bool) -> Option<(f64, usize)> {
     let s = Settings::default();
-    let g = run_gpu(&eta_job(etas, s, periods, 0), f64)?;
+    let g = run_gpu(etas, s, periods, 0, f64)?;
     let (mut d, mut mismatched) = (0.0f64, 0);
     for (i, &eta) in etas.iter().enumerate() {
         let c = if f64 {
@@ -122,7 +132,7 @@ fn classes_agree_at_periodic_points_of_fig2() {
     let etas = [1.30, 1.35, 1.40, 1.45, 1.50, 1.55, 1.60, 1.65, 1.90];
     let s = Settings::default();
     for f64 in [false, true] {
-        let Some(g) = run_gpu(&eta_job(&etas, s, 500, 200), f64) else {
+        let Some(g) = run_gpu(&etas, s, 500, 200, f64) else {
             return;
         };
         for (i, &eta) in etas.iter().enumerate() {
@@ -156,8 +166,9 @@ fn split_batches_and_2d_dispatch_give_identical_results() {
         steps_per_period: 32,
         ..Settings::default()
     };
-    let job = eta_job(&etas, s, 3, 4);
-    let Some(whole) = run_gpu(&job, false) else {
+    let spec = eta_spec(s, 3, 4, false);
+    let job = Job::new(&spec, Points::along(&[Param::Eta], &etas), true);
+    let Some(whole) = run_job(&job) else {
         return;
     };
     let split_job = Job {
@@ -165,7 +176,7 @@ fn split_batches_and_2d_dispatch_give_identical_results() {
         max_groups_per_dim: Some(8),
         ..job.clone()
     };
-    let split = run_gpu(&split_job, false).unwrap();
+    let split = run_job(&split_job).unwrap();
     assert_eq!(whole.timings.batches, 1);
     assert!(
         split.timings.batches >= 5,
@@ -188,7 +199,7 @@ fn split_batches_and_2d_dispatch_give_identical_results() {
 #[test]
 fn non_finite_parameters_fail_the_point_only() {
     let etas = [1.5, f64::NAN, 1.4];
-    let Some(g) = run_gpu(&eta_job(&etas, Settings::default(), 5, 5), false) else {
+    let Some(g) = run_gpu(&etas, Settings::default(), 5, 5, false) else {
         return;
     };
     assert_eq!(g.classes[1], Class::Failed);
@@ -215,7 +226,7 @@ fn lyapunov_exponents_and_classes_agree_with_cpu() {
         ..Settings::default()
     };
     for f64 in [false, true] {
-        let Some(g) = run_gpu(&eta_job(&etas, s, 500, 400), f64) else {
+        let Some(g) = run_gpu(&etas, s, 500, 400, f64) else {
             return;
         };
         for (i, &eta) in etas.iter().enumerate() {
@@ -249,14 +260,13 @@ fn small_map_classes_agree_with_cpu() {
         x_to = 0.7\nx_points = 12\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 12\n";
     let mut cfg = rattle::config::Config::from_toml(text, &[]).unwrap();
     let cells = rattle::map::cell_count(&cfg);
-    let pb = ProgressBar::hidden();
     for prec in [
         rattle::config::Precision::F32,
         rattle::config::Precision::F64,
     ] {
         cfg.method.precision = prec;
         let cpu: Vec<_> =
-            rattle::map::compute(&rattle::engine::Engine::Cpu, &cfg, 0..cells, 1, &pb)
+            rattle::map::compute(&rattle::engine::Engine::Cpu, &cfg, 0..cells, 1, &Silent)
                 .unwrap()
                 .0
                 .into_iter()
@@ -264,25 +274,11 @@ fn small_map_classes_agree_with_cpu() {
                 .collect();
         let g = gpu().unwrap().lock().unwrap();
         let out = {
-            let mut c = cfg.clone();
-            c.run.lyapunov = true;
-            let values = rattle::map::cell_values(&c, 0..cells);
-            let job = Job {
-                base: c.params(),
-                vary: &["R", "lambda"],
-                values: &values,
-                n_points: cells,
-                y0: &[[0.0; 4]],
-                settings: c.settings(),
-                transient: 300,
-                samples: 100,
-                store_samples: false,
-                period_tol: 1e-4,
-                max_binding_bytes: None,
-                max_groups_per_dim: None,
-            };
-            g.run(&job, prec == rattle::config::Precision::F64, &pb)
-                .unwrap()
+            let spec = RunSpec::new(&cfg).with_lyapunov();
+            let values = rattle::map::cell_values(&cfg, 0..cells);
+            let vary = [Param::R, Param::Lambda];
+            let job = Job::new(&spec, Points::along(&vary, &values), false);
+            g.run(&job, &Silent).unwrap()
         };
         drop(g);
         let gpu_classes: Vec<Class> = out

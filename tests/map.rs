@@ -128,11 +128,12 @@ fn failed_cells_are_never_a_valid_class() {
     let engine = rattle::engine::Engine::Cpu;
     let (sum, _) = engine
         .run_summaries(
-            &cfg,
-            &["R", "lambda"],
-            &[0.6, 0.02, f64::NAN, 0.02],
-            None,
-            &indicatif::ProgressBar::hidden(),
+            &rattle::spec::RunSpec::new(&cfg),
+            &rattle::spec::Points::along(
+                &[rattle::model::Param::R, rattle::model::Param::Lambda],
+                &[0.6, 0.02, f64::NAN, 0.02],
+            ),
+            &rattle::progress::Silent,
         )
         .unwrap();
     assert_eq!(sum[1].class, Class::Failed);

@@ -8,11 +8,13 @@
 //! max_storage_buffer_binding_size, and dispatches beyond 65535 workgroups use a 2-D grid.
 
 use crate::classify::{Class, MAX_PERIOD, PeriodDetector, class_of};
-use crate::method::{Diagnostics, ImpactMethod, RunResult, Settings, forcing_table, twin_offset};
+use crate::config::Precision;
+use crate::method::{Diagnostics, ImpactMethod, RunResult, forcing_table, twin_offset};
 use crate::model::{Mode, Params, initial_mode};
+use crate::progress::Progress;
 use crate::real::Real;
+use crate::spec::{Points, RunSpec};
 use bytemuck::Pod;
-use indicatif::ProgressBar;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
@@ -38,7 +40,6 @@ const RING_SLOTS: u64 = MAX_PERIOD as u64 + 3;
 const Y_SLOTS: u64 = 8;
 /// Offset of the forcing table in the constants buffer.
 const C_TABLE: usize = 16;
-const VARY_LAMBDA: u32 = 10;
 const VARY_NONE: u32 = 255;
 /// Loop iterations llvmpipe counts per RK4 step of this kernel (measured: 18-20, with the
 /// stroboscopic sampling; the driver counts more than the kernel's own loops).
@@ -79,28 +80,29 @@ struct Control {
     pad: [u32; 2],
 }
 
-/// Work description for the GPU: every point shares `base` except the `vary` parameters.
+/// Work description for the GPU: the points of a run and what to read back.
 #[derive(Clone, Debug)]
 pub struct Job<'a> {
-    pub base: Params<f64>,
-    /// Names of up to two varying parameters (see [`crate::model::SWEEPABLE`]).
-    pub vary: &'a [&'a str],
-    /// Per-point values of the varying parameters, `n_points * vary.len()`, point-major.
-    pub values: &'a [f64],
-    /// Number of points.
-    pub n_points: usize,
-    /// Initial states: one for all points, or one per point.
-    pub y0: &'a [[f64; 4]],
-    pub settings: Settings,
-    pub transient: u32,
-    pub samples: u32,
+    pub spec: &'a RunSpec,
+    pub points: Points<'a>,
     /// Read back every stroboscopic sample (bifurcation); otherwise only the on-GPU class.
     pub store_samples: bool,
-    pub period_tol: f64,
     /// Lower the binding limit below the adapter's (tests of batch splitting).
     pub max_binding_bytes: Option<u64>,
     /// Lower the workgroups per dimension (tests of the 2-D dispatch).
     pub max_groups_per_dim: Option<u32>,
+}
+
+impl<'a> Job<'a> {
+    pub fn new(spec: &'a RunSpec, points: Points<'a>, store_samples: bool) -> Job<'a> {
+        Job {
+            spec,
+            points,
+            store_samples,
+            max_binding_bytes: None,
+            max_groups_per_dim: None,
+        }
+    }
 }
 
 /// Timings of a GPU run, seconds.
@@ -266,38 +268,41 @@ impl Gpu {
         self.check_error()
     }
 
-    /// Runs a job in f32 or f64.
-    pub fn run(&self, job: &Job, f64: bool, pb: &ProgressBar) -> Result<GpuOutput, GpuError> {
-        if f64 {
-            if !self.has_f64 {
-                return Err(GpuError::NoF64(self.info.name.clone()));
+    /// Runs a job in the precision of its spec.
+    pub fn run(&self, job: &Job, progress: &dyn Progress) -> Result<GpuOutput, GpuError> {
+        match job.spec.precision {
+            Precision::F64 => {
+                if !self.has_f64 {
+                    return Err(GpuError::NoF64(self.info.name.clone()));
+                }
+                self.run_typed::<f64>(job, progress)
             }
-            self.run_typed::<f64>(job, pb)
-        } else {
-            self.run_typed::<f32>(job, pb)
+            Precision::F32 => self.run_typed::<f32>(job, progress),
         }
     }
 
-    fn run_typed<F: Real + Pod>(&self, job: &Job, pb: &ProgressBar) -> Result<GpuOutput, GpuError> {
+    fn run_typed<F: Real + Pod>(
+        &self,
+        job: &Job,
+        progress: &dyn Progress,
+    ) -> Result<GpuOutput, GpuError> {
         let t_setup = Instant::now();
-        let n = job.n_points;
-        let nv = job.vary.len();
-        if nv > 2 || job.values.len() != n * nv || !(job.y0.len() == 1 || job.y0.len() == n) {
+        let pts = &job.points;
+        let spec = job.spec;
+        let n = pts.len();
+        let nv = pts.vary.len();
+        if nv > 2 || pts.values.len() != n * nv || pts.y0s.is_some_and(|y| y.len() != n) {
             return Err(GpuError::Job(format!(
-                "{} varying parameters, {} values, {} initial states for {n} points",
+                "{} varying parameters, {} values, {:?} initial states for {n} points",
                 nv,
-                job.values.len(),
-                job.y0.len()
+                pts.values.len(),
+                pts.y0s.map(|y| y.len())
             )));
         }
-        let codes: Vec<u32> = job
-            .vary
-            .iter()
-            .map(|v| vary_code(v))
-            .collect::<Result<_, _>>()?;
+        let codes: Vec<u32> = pts.vary.iter().map(|v| v.code()).collect();
         let fsz = std::mem::size_of::<F>() as u64;
         let store_f = if job.store_samples {
-            job.samples as u64 * 4 * fsz
+            spec.samples as u64 * 4 * fsz
         } else {
             0
         };
@@ -349,9 +354,9 @@ impl Gpu {
         self.check_error()?;
 
         // Constants: parameters, method constants, forcing table.
-        let s = &job.settings;
+        let s = &spec.settings;
         let nsteps = s.steps_per_period;
-        let b = &job.base;
+        let b = &spec.params;
         let mut consts = vec![
             b.eta,
             b.restitution,
@@ -365,7 +370,7 @@ impl Gpu {
             b.mu,
             s.zeno_speed,
             0.0,
-            job.period_tol,
+            spec.period_tol,
             2.0 * std::f64::consts::PI / nsteps as f64,
             0.0,
             0.0,
@@ -401,10 +406,9 @@ impl Gpu {
         let mut kernel_ns = 0.0f64;
         timings.setup_s = t_setup.elapsed().as_secs_f64();
 
-        let total_periods = job.transient + job.samples;
+        let total_periods = spec.periods();
         let mut results = Vec::with_capacity(n);
         let mut classes = Vec::with_capacity(n);
-        let params_f: Params<F> = job.base.cast();
         let mut start = 0usize;
         while start < n {
             let t_batch = Instant::now();
@@ -414,7 +418,7 @@ impl Gpu {
             let pv: Vec<F> = if nv == 0 {
                 vec![F::zero()]
             } else {
-                job.values[start * nv..(start + m) * nv]
+                pts.values[start * nv..(start + m) * nv]
                     .iter()
                     .map(|&v| F::of(v))
                     .collect()
@@ -422,10 +426,10 @@ impl Gpu {
             let mut ys = vec![F::zero(); Y_SLOTS as usize * m];
             let mut us = vec![0u32; U_SLOTS as usize * m];
             for i in 0..m {
-                let y0 = job.y0[if job.y0.len() == 1 { 0 } else { start + i }];
-                let mut p = params_f;
-                for (c, code) in codes.iter().enumerate() {
-                    set_param(&mut p, *code, F::of(job.values[(start + i) * nv + c]));
+                let y0 = pts.y0(spec, start + i);
+                let mut p: Params<F> = spec.params.cast();
+                for (c, v) in pts.vary.iter().enumerate() {
+                    v.set(&mut p, F::of(pts.values[(start + i) * nv + c]));
                 }
                 let yf = y0.map(F::of);
                 for c in 0..4 {
@@ -473,8 +477,8 @@ impl Gpu {
                 steps: nsteps,
                 periods: 0,
                 period0: 0,
-                transient: job.transient,
-                samples: job.samples,
+                transient: spec.transient,
+                samples: spec.samples,
                 store: job.store_samples as u32,
                 max_events: s.max_events,
                 n_vary: nv as u32,
@@ -540,7 +544,7 @@ impl Gpu {
                 }
                 done += periods;
                 timings.dispatches += 1;
-                pb.inc(periods as u64 * m as u64);
+                progress.advance(periods as u64 * m as u64);
                 let target = 0.25 / (secs / periods as f64).max(1e-9);
                 chunk = (target as u32).clamp(1, chunk.saturating_mul(8)).min(cap);
             }
@@ -578,11 +582,11 @@ impl Gpu {
                     overflows: u(5) as u64,
                     nonfinite: u(6) != 0,
                 };
-                let n_samples = if diag.nonfinite { u(7) } else { job.samples } as usize;
+                let n_samples = if diag.nonfinite { u(7) } else { spec.samples } as usize;
                 let smp = if job.store_samples {
                     (0..n_samples)
                         .map(|k| {
-                            let o = (i * job.samples as usize + k) * 4;
+                            let o = (i * spec.samples as usize + k) * 4;
                             [0, 1, 2, 3].map(|c| samples[o + c].to_f64())
                         })
                         .collect()
@@ -594,10 +598,7 @@ impl Gpu {
                     PeriodDetector::period_from(possible, u(7))
                 }));
                 let lyapunov = if s.lyapunov && u(12) == 0 && u(7) > 0 {
-                    let eta = codes
-                        .iter()
-                        .position(|&c| c == 0)
-                        .map_or(job.base.eta, |c| job.values[(start + i) * nv + c]);
+                    let eta = pts.params(&spec.params, start + i).eta;
                     let period = 2.0 * std::f64::consts::PI / eta;
                     ring[(RING_SLOTS as usize - 1) * m + i].to_f64() / (u(7) as f64 * period)
                 } else {
@@ -688,39 +689,5 @@ fn entry(binding: u32, buf: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: buf.as_entire_binding(),
-    }
-}
-
-/// Shader code of a varying parameter.
-fn vary_code(name: &str) -> Result<u32, GpuError> {
-    const ORDER: [&str; 10] = ["eta", "R", "fs", "fk", "l1", "l2", "r", "delta", "b1", "mu"];
-    if name == "lambda" {
-        return Ok(VARY_LAMBDA);
-    }
-    ORDER
-        .iter()
-        .position(|&p| p == name)
-        .map(|i| i as u32)
-        .ok_or_else(|| GpuError::Job(format!("unknown parameter `{name}`")))
-}
-
-/// Host twin of the shader's `set_param`.
-fn set_param<F: Real>(p: &mut Params<F>, code: u32, v: F) {
-    match code {
-        0 => p.eta = v,
-        1 => p.restitution = v,
-        2 => p.fs = v,
-        3 => p.fk = v,
-        4 => p.l1 = v,
-        5 => p.l2 = v,
-        6 => p.r = v,
-        7 => p.delta = v,
-        8 => p.b1 = v,
-        9 => p.mu = v,
-        VARY_LAMBDA => {
-            p.fs = v;
-            p.fk = v;
-        }
-        _ => {}
     }
 }

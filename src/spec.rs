@@ -1,0 +1,128 @@
+//! One run description shared by every backend: what to integrate (base parameters, the
+//! parameters that vary per point, initial states), how (method settings, precision) and for
+//! how long. Callers build a [`RunSpec`] from a [`Config`] once instead of cloning and mutating
+//! whole configurations.
+
+use crate::config::{Config, Precision};
+use crate::method::Settings;
+use crate::model::{Param, Params};
+
+/// How every point of a run is integrated.
+#[derive(Clone, Debug)]
+pub struct RunSpec {
+    /// Parameters shared by every point (the varying ones are overwritten per point).
+    pub params: Params<f64>,
+    /// Initial state of every point that has no state of its own.
+    pub y0: [f64; 4],
+    pub settings: Settings,
+    pub transient: u32,
+    pub samples: u32,
+    /// Period test tolerance relative to the attractor size.
+    pub period_tol: f64,
+    /// |Lyapunov exponent| below this counts as zero.
+    pub lyapunov_tol: f64,
+    pub precision: Precision,
+}
+
+impl RunSpec {
+    pub fn new(cfg: &Config) -> RunSpec {
+        RunSpec {
+            params: cfg.params(),
+            y0: cfg.initial.y,
+            settings: cfg.settings(),
+            transient: cfg.run.transient_periods,
+            samples: cfg.run.sample_periods,
+            period_tol: cfg.run.period_tol,
+            lyapunov_tol: cfg.run.lyapunov_tol,
+            precision: cfg.method.precision,
+        }
+    }
+
+    /// The same run with the Lyapunov estimate on (points and maps always use it).
+    pub fn with_lyapunov(mut self) -> RunSpec {
+        self.settings.lyapunov = true;
+        self
+    }
+
+    /// Forcing periods of each point (transient + sampled).
+    pub fn periods(&self) -> u32 {
+        self.transient + self.samples
+    }
+}
+
+/// The points of a run: per-point values of up to two varying parameters and, optionally,
+/// one initial state per point.
+#[derive(Clone, Copy, Debug)]
+pub struct Points<'a> {
+    pub vary: &'a [Param],
+    /// `len() * vary.len()` numbers, point-major.
+    pub values: &'a [f64],
+    pub y0s: Option<&'a [[f64; 4]]>,
+}
+
+impl<'a> Points<'a> {
+    /// The base point alone.
+    pub fn single() -> Points<'static> {
+        Points {
+            vary: &[],
+            values: &[],
+            y0s: None,
+        }
+    }
+
+    /// One point per value of one parameter.
+    pub fn along(vary: &'a [Param], values: &'a [f64]) -> Points<'a> {
+        Points {
+            vary,
+            values,
+            y0s: None,
+        }
+    }
+
+    pub fn with_states(self, y0s: &'a [[f64; 4]]) -> Points<'a> {
+        Points {
+            y0s: Some(y0s),
+            ..self
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        if self.vary.is_empty() {
+            1
+        } else {
+            self.values.len() / self.vary.len()
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Points `[a, b)`.
+    pub fn slice(&self, a: usize, b: usize) -> Points<'a> {
+        let nv = self.vary.len();
+        Points {
+            vary: self.vary,
+            values: if nv == 0 {
+                self.values
+            } else {
+                &self.values[a * nv..b * nv]
+            },
+            y0s: self.y0s.map(|y| &y[a..b]),
+        }
+    }
+
+    /// Parameters of point `i`.
+    pub fn params(&self, base: &Params<f64>, i: usize) -> Params<f64> {
+        let mut p = *base;
+        for (k, v) in self.vary.iter().enumerate() {
+            v.set(&mut p, self.values[i * self.vary.len() + k]);
+        }
+        p
+    }
+
+    /// Initial state of point `i`.
+    pub fn y0(&self, spec: &RunSpec, i: usize) -> [f64; 4] {
+        self.y0s.map_or(spec.y0, |y| y[i])
+    }
+}
