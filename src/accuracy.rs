@@ -4,13 +4,16 @@
 use crate::classify::Class;
 use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::method::{ImpactMethod, Integrator, RunResult, Settings};
 use crate::model::{Param, Params};
+use crate::output::{Staged, with_ext};
 use crate::progress::Silent;
 use crate::reference::{FrictionlessParams, exact_frictionless};
+use crate::render::{LinePlot, Series, line_plot_png};
 use crate::spec::{Points, RunSpec};
 use serde::Serialize;
+use std::path::{Path, PathBuf};
 
 /// Steps per period of the study and of the reference.
 pub const NS: [u32; 9] = [16, 32, 64, 128, 256, 512, 1024, 2048, 4096];
@@ -153,7 +156,12 @@ pub fn study(
     cfg: &Config,
     o: &Options,
     log: &mut dyn FnMut(&str),
-) -> Result<(Vec<Row>, serde_json::Value)> {
+) -> Result<(Vec<Row>, ReferenceInfo)> {
+    if o.ensemble == 0 || o.failure_points < 2 {
+        return Err(Error::Invalid(
+            "--ensemble >= 1, --failure-points >= 2".into(),
+        ));
+    }
     let mut rows = Vec::new();
     let engines: Vec<Engine> = o.backends.iter().map(|&b| Engine::open(b)).collect();
     let combos = || {
@@ -355,13 +363,185 @@ pub fn study(
             }
         }
     }
-    let meta = serde_json::json!({
-        "reference": {
-            "case": case_main,
-            "class": c_ref.name(),
-            "n": N_REF,
-            "change_at_2n": ref_change,
-        },
-    });
+    let meta = ReferenceInfo {
+        case: case_main,
+        class: c_ref.name(),
+        n: N_REF,
+        change_at_2n: ref_change,
+    };
     Ok((rows, meta))
+}
+
+/// The reference of the error rows.
+#[derive(Clone, Debug, Serialize)]
+pub struct ReferenceInfo {
+    /// The configured point, e.g. "coulomb eta=1.5".
+    pub case: String,
+    pub class: String,
+    pub n: u32,
+    /// Change of the reference's section point when N doubles.
+    pub change_at_2n: f64,
+}
+
+#[derive(Serialize)]
+struct OrderJson<'a> {
+    method: &'a str,
+    precision: &'a str,
+    backend: &'a str,
+    order: Option<f64>,
+    order_frictionless_exact: Option<f64>,
+}
+
+#[derive(Serialize)]
+struct AccuracyJson<'a> {
+    reference: &'a ReferenceInfo,
+    orders: Vec<OrderJson<'a>>,
+    config: &'a Config,
+    seconds: f64,
+}
+
+/// Writes PREFIX.csv (every row), PREFIX.png (work-precision chart: one line per method,
+/// precision and backend, with its observed order), PREFIX-failure.png (class mismatch and
+/// overflow fractions against N) and PREFIX.json; all or nothing.
+pub fn write_outputs(
+    out: &Path,
+    cfg: &Config,
+    rows: &[Row],
+    reference: &ReferenceInfo,
+    seconds: f64,
+) -> Result<Vec<PathBuf>> {
+    let mut st = Staged::new();
+    let csv_path = with_ext(out, "csv");
+    {
+        let err = |e| Error::csv(&csv_path, e);
+        let mut w = csv::Writer::from_path(st.path(&csv_path)).map_err(err)?;
+        for r in rows {
+            w.serialize(r).map_err(err)?;
+        }
+        w.flush()
+            .map_err(|e| Error::csv(&csv_path, csv::Error::from(e)))?;
+    }
+    let case = reference.case.as_str();
+    let mut series = Vec::new();
+    let mut orders = Vec::new();
+    let mut keys: Vec<(&str, &str, &str)> = rows
+        .iter()
+        .filter(|r| r.kind == "error")
+        .map(|r| (r.method.as_str(), r.precision.as_str(), r.backend.as_str()))
+        .collect();
+    keys.sort();
+    keys.dedup();
+    // Errors against N of one line, of the configured point or of the exact frictionless case.
+    let line = |main: bool, (m, p, b): (&str, &str, &str)| -> Vec<&Row> {
+        rows.iter()
+            .filter(|r| {
+                r.kind == "error"
+                    && (r.case == case) == main
+                    && r.method == m
+                    && r.precision == p
+                    && r.backend == b
+            })
+            .collect()
+    };
+    let err_n = |l: &[&Row]| -> Vec<(u32, f64)> {
+        l.iter().filter_map(|r| r.error.map(|e| (r.n, e))).collect()
+    };
+    for (i, &(m, p, b)) in keys.iter().enumerate() {
+        let main = line(true, (m, p, b));
+        // Order over the range above the precision's noise floor.
+        let floor = if p == "f32" { 1e-6 } else { 1e-12 };
+        let q = observed_order(&err_n(&main), floor);
+        let qx = observed_order(&err_n(&line(false, (m, p, b))), floor);
+        orders.push(OrderJson {
+            method: m,
+            precision: p,
+            backend: b,
+            order: q,
+            order_frictionless_exact: qx,
+        });
+        series.push(Series {
+            label: format!(
+                "{m} {p} {b} (order {})",
+                q.map_or("-".to_string(), |q| format!("{q:.2}"))
+            ),
+            points: main
+                .iter()
+                .filter_map(|r| Some((r.seconds_per_point?, r.error?)))
+                .collect(),
+            color_index: i,
+            dashed: m == "naive",
+        });
+    }
+    let title = format!("work-precision at {case} (section point of the attractor)");
+    line_plot_png(
+        &st.path(&with_ext(out, "png")),
+        &LinePlot {
+            title: &title,
+            x_label: "seconds per parameter point",
+            y_label: "max |error| of the section point",
+            log_x: true,
+            log_y: true,
+            series: &series,
+            width: 1200,
+            height: 800,
+        },
+    )?;
+    // Failure chart: class mismatch against the reference, per method and precision.
+    let mut fseries = Vec::new();
+    for (i, m) in ["located", "naive"].iter().enumerate() {
+        for (j, p) in ["f32", "f64"].iter().enumerate() {
+            let failures = || {
+                rows.iter()
+                    .filter(|r| r.kind == "failure" && r.method == *m && r.precision == *p)
+            };
+            fseries.push(Series {
+                label: format!("{m} {p}: class differs from reference"),
+                points: failures()
+                    .filter_map(|r| Some((r.n as f64, 100.0 * r.class_mismatch?)))
+                    .collect(),
+                color_index: 2 * i + j,
+                dashed: *m == "naive",
+            });
+            let ov: Vec<(f64, f64)> = failures()
+                .filter_map(|r| {
+                    Some((
+                        r.n as f64,
+                        100.0 * (r.overflow_fraction? + r.nonfinite_fraction?),
+                    ))
+                })
+                .collect();
+            if ov.iter().any(|p| p.1 > 0.0) {
+                fseries.push(Series {
+                    label: format!("{m} {p}: overflow or non-finite"),
+                    points: ov,
+                    color_index: 4 + 2 * i + j,
+                    dashed: true,
+                });
+            }
+        }
+    }
+    let mut fp = out.as_os_str().to_owned();
+    fp.push("-failure");
+    line_plot_png(
+        &st.path(&with_ext(Path::new(&fp), "png")),
+        &LinePlot {
+            title: "classification failures over the sweep (reference: located, f64, N = 4096)",
+            x_label: "steps per forcing period N",
+            y_label: "% of sweep points",
+            log_x: true,
+            log_y: false,
+            series: &fseries,
+            width: 1200,
+            height: 800,
+        },
+    )?;
+    let j = AccuracyJson {
+        reference,
+        orders,
+        config: cfg,
+        seconds,
+    };
+    let text = serde_json::to_string_pretty(&serde_json::to_value(&j)?)?;
+    st.write(&with_ext(out, "json"), text.as_bytes())?;
+    Ok(st.commit()?)
 }

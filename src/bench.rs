@@ -34,7 +34,10 @@ pub fn bench(
     points: usize,
     periods: u32,
     backends: &[Backend],
-) -> Vec<Result<BenchRow>> {
+) -> Result<Vec<Result<BenchRow>>> {
+    if points == 0 || periods < 3 {
+        return Err(Error::Invalid("--points >= 1 and --periods >= 3".into()));
+    }
     let mut spec = RunSpec::new(cfg);
     spec.transient = periods.saturating_sub(2);
     spec.samples = 2;
@@ -65,7 +68,7 @@ pub fn bench(
             rows.push(res);
         }
     }
-    rows
+    Ok(rows)
 }
 
 pub fn bench_table(rows: &[Result<BenchRow>]) -> String {

@@ -49,7 +49,7 @@ pub enum FrictionLaw {
     Stribeck,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {
     /// The GPU's native precision, and the default.
@@ -67,7 +67,7 @@ impl Precision {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Backend {
     /// The WGSL kernel on the adapter chosen from WGPU_BACKEND / WGPU_ADAPTER_NAME.
@@ -264,24 +264,36 @@ impl Config {
     /// Reads a TOML file and applies `overrides` (`key=value`, key either `section.key` or a
     /// bare model key), then validates.
     pub fn load(path: &Path, overrides: &[String]) -> Result<Config, ConfigError> {
+        let cfg = Self::read(path, overrides)?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// [`Config::load`] without the validation, for callers that change typed fields first
+    /// and validate the result.
+    pub fn read(path: &Path, overrides: &[String]) -> Result<Config, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
             path: path.display().to_string(),
             source,
         })?;
-        Self::from_toml(&text, overrides)
+        Self::parse(&text, overrides)
     }
 
     pub fn from_toml(text: &str, overrides: &[String]) -> Result<Config, ConfigError> {
+        let cfg = Self::parse(text, overrides)?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    fn parse(text: &str, overrides: &[String]) -> Result<Config, ConfigError> {
         let mut table: toml::Table =
             toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))?;
         for o in overrides {
             apply_override(&mut table, o)?;
         }
-        let cfg: Config = table
+        table
             .try_into()
-            .map_err(|e: toml::de::Error| ConfigError::Parse(e.to_string()))?;
-        cfg.validate()?;
-        Ok(cfg)
+            .map_err(|e: toml::de::Error| ConfigError::Parse(e.to_string()))
     }
 
     /// Model parameters in the integrator's form.

@@ -5,6 +5,7 @@
 
 pub mod accuracy;
 pub mod bench;
+pub mod bifurcation;
 pub mod classify;
 pub mod config;
 pub mod cpu;
@@ -15,11 +16,11 @@ pub mod map;
 pub mod method;
 pub mod model;
 pub mod output;
+pub mod point;
 pub mod progress;
 pub mod real;
 pub mod reference;
 pub mod render;
 pub mod spec;
-pub mod sweep;
 
 pub use error::{Error, Result};

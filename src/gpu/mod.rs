@@ -154,6 +154,22 @@ pub fn list_adapters() -> (Vec<wgpu::AdapterInfo>, Option<wgpu::AdapterInfo>) {
     (all, chosen)
 }
 
+/// The `rattle adapters` listing: every adapter wgpu sees, and the one rattle would use.
+pub fn adapters_report() -> String {
+    let (all, chosen) = list_adapters();
+    let mut s = String::new();
+    if all.is_empty() {
+        s += "no adapters (install a Vulkan driver, e.g. mesa-vulkan-drivers)\n";
+    }
+    for a in &all {
+        s += &format!("  {}\n", describe(a));
+    }
+    s + &match chosen {
+        Some(a) => format!("would use: {}\n", describe(&a)),
+        None => "would use: cpu backend (no adapter)\n".to_string(),
+    }
+}
+
 fn instance() -> wgpu::Instance {
     // Backends and adapter come from WGPU_BACKEND / WGPU_ADAPTER_NAME when set; otherwise the
     // primary APIs (Vulkan, Metal, DX12): GL has no f64 and its probing is noisy headless.

@@ -1,0 +1,475 @@
+//! Bifurcation diagrams: one parameter swept over a range, every point from the configured
+//! initial state or by continuation, classified and kept with its samples; the CSV, PNG and
+//! JSON files of a diagram, and the paper's four-panel figure.
+
+use crate::classify::Class;
+use crate::config::{Config, FrictionLaw};
+use crate::engine::Engine;
+use crate::error::{Error, Result};
+use crate::gpu::{GpuError, Timings};
+use crate::method::{Diagnostics, RunResult};
+use crate::output::{Staged, with_ext};
+use crate::progress::{Progress, Silent};
+use crate::render::{DensityPlot, density_png, panels_png};
+use crate::spec::{Points, RunSpec};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// One point of a finished sweep.
+#[derive(Clone, Debug)]
+pub struct SweepPoint {
+    pub value: f64,
+    pub class: Class,
+    pub result: RunResult,
+}
+
+impl SweepPoint {
+    pub fn impacts_per_period(&self) -> f64 {
+        self.result.impacts_per_period()
+    }
+}
+
+/// Classifies the results of a sweep.
+pub fn finish(cfg: &Config, results: Vec<RunResult>) -> Vec<SweepPoint> {
+    cfg.sweep_values()
+        .into_iter()
+        .zip(results)
+        .map(|(value, result)| SweepPoint {
+            value,
+            class: result.class(cfg.run.period_tol),
+            result,
+        })
+        .collect()
+}
+
+/// The plotted quantity of a state.
+pub fn plot_value(var: &str, y: &[f64; 4]) -> f64 {
+    match var {
+        "y1" => y[0],
+        "y2" => y[1],
+        "y3" => y[2],
+        "y4" => y[3],
+        "z" => y[2] - y[0],
+        _ => y[1] - y[3],
+    }
+}
+
+/// Direction of a continuation chain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Direction {
+    Up,
+    Down,
+}
+
+impl Direction {
+    pub fn name(self) -> &'static str {
+        match self {
+            Direction::Up => "up",
+            Direction::Down => "down",
+        }
+    }
+}
+
+/// Parameter continuation of a bifurcation diagram (`--continuation`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Continuation {
+    Up,
+    Down,
+    /// Both chains, drawn in two panels, with the hysteresis values listed.
+    Both,
+}
+
+impl Continuation {
+    pub fn directions(self) -> Vec<Direction> {
+        match self {
+            Continuation::Up => vec![Direction::Up],
+            Continuation::Down => vec![Direction::Down],
+            Continuation::Both => vec![Direction::Up, Direction::Down],
+        }
+    }
+}
+
+/// Parameter continuation: each point starts from the final state of its neighbour in the
+/// sweep direction (the first from `cfg.initial.y`), to follow one attractor and show
+/// hysteresis. Independent chains (one per direction) advance together, one point each per
+/// engine call. Results come back in ascending parameter order for each direction.
+pub fn continuation_chains(
+    engine: &Engine,
+    cfg: &Config,
+    directions: &[Direction],
+    progress: &dyn Progress,
+) -> Result<Vec<Vec<RunResult>>, GpuError> {
+    let spec = RunSpec::new(cfg);
+    let values = cfg.sweep_values();
+    let n = values.len();
+    let index = |d: Direction, j: usize| if d == Direction::Up { j } else { n - 1 - j };
+    let mut y: Vec<[f64; 4]> = vec![cfg.initial.y; directions.len()];
+    let mut out: Vec<Vec<Option<RunResult>>> = vec![vec![None; n]; directions.len()];
+    let vary = [cfg.sweep.param];
+    for j in 0..n {
+        let vals: Vec<f64> = directions.iter().map(|&d| values[index(d, j)]).collect();
+        let points = Points::along(&vary, &vals).with_states(&y);
+        let (rs, _) = engine.run(&spec, &points, &Silent)?;
+        for (c, r) in rs.into_iter().enumerate() {
+            y[c] = r.final_y;
+            out[c][index(directions[c], j)] = Some(r);
+        }
+        progress.advance(1);
+    }
+    Ok(out
+        .into_iter()
+        .map(|v| v.into_iter().map(|r| r.expect("every point ran")).collect())
+        .collect())
+}
+
+/// A computed diagram: one chain of points per direction (one chain without continuation).
+pub struct Bifurcation {
+    pub cfg: Config,
+    pub continuation: Option<Continuation>,
+    /// (direction, points in ascending parameter order).
+    pub runs: Vec<(Option<Direction>, Vec<SweepPoint>)>,
+    pub backend: &'static str,
+    pub device: String,
+    /// Backend timings (not for continuation, which runs many small jobs).
+    pub timings: Option<Timings>,
+    pub integration_s: f64,
+    pub total_s: f64,
+}
+
+/// Units of work `run` reports to its progress.
+pub fn work(engine: &Engine, cfg: &Config, continuation: Option<Continuation>) -> u64 {
+    let points = cfg.sweep.points as u64;
+    match continuation {
+        Some(_) => points,
+        None => points * engine.progress_per_point(&RunSpec::new(cfg)),
+    }
+}
+
+/// Computes the diagram of `cfg`'s sweep.
+pub fn run(
+    engine: &Engine,
+    cfg: &Config,
+    continuation: Option<Continuation>,
+    progress: &dyn Progress,
+) -> Result<Bifurcation> {
+    let t0 = Instant::now();
+    let values = cfg.sweep_values();
+    let (runs, timings): (Vec<(Option<Direction>, Vec<RunResult>)>, _) = match continuation {
+        None => {
+            let vary = [cfg.sweep.param];
+            let (r, t) =
+                engine.run(&RunSpec::new(cfg), &Points::along(&vary, &values), progress)?;
+            (vec![(None, r)], Some(t))
+        }
+        Some(c) => {
+            let dirs = c.directions();
+            let r = continuation_chains(engine, cfg, &dirs, progress)?;
+            (dirs.into_iter().map(Some).zip(r).collect(), None)
+        }
+    };
+    Ok(Bifurcation {
+        cfg: cfg.clone(),
+        continuation,
+        runs: runs.into_iter().map(|(d, r)| (d, finish(cfg, r))).collect(),
+        backend: engine.name(),
+        device: engine.device(),
+        timings,
+        integration_s: timings.map_or(t0.elapsed().as_secs_f64(), |t| t.integration_s),
+        total_s: t0.elapsed().as_secs_f64(),
+    })
+}
+
+impl Bifurcation {
+    /// RK4 steps of the whole diagram (every chain).
+    pub fn rk4_steps(&self) -> f64 {
+        (self.runs.len() * self.cfg.sweep.points as usize) as f64
+            * (self.cfg.run.transient_periods + self.cfg.run.sample_periods) as f64
+            * self.cfg.method.steps_per_period as f64
+    }
+
+    /// What ran, how long, and the hysteresis count: lines for the terminal.
+    pub fn summary(&self) -> String {
+        let c = &self.cfg;
+        let mut s = String::new();
+        if let Some(h) = self.hysteresis() {
+            s += &format!(
+                "continuation: up and down differ at {} of {} points\n",
+                h.len(),
+                c.sweep.points
+            );
+        }
+        s + &format!(
+            "bifurcation: {} points x {} periods x {} steps on {} ({}, {}) in {:.2} s \
+             ({:.3e} RK4 steps/s)\n",
+            c.sweep.points as usize * self.runs.len(),
+            c.run.transient_periods + c.run.sample_periods,
+            c.method.steps_per_period,
+            self.backend,
+            self.device,
+            c.method.precision.name(),
+            self.integration_s,
+            self.rk4_steps() / self.integration_s
+        )
+    }
+
+    /// Values where the up and down chains end on different attractors (class or impacts).
+    pub fn hysteresis(&self) -> Option<Vec<f64>> {
+        let [(_, up), (_, down)] = self.runs.as_slice() else {
+            return None;
+        };
+        Some(
+            up.iter()
+                .zip(down)
+                .filter(|(a, b)| {
+                    a.class != b.class || a.result.sample_impacts != b.result.sample_impacts
+                })
+                .map(|(a, _)| a.value)
+                .collect(),
+        )
+    }
+}
+
+/// Figure title: the configured one, or the model's parameters.
+pub fn title(cfg: &Config) -> String {
+    if !cfg.sweep.title.is_empty() {
+        return cfg.sweep.title.clone();
+    }
+    let m = &cfg.model;
+    let friction = match m.friction {
+        FrictionLaw::Coulomb => format!("Coulomb friction: lambda={}", m.lambda),
+        FrictionLaw::Stribeck => format!(
+            "Stribeck friction: fs={} fk={} l1={} l2={}",
+            m.fs, m.fk, m.l1, m.l2
+        ),
+    };
+    format!(
+        "{friction}, R={}, r={}, delta={}, b1={}, mu={} (N={}, {})",
+        m.restitution,
+        m.r,
+        m.delta,
+        m.b1,
+        m.mu,
+        cfg.method.steps_per_period,
+        cfg.method.precision.name()
+    )
+}
+
+/// (parameter, plotted value) of every sample of a chain.
+fn plot_points(var: &str, points: &[SweepPoint]) -> Vec<(f64, f64)> {
+    points
+        .iter()
+        .flat_map(|pt| {
+            pt.result
+                .samples
+                .iter()
+                .map(|s| (pt.value, plot_value(var, s)))
+        })
+        .collect()
+}
+
+#[derive(Serialize)]
+struct PointJson {
+    value: f64,
+    class: String,
+    period: Option<u32>,
+    impacts_per_period: f64,
+    diagnostics: Diagnostics,
+}
+
+#[derive(Serialize)]
+struct TimingsJson {
+    setup_s: Option<f64>,
+    integration_s: f64,
+    readback_s: Option<f64>,
+    kernel_s: Option<f64>,
+    total_s: f64,
+    rk4_steps: f64,
+    steps_per_s: f64,
+}
+
+#[derive(Serialize)]
+struct BifurcationJson<'a> {
+    version: &'static str,
+    command: &'static str,
+    backend: &'static str,
+    device: &'a str,
+    precision: &'static str,
+    config: &'a Config,
+    timings: TimingsJson,
+    class_counts: BTreeMap<String, usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    points: Option<Vec<PointJson>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    points_up: Option<Vec<PointJson>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    points_down: Option<Vec<PointJson>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    hysteresis_values: Option<Vec<f64>>,
+}
+
+/// Writes PREFIX.csv (parameter, sample index, state; with the direction of a continuation),
+/// PREFIX.png (density-shaded samples, one panel per chain) and PREFIX.json; all or nothing.
+pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
+    let cfg = &b.cfg;
+    let cont = b.continuation.is_some();
+    let mut staged = Staged::new();
+    let csv_path = with_ext(out, "csv");
+    {
+        let err = |e| Error::csv(&csv_path, e);
+        let mut w = csv::Writer::from_path(staged.path(&csv_path)).map_err(err)?;
+        let mut head = vec![cfg.sweep.param.name(), "sample", "y1", "y2", "y3", "y4"];
+        if cont {
+            head.insert(0, "direction");
+        }
+        w.write_record(&head).map_err(err)?;
+        for (dir, points) in &b.runs {
+            for pt in points {
+                for (i, s) in pt.result.samples.iter().enumerate() {
+                    let mut rec = vec![
+                        pt.value.to_string(),
+                        i.to_string(),
+                        s[0].to_string(),
+                        s[1].to_string(),
+                        s[2].to_string(),
+                        s[3].to_string(),
+                    ];
+                    if let Some(d) = dir {
+                        rec.insert(0, d.name().to_string());
+                    }
+                    w.write_record(&rec).map_err(err)?;
+                }
+            }
+        }
+        w.flush()
+            .map_err(|e| Error::csv(&csv_path, csv::Error::from(e)))?;
+    }
+    let var = cfg.sweep.plot.as_str();
+    let base_title = title(cfg);
+    let x_label = cfg.sweep.param.label();
+    let data: Vec<(String, Vec<(f64, f64)>)> = b
+        .runs
+        .iter()
+        .map(|(dir, points)| {
+            let title = match dir {
+                None => base_title.clone(),
+                Some(d) => format!("{base_title} [continuation {}]", d.name()),
+            };
+            (title, plot_points(var, points))
+        })
+        .collect();
+    let panels: Vec<DensityPlot> = data
+        .iter()
+        .map(|(title, xy)| DensityPlot {
+            title,
+            x_label: &x_label,
+            y_label: var,
+            x_range: (
+                cfg.sweep.from.min(cfg.sweep.to),
+                cfg.sweep.from.max(cfg.sweep.to),
+            ),
+            y_range: None,
+            points: xy,
+            width: 1200,
+            height: 800,
+        })
+        .collect();
+    let png_path = staged.path(&with_ext(out, "png"));
+    if panels.len() == 1 {
+        density_png(&png_path, &panels[0])?;
+    } else {
+        panels_png(&png_path, &panels, 1, 1200, 1400)?;
+    }
+    let mut counts = BTreeMap::<String, usize>::new();
+    for (_, points) in &b.runs {
+        for pt in points {
+            *counts.entry(pt.class.name()).or_default() += 1;
+        }
+    }
+    let point_json = |points: &[SweepPoint]| -> Vec<PointJson> {
+        points
+            .iter()
+            .map(|pt| PointJson {
+                value: pt.value,
+                class: pt.class.name(),
+                period: pt.class.period(),
+                impacts_per_period: pt.impacts_per_period(),
+                diagnostics: pt.result.diag,
+            })
+            .collect()
+    };
+    let chain = |d: Direction| {
+        b.runs
+            .iter()
+            .find(|r| r.0 == Some(d))
+            .map(|r| point_json(&r.1))
+    };
+    let steps = b.rk4_steps();
+    let j = BifurcationJson {
+        version: env!("CARGO_PKG_VERSION"),
+        command: "bifurcation",
+        backend: b.backend,
+        device: &b.device,
+        precision: cfg.method.precision.name(),
+        config: cfg,
+        timings: TimingsJson {
+            setup_s: b.timings.map(|t| t.setup_s),
+            integration_s: b.integration_s,
+            readback_s: b.timings.map(|t| t.readback_s),
+            kernel_s: b.timings.and_then(|t| t.kernel_s),
+            total_s: b.total_s,
+            rk4_steps: steps,
+            steps_per_s: steps / b.integration_s,
+        },
+        class_counts: counts,
+        points: (!cont).then(|| point_json(&b.runs[0].1)),
+        points_up: chain(Direction::Up),
+        points_down: chain(Direction::Down),
+        hysteresis_values: b.hysteresis(),
+    };
+    // Through a Value, whose maps sort their keys: a stable file whatever the field order.
+    let text = serde_json::to_string_pretty(&serde_json::to_value(&j)?)?;
+    staged.write(&with_ext(out, "json"), text.as_bytes())?;
+    Ok(staged.commit()?)
+}
+
+/// The paper's Figs. 2, 3, 4a and 4b side by side (configs `fig2`, `fig3`, `fig4a`, `fig4b`
+/// in `dir`, each changed by `adjust`), written to `out`. Progress counts sweep points.
+pub fn paper_figure(
+    dir: &Path,
+    adjust: &dyn Fn(&mut Config),
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<Vec<PathBuf>> {
+    let mut data = Vec::new();
+    for name in ["fig2", "fig3", "fig4a", "fig4b"] {
+        let mut cfg = Config::read(&dir.join(format!("{name}.toml")), &[])?;
+        adjust(&mut cfg);
+        cfg.validate()?;
+        let engine = Engine::open(cfg.method.backend);
+        let b = run(&engine, &cfg, None, &Silent)?;
+        progress.advance(cfg.sweep.points as u64);
+        let xy = plot_points(&cfg.sweep.plot, &b.runs[0].1);
+        data.push((title(&cfg), xy, cfg));
+    }
+    let panels: Vec<DensityPlot> = data
+        .iter()
+        .map(|(title, xy, cfg)| DensityPlot {
+            title,
+            x_label: "eta",
+            y_label: &cfg.sweep.plot,
+            x_range: (
+                cfg.sweep.from.min(cfg.sweep.to),
+                cfg.sweep.from.max(cfg.sweep.to),
+            ),
+            y_range: None,
+            points: xy,
+            width: 1000,
+            height: 700,
+        })
+        .collect();
+    let mut st = Staged::new();
+    panels_png(&st.path(out), &panels, 2, 2000, 1400)?;
+    Ok(st.commit()?)
+}

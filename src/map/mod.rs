@@ -1,0 +1,209 @@
+//! 2-D maps over two parameters: the grid and its computation on any backend (this file),
+//! shards, checkpoints, adapters and merging ([`parts`]), and the final PNG / NPY / JSON files
+//! ([`output`]).
+
+mod output;
+mod parts;
+
+pub use output::{
+    CompareReport, MapReport, MapTimings, category, title, write_compare, write_outputs,
+};
+pub use parts::{
+    MapOptions, MapSummary, Part, compute_part, merge, merge_files, parse_shard, part_path,
+    read_part, run, run_all_adapters, work, write_part,
+};
+
+use crate::classify::Class;
+use crate::config::Config;
+use crate::engine::{Engine, Summary};
+use crate::gpu::Timings;
+use crate::method::Diagnostics;
+use crate::progress::Progress;
+use crate::spec::{Points, RunSpec};
+use serde::{Deserialize, Serialize};
+use std::ops::Range;
+
+#[derive(Debug, thiserror::Error)]
+pub enum MapError {
+    #[error("{0}")]
+    Gpu(#[from] crate::gpu::GpuError),
+    #[error("{0}")]
+    Output(#[from] crate::output::OutputError),
+    #[error("{0}")]
+    Render(#[from] crate::render::RenderError),
+    #[error("cannot read {path}: {message}")]
+    Read { path: String, message: String },
+    #[error("{0}")]
+    Merge(String),
+    #[error("JSON: {0}")]
+    Json(#[from] serde_json::Error),
+}
+
+/// Number of cells of the configured map.
+pub fn cell_count(cfg: &Config) -> usize {
+    cfg.map.x_points as usize * cfg.map.y_points as usize
+}
+
+/// Cells `[a, b)` of shard `i` of `n` (contiguous, row-major from the bottom row).
+pub fn shard_range(cells: usize, i: usize, n: usize) -> Range<usize> {
+    (cells * i / n)..(cells * (i + 1) / n)
+}
+
+/// (x, y) parameter values of the cells in `range`, point-major.
+pub fn cell_values(cfg: &Config, range: Range<usize>) -> Vec<f64> {
+    let m = &cfg.map;
+    let xs = Config::map_axis(m.x_from, m.x_to, m.x_points);
+    let ys = Config::map_axis(m.y_from, m.y_to, m.y_points);
+    range
+        .flat_map(|c| {
+            let (ix, iy) = (c % xs.len(), c / xs.len());
+            [xs[ix], ys[iy]]
+        })
+        .collect()
+}
+
+/// Initial states of `--starts K`: start 0 is `initial.y`; the others spread m2 over the
+/// clearance (golden-ratio sequence) with relative velocities in [-1, 1], m1 at rest.
+pub fn start_states(cfg: &Config, k: usize) -> Vec<[f64; 4]> {
+    (0..k)
+        .map(|j| {
+            if j == 0 {
+                return cfg.initial.y;
+            }
+            let u = (j as f64 * 0.618_033_988_749_895).fract();
+            let w = (j as f64 * 0.754_877_666_246_693).fract();
+            [0.0, 0.0, 0.9 * cfg.model.r * (2.0 * u - 1.0), 2.0 * w - 1.0]
+        })
+        .collect()
+}
+
+/// Computes the cells in `range` (Lyapunov estimate on) from `starts` initial states each.
+/// The summary of a cell is that of its first start; the second value counts the distinct
+/// attractors the starts ended on (different class or impacts per period).
+pub fn compute(
+    engine: &Engine,
+    cfg: &Config,
+    range: Range<usize>,
+    starts: usize,
+    progress: &dyn Progress,
+) -> Result<(Vec<(Summary, u8)>, Timings), MapError> {
+    let spec = RunSpec::new(cfg).with_lyapunov();
+    let k = starts.max(1);
+    let cells = cell_values(cfg, range);
+    let values: Vec<f64> = cells
+        .chunks(2)
+        .flat_map(|xy| std::iter::repeat_n([xy[0], xy[1]], k).flatten())
+        .collect();
+    let y0 = start_states(cfg, k);
+    let y0s: Vec<[f64; 4]> = (0..values.len() / 2).map(|i| y0[i % k]).collect();
+    let vary = [cfg.map.x, cfg.map.y];
+    let points = Points::along(&vary, &values).with_states(&y0s);
+    let (s, t) = engine.run_summaries(&spec, &points, progress)?;
+    let out = s
+        .chunks(k)
+        .map(|g| {
+            let mut seen: Vec<(Class, i64)> = Vec::new();
+            for x in g {
+                let key = (x.class, (x.impacts_per_period * 1e6).round() as i64);
+                if !seen.contains(&key) {
+                    seen.push(key);
+                }
+            }
+            (g[0], seen.len().min(255) as u8)
+        })
+        .collect();
+    Ok((out, t))
+}
+
+/// Per-cell fields as stored in partial outputs and NPY files.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct Fields {
+    pub class: Vec<i32>,
+    pub period: Vec<i32>,
+    pub impacts_per_period: Vec<f64>,
+    /// NaN (null in JSON) where no estimate exists.
+    pub lyapunov: Vec<Option<f64>>,
+    pub impacts: Vec<u64>,
+    pub sticks: Vec<u64>,
+    pub locks: Vec<u64>,
+    pub overflows: Vec<u64>,
+    pub nonfinite: Vec<u8>,
+    /// Distinct attractors reached from the `--starts` initial states (1 without).
+    #[serde(default)]
+    pub attractors: Vec<u8>,
+}
+
+impl Fields {
+    pub fn from_cells(cells: &[(Summary, u8)]) -> Fields {
+        let s: Vec<Summary> = cells.iter().map(|c| c.0).collect();
+        Fields {
+            attractors: cells.iter().map(|c| c.1).collect(),
+            ..Fields::from_summaries(&s)
+        }
+    }
+
+    pub fn from_summaries(s: &[Summary]) -> Fields {
+        Fields {
+            attractors: vec![1; s.len()],
+            class: s.iter().map(|c| c.class.code()).collect(),
+            period: s
+                .iter()
+                .map(|c| c.class.period().map_or(0, |p| p as i32))
+                .collect(),
+            impacts_per_period: s.iter().map(|c| c.impacts_per_period).collect(),
+            lyapunov: s
+                .iter()
+                .map(|c| c.lyapunov.is_finite().then_some(c.lyapunov))
+                .collect(),
+            impacts: s.iter().map(|c| c.diag.impacts).collect(),
+            sticks: s.iter().map(|c| c.diag.sticks).collect(),
+            locks: s.iter().map(|c| c.diag.locks).collect(),
+            overflows: s.iter().map(|c| c.diag.overflows).collect(),
+            nonfinite: s.iter().map(|c| c.diag.nonfinite as u8).collect(),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.class.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.class.is_empty()
+    }
+
+    pub(crate) fn append(&mut self, o: Fields) {
+        self.class.extend(o.class);
+        self.period.extend(o.period);
+        self.impacts_per_period.extend(o.impacts_per_period);
+        self.lyapunov.extend(o.lyapunov);
+        self.impacts.extend(o.impacts);
+        self.sticks.extend(o.sticks);
+        self.locks.extend(o.locks);
+        self.overflows.extend(o.overflows);
+        self.nonfinite.extend(o.nonfinite);
+        self.attractors.extend(o.attractors);
+    }
+
+    pub fn classes(&self) -> Vec<Class> {
+        self.class.iter().map(|&c| Class::from_code(c)).collect()
+    }
+
+    /// Counts per class name.
+    pub fn counts(&self) -> std::collections::BTreeMap<String, usize> {
+        let mut m = std::collections::BTreeMap::new();
+        for c in self.classes() {
+            *m.entry(c.name()).or_default() += 1;
+        }
+        m
+    }
+
+    pub fn diagnostics(&self, i: usize) -> Diagnostics {
+        Diagnostics {
+            impacts: self.impacts[i],
+            sticks: self.sticks[i],
+            locks: self.locks[i],
+            overflows: self.overflows[i],
+            nonfinite: self.nonfinite[i] != 0,
+        }
+    }
+}

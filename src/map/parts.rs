@@ -1,0 +1,373 @@
+//! Shards of a map: partial outputs, checkpoints that resume, one share per adapter, merging.
+
+use super::{
+    CompareReport, Fields, MapError, MapReport, MapTimings, cell_count, compute, shard_range,
+    write_compare, write_outputs,
+};
+use crate::config::Config;
+use crate::engine::Engine;
+use crate::gpu::Timings;
+use crate::output::{Staged, with_ext};
+use crate::progress::Progress;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A shard's partial output.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Part {
+    pub version: String,
+    pub config: Config,
+    pub shard: (usize, usize),
+    pub range: (usize, usize),
+    pub device: String,
+    pub backend: String,
+    pub timings: Timings,
+    pub fields: Fields,
+}
+
+/// Computes shard `i` of `n` of the map and packs it as a partial output.
+pub fn compute_part(
+    engine: &Engine,
+    cfg: &Config,
+    (i, n): (usize, usize),
+    starts: usize,
+    progress: &dyn Progress,
+) -> Result<Part, MapError> {
+    let range = shard_range(cell_count(cfg), i, n);
+    let (cells, timings) = compute(engine, cfg, range.clone(), starts, progress)?;
+    Ok(Part {
+        version: env!("CARGO_PKG_VERSION").into(),
+        config: cfg.clone(),
+        shard: (i, n),
+        range: (range.start, range.end),
+        device: engine.device(),
+        backend: engine.name().into(),
+        timings,
+        fields: Fields::from_cells(&cells),
+    })
+}
+
+/// `PREFIX.part-I-of-N.json`.
+pub fn part_path(prefix: &Path, i: usize, n: usize) -> PathBuf {
+    with_ext(prefix, &format!("part-{i}-of-{n}.json"))
+}
+
+pub fn write_part(path: &Path, part: &Part) -> Result<(), MapError> {
+    let mut st = Staged::new();
+    let text = serde_json::to_string(part).map_err(MapError::Json)?;
+    st.write(path, text.as_bytes())?;
+    st.commit()?;
+    Ok(())
+}
+
+pub fn read_part(path: &Path) -> Result<Part, MapError> {
+    let err = |message: String| MapError::Read {
+        path: path.display().to_string(),
+        message,
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
+    serde_json::from_str(&text).map_err(|e| err(e.to_string()))
+}
+
+/// Joins the parts of one sharded map; they must share the config and cover every cell once.
+pub fn merge(mut parts: Vec<Part>) -> Result<(Config, Fields, Vec<Part>), MapError> {
+    let first = parts
+        .first()
+        .ok_or_else(|| MapError::Merge("no parts given".into()))?;
+    let cfg_json = serde_json::to_value(&first.config).map_err(MapError::Json)?;
+    let n = first.shard.1;
+    for p in &parts {
+        let v = serde_json::to_value(&p.config).map_err(MapError::Json)?;
+        if v != cfg_json || p.shard.1 != n {
+            return Err(MapError::Merge(format!(
+                "part {}/{} has a different config or shard count than part {}/{}",
+                p.shard.0, p.shard.1, first.shard.0, n
+            )));
+        }
+    }
+    parts.sort_by_key(|p| p.range.0);
+    let cells = cell_count(&parts[0].config);
+    let mut at = 0;
+    let mut fields = Fields::default();
+    for p in &parts {
+        if p.range.0 != at || p.fields.len() != p.range.1 - p.range.0 {
+            return Err(MapError::Merge(format!(
+                "cells {}..{} missing or duplicated (part {} of {} covers {}..{})",
+                at, p.range.0, p.shard.0, n, p.range.0, p.range.1
+            )));
+        }
+        at = p.range.1;
+        fields.append(p.fields.clone());
+    }
+    if at != cells {
+        return Err(MapError::Merge(format!("cells {at}..{cells} missing")));
+    }
+    let cfg = parts[0].config.clone();
+    Ok((cfg, fields, parts))
+}
+
+/// How a map run is split and what it adds.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MapOptions<'a> {
+    /// Initial states per cell (`--starts`).
+    pub starts: usize,
+    /// Compute only share I of N and write its part file (`--shard I/N`).
+    pub shard: Option<(usize, usize)>,
+    /// Run as K shards kept on disk, resuming finished ones (`--checkpoint K`).
+    pub checkpoint: Option<usize>,
+    /// A second configuration on the same grid whose class changes are rendered.
+    pub compare: Option<&'a Config>,
+}
+
+/// Parses `--shard I/N`.
+pub fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let bad = || format!("`{s}`: --shard must be I/N with 0 <= I < N, e.g. 0/4");
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (i, n): (usize, usize) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+/// What a map run did.
+#[derive(Clone, Debug, Default)]
+pub struct MapSummary {
+    pub backend: String,
+    pub device: String,
+    /// Files written, in order.
+    pub files: Vec<PathBuf>,
+    /// Shards (I, N, part file) of a checkpointed run that were reused.
+    pub resumed: Vec<(usize, usize, PathBuf)>,
+    /// Cells whose class changed against `--compare`, and the cell count.
+    pub changed: Option<(usize, usize)>,
+    pub integration_s: f64,
+    pub counts: std::collections::BTreeMap<String, usize>,
+    pub wall_s: f64,
+}
+
+impl MapSummary {
+    /// Lines for the terminal: resumed shards, class changes, what ran where and how long.
+    pub fn report(&self, cfg: &Config) -> String {
+        let mut s = String::new();
+        for (i, n, p) in &self.resumed {
+            s += &format!("shard {}/{n} already done: {}\n", i + 1, p.display());
+        }
+        if let Some((changed, cells)) = self.changed {
+            s += &format!(
+                "class changed in {changed} of {cells} cells ({:.2}%)\n",
+                100.0 * changed as f64 / cells as f64
+            );
+        }
+        s + &format!(
+            "map: {} x {} cells on {} ({}, {}) in {:.2} s ({:.2} s integration); {:?}\n",
+            cfg.map.x_points,
+            cfg.map.y_points,
+            self.backend,
+            self.device,
+            cfg.method.precision.name(),
+            self.wall_s,
+            self.integration_s,
+            self.counts
+        )
+    }
+}
+
+/// Units of work `run` reports to its progress (see [`Engine::progress_per_point`]).
+pub fn work(engine: &Engine, cfg: &Config, o: &MapOptions) -> u64 {
+    let spec = crate::spec::RunSpec::new(cfg);
+    let cells = match o.shard {
+        Some((i, n)) => shard_range(cell_count(cfg), i, n).len(),
+        None => cell_count(cfg),
+    } as u64;
+    let per_point = engine.progress_per_point(&spec);
+    let compare = if o.compare.is_some() { cells } else { 0 };
+    (cells * o.starts.max(1) as u64 + compare) * per_point
+}
+
+/// Computes a map as configured by `o` and writes its files (or, with `o.shard`, its part).
+pub fn run(
+    engine: &Engine,
+    cfg: &Config,
+    out: &Path,
+    o: &MapOptions,
+    progress: &dyn Progress,
+) -> Result<MapSummary, MapError> {
+    let t = std::time::Instant::now();
+    let cells = cell_count(cfg);
+    let mut summary = MapSummary {
+        backend: engine.name().into(),
+        device: engine.device(),
+        ..MapSummary::default()
+    };
+    if let Some((i, n)) = o.shard {
+        let p = compute_part(engine, cfg, (i, n), o.starts, progress)?;
+        let path = part_path(out, i, n);
+        write_part(&path, &p)?;
+        summary.integration_s = p.timings.integration_s;
+        summary.counts = p.fields.counts();
+        summary.files.push(path);
+        summary.wall_s = t.elapsed().as_secs_f64();
+        return Ok(summary);
+    }
+    let n = o.checkpoint.unwrap_or(1).max(1);
+    let per_cell =
+        o.starts.max(1) as u64 * engine.progress_per_point(&crate::spec::RunSpec::new(cfg));
+    let mut parts = Vec::with_capacity(n);
+    for i in 0..n {
+        let path = part_path(out, i, n);
+        // Resume: a finished shard of the same configuration is reused.
+        if n > 1
+            && let Ok(p) = read_part(&path)
+            && serde_json::to_value(&p.config)? == serde_json::to_value(cfg)?
+        {
+            progress.advance(p.fields.len() as u64 * per_cell);
+            summary.resumed.push((i, n, path));
+            parts.push(p);
+            continue;
+        }
+        let p = compute_part(engine, cfg, (i, n), o.starts, progress)?;
+        if n > 1 {
+            write_part(&path, &p)?;
+        }
+        parts.push(p);
+    }
+    let (cfg, fields, parts) = merge(parts)?;
+    let secs: f64 = parts.iter().map(|p| p.timings.integration_s).sum();
+    let steps = cells as f64
+        * (cfg.run.transient_periods + 2 * cfg.run.sample_periods) as f64
+        * cfg.method.steps_per_period as f64;
+    let mut report = MapReport {
+        command: "map",
+        backend: Some(engine.name().into()),
+        device: Some(engine.device()),
+        precision: Some(cfg.method.precision.name().into()),
+        cells: Some(cells),
+        timings: MapTimings {
+            integration_s: Some(secs),
+            rk4_steps: Some(steps),
+            steps_per_s: Some(steps / secs),
+            ..MapTimings::default()
+        },
+        ..MapReport::default()
+    };
+    if let Some(other) = o.compare {
+        if other.map != cfg.map {
+            return Err(MapError::Merge(
+                "--compare: the other config must have the same [map] grid".into(),
+            ));
+        }
+        let (s, _) = compute(engine, other, 0..cells, 1, progress)?;
+        let other_fields = Fields::from_cells(&s);
+        let (a, b) = (fields.classes(), other_fields.classes());
+        let changed = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+        report.compare = Some(CompareReport {
+            other_config: other.clone(),
+            cells_changed: changed,
+            fraction_changed: changed as f64 / cells as f64,
+            other_class_counts: other_fields.counts(),
+        });
+        let mut p = out.as_os_str().to_owned();
+        p.push("-compare");
+        summary
+            .files
+            .extend(write_compare(Path::new(&p), &cfg, &a, &b)?);
+        summary.changed = Some((changed, cells));
+    }
+    summary
+        .files
+        .extend(write_outputs(out, &cfg, &fields, &report)?);
+    if n > 1 {
+        for i in 0..n {
+            let _ = std::fs::remove_file(part_path(out, i, n));
+        }
+    }
+    summary.integration_s = secs;
+    summary.counts = fields.counts();
+    summary.wall_s = t.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// A map split over every adapter of the machine: one contiguous share per adapter, computed
+/// concurrently, merged as shards are.
+pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> Result<MapSummary, MapError> {
+    if o.shard.is_some() || o.checkpoint.is_some() || o.compare.is_some() {
+        return Err(MapError::Merge(
+            "--adapters all combines with neither --shard, --checkpoint nor --compare".into(),
+        ));
+    }
+    let starts = o.starts;
+    let gpus = crate::gpu::Gpu::all()?;
+    for g in &gpus {
+        eprintln!("adapter: {}", crate::gpu::describe(&g.info));
+    }
+    let engines: Vec<Engine> = gpus.into_iter().map(|g| Engine::Gpu(Box::new(g))).collect();
+    let n = engines.len();
+    let t = std::time::Instant::now();
+    let parts: Vec<Result<Part, MapError>> = std::thread::scope(|s| {
+        let handles: Vec<_> = engines
+            .iter()
+            .enumerate()
+            .map(|(i, engine)| {
+                s.spawn(move || compute_part(engine, cfg, (i, n), starts, &crate::progress::Silent))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(MapError::Merge("adapter thread panicked".into())))
+            })
+            .collect()
+    });
+    let parts = parts.into_iter().collect::<Result<Vec<_>, _>>()?;
+    let devices: Vec<String> = parts.iter().map(|p| p.device.clone()).collect();
+    let (cfg, fields, _) = merge(parts)?;
+    let report = MapReport {
+        command: "map",
+        backend: Some("gpu".into()),
+        devices: Some(devices),
+        cells: Some(cell_count(&cfg)),
+        timings: MapTimings {
+            wall_s: Some(t.elapsed().as_secs_f64()),
+            ..MapTimings::default()
+        },
+        ..MapReport::default()
+    };
+    Ok(MapSummary {
+        backend: "gpu".into(),
+        device: format!("{n} adapters"),
+        files: write_outputs(out, &cfg, &fields, &report)?,
+        integration_s: t.elapsed().as_secs_f64(),
+        counts: fields.counts(),
+        wall_s: t.elapsed().as_secs_f64(),
+        ..MapSummary::default()
+    })
+}
+
+/// Merges part files into the files of a single run.
+pub fn merge_files(paths: &[PathBuf], out: &Path) -> Result<MapSummary, MapError> {
+    let parts = paths
+        .iter()
+        .map(|p| read_part(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let (cfg, fields, parts) = merge(parts)?;
+    let report = MapReport {
+        command: "map (merged)",
+        shards: Some(parts.len()),
+        devices: Some(parts.iter().map(|p| p.device.clone()).collect()),
+        timings: MapTimings {
+            integration_s_sum: Some(parts.iter().map(|p| p.timings.integration_s).sum()),
+            ..MapTimings::default()
+        },
+        ..MapReport::default()
+    };
+    Ok(MapSummary {
+        files: write_outputs(out, &cfg, &fields, &report)?,
+        counts: fields.counts(),
+        ..MapSummary::default()
+    })
+}
