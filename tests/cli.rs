@@ -1,25 +1,8 @@
 //! The command line: JSON output of `point`, and bad input giving a clear error, a non-zero
 //! exit and no output files.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn rattle() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_rattle"))
-}
-
-fn config(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("configs")
-        .join(name)
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rattle-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{config, rattle, scratch};
 
 #[test]
 fn point_json_has_the_documented_keys() {

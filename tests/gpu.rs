@@ -3,6 +3,7 @@
 
 use rattle::classify::{Class, classify};
 use rattle::config::Precision;
+use rattle::engine::Engine;
 use rattle::gpu::{Gpu, GpuOutput, Job};
 use rattle::method::{Integrator, RunResult, Settings};
 use rattle::model::{Param, Params};
@@ -198,17 +199,29 @@ fn split_batches_and_2d_dispatch_give_identical_results() {
 
 #[test]
 fn non_finite_parameters_fail_the_point_only() {
-    let etas = [1.5, f64::NAN, 1.4];
-    let Some(g) = run_gpu(&etas, Settings::default(), 5, 5, false) else {
+    // A NaN eta between two periodic points of Fig. 2: it fails alone, and its neighbours are
+    // bit for bit what they are without it, and in the class the CPU twin gives.
+    let s = Settings::default();
+    let Some(g) = run_gpu(&[1.5, f64::NAN, 1.4], s, 300, 100, false) else {
         return;
     };
+    let alone = run_gpu(&[1.5, 1.4], s, 300, 100, false).unwrap();
     assert_eq!(g.classes[1], Class::Failed);
     assert!(g.results[1].diag.nonfinite);
-    assert!(matches!(
-        g.classes[0],
-        Class::Periodic(_) | Class::Aperiodic
-    ));
-    assert!(!g.results[2].diag.nonfinite);
+    assert!(g.results[1].final_y.iter().any(|v| !v.is_finite()) || g.results[1].samples.is_empty());
+    for (i, j, eta) in [(0, 0, 1.5), (2, 1, 1.4)] {
+        let (r, a) = (&g.results[i], &alone.results[j]);
+        assert_eq!(r.final_y, a.final_y, "eta {eta}");
+        assert_eq!(r.samples, a.samples, "eta {eta}");
+        assert_eq!(g.classes[i], alone.classes[j], "eta {eta}");
+        let c = run_cpu::<f32>(eta, &s, 300, 100);
+        let cpu_class = classify(&c.samples, c.sample_impacts, c.diag.nonfinite, 1e-4);
+        assert!(
+            matches!(cpu_class, Class::Periodic(_)),
+            "eta {eta}: {cpu_class:?}"
+        );
+        assert_eq!(g.classes[i], cpu_class, "eta {eta}");
+    }
 }
 
 #[test]
@@ -317,37 +330,48 @@ fn map_over_all_adapters_equals_the_single_adapter_map() {
     if gpu().is_none() {
         return;
     }
+    // Two engines on the adapter (lavapipe is one adapter), so that the split into shares,
+    // the concurrent runs and the merge all happen.
+    let engines: Vec<Engine> = (0..2)
+        .map(|_| Engine::Gpu(Box::new(Gpu::new().unwrap())))
+        .collect();
+    let text = "[model]\neta = 1.26\n[method]\nsteps_per_period = 128\n[run]\n\
+        transient_periods = 30\nsample_periods = 10\n[map]\nx_points = 7\ny_points = 5\n";
+    let cfg = rattle::config::Config::from_toml(text, &[]).unwrap();
     let d = std::env::temp_dir().join(format!("rattle-adapters-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/r_lambda.toml");
-    for (extra, out) in [(&["--adapters", "all"][..], "all"), (&[][..], "one")] {
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_rattle"))
-            .args([
-                "map",
-                "--config",
-                cfg,
-                "--set",
-                "map.x_points=6",
-                "--set",
-                "map.y_points=5",
-            ])
-            .args([
-                "--set",
-                "run.transient_periods=30",
-                "--set",
-                "run.sample_periods=10",
-            ])
-            .args(extra)
-            .arg("--out")
-            .arg(d.join(out))
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    }
-    for f in ["class", "lyapunov", "impacts"] {
-        let a = std::fs::read(d.join(format!("all-{f}.npy"))).unwrap();
+    let shared = rattle::map::run_shared(&engines, &cfg, &d.join("shared"), 1).unwrap();
+    assert_eq!(shared.device, "2 engines");
+    let opts = rattle::map::MapOptions {
+        starts: 1,
+        ..Default::default()
+    };
+    rattle::map::run(&engines[0], &cfg, &d.join("one"), &opts, &Silent).unwrap();
+    for f in ["class", "lyapunov", "impacts", "attractors"] {
+        let a = std::fs::read(d.join(format!("shared-{f}.npy"))).unwrap();
         let b = std::fs::read(d.join(format!("one-{f}.npy"))).unwrap();
         assert!(a == b, "{f}");
     }
+    // The command line's --adapters all runs the same path over the real adapters.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rattle"))
+        .args(["map", "--adapters", "all", "--config"])
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/configs/r_lambda.toml"
+        ))
+        .args(["--set", "map.x_points=7", "--set", "map.y_points=5"])
+        .args([
+            "--set",
+            "run.transient_periods=30",
+            "--set",
+            "run.sample_periods=10",
+        ])
+        .arg("--out")
+        .arg(d.join("all"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let a = std::fs::read(d.join("all-class.npy")).unwrap();
+    assert_eq!(a, std::fs::read(d.join("one-class.npy")).unwrap());
 }

@@ -2,36 +2,19 @@
 
 use rattle::classify::Class;
 use rattle::config::Config;
-use rattle::engine::Summary;
-use rattle::map::{Fields, category};
-use rattle::method::Diagnostics;
+use rattle::engine::Engine;
+use rattle::map::Fields;
+use rattle::model::Param;
+use rattle::progress::Silent;
+use rattle::spec::{Points, RunSpec};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn rattle() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_rattle"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rattle-map-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{json, npy, ok, rattle, scratch};
 
 const SMALL: &str = "[model]\neta = 1.26\n[method]\nsteps_per_period = 64\n[run]\n\
     transient_periods = 40\nsample_periods = 20\n[map]\nx = \"R\"\nx_from = 0.5\nx_to = 0.7\n\
     x_points = 9\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 7\n";
-
-fn ok(cmd: &mut Command) -> String {
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 #[test]
 fn sharded_and_merged_map_equals_the_single_run() {
@@ -113,38 +96,36 @@ fn sharded_and_merged_map_equals_the_single_run() {
 
 #[test]
 fn failed_cells_are_never_a_valid_class() {
-    let s = |class: Class, nonfinite: bool| Summary {
-        class,
-        impacts_per_period: 0.0,
-        lyapunov: f64::NAN,
-        diag: Diagnostics {
-            nonfinite,
-            ..Diagnostics::default()
-        },
-        final_y: [0.0; 4],
-    };
-    // A cell whose integration failed, from a run with a non-finite parameter.
+    // Three cells, the middle one with a non-finite parameter: it fails alone, its diagnostics
+    // and exponent say so, and its neighbours are exactly what they are when run on their own.
     let cfg = Config::from_toml(SMALL, &[]).unwrap();
-    let engine = rattle::engine::Engine::Cpu;
-    let (sum, _) = engine
-        .run_summaries(
-            &rattle::spec::RunSpec::new(&cfg),
-            &rattle::spec::Points::along(
-                &[rattle::model::Param::R, rattle::model::Param::Lambda],
-                &[0.6, 0.02, f64::NAN, 0.02],
-            ),
-            &rattle::progress::Silent,
-        )
-        .unwrap();
+    let spec = RunSpec::new(&cfg).with_lyapunov();
+    let vary = [Param::R, Param::Lambda];
+    let run = |values: &[f64]| {
+        Engine::Cpu
+            .run_summaries(&spec, &Points::along(&vary, values), &Silent)
+            .unwrap()
+            .0
+    };
+    let sum = run(&[0.6, 0.02, f64::NAN, 0.02, 0.62, 0.05]);
+    let alone = run(&[0.6, 0.02, 0.62, 0.05]);
     assert_eq!(sum[1].class, Class::Failed);
     assert!(sum[1].diag.nonfinite);
+    assert!(sum[1].lyapunov.is_nan(), "a failed point has no exponent");
+    assert_eq!((sum[0], sum[2]), (alone[0], alone[1]));
     assert_ne!(sum[0].class, Class::Failed);
-    let f = Fields::from_summaries(&[sum[0], sum[1], s(Class::Periodic(2), false)]);
-    let classes = f.classes();
-    assert_eq!(classes[1], Class::Failed);
-    assert_eq!(category(classes[1]), 104);
-    assert!((1..=64).all(|n| category(Class::Periodic(n)) != 104));
-    assert_eq!(f.counts()["failed"], 1);
+    // The written map keeps the failure in every field.
+    let d = scratch("failed");
+    let mut c = cfg.clone();
+    (c.map.x_points, c.map.y_points) = (3, 1);
+    let f = Fields::from_summaries(&sum);
+    let report = rattle::map::MapReport::default();
+    rattle::map::write_outputs(&d.join("m"), &c, &f, &report).unwrap();
+    let class: Vec<i32> = npy(&d.join("m-class.npy"));
+    assert_eq!(class, vec![sum[0].class.code(), -2, sum[2].class.code()]);
+    assert_eq!(npy::<u8>(&d.join("m-nonfinite.npy")), vec![0, 1, 0]);
+    assert!(npy::<f64>(&d.join("m-lyapunov.npy"))[1].is_nan());
+    assert_eq!(json(&d.join("m.json"))["class_counts"]["failed"], 1);
     // A failed class stays failed whatever the exponent says.
     assert_eq!(Class::Failed.with_lyapunov(0.5, 0.01), Class::Failed);
 }
@@ -188,90 +169,100 @@ fn bad_map_configs_are_rejected_with_the_key() {
     );
 }
 
+/// Coulomb friction at eta = 1.33, R = 0.59: for lambda in about [0.094, 0.100] a period-1
+/// orbit (reached from rest) and a period-2 orbit (reached from start 1 of `--starts`)
+/// coexist; below only the first exists, above only the second.
+const COEXIST: &str = "[model]\neta = 1.33\n[method]\nsteps_per_period = 128\n[run]\n\
+    transient_periods = 300\nsample_periods = 100\n[map]\nx = \"R\"\nx_from = 0.58\n\
+    x_to = 0.60\nx_points = 1\ny = \"lambda\"\ny_from = 0.085\ny_to = 0.115\ny_points = 3\n";
+
 #[test]
 fn starts_keep_the_first_start_and_count_attractors() {
     let d = scratch("starts");
-    let cfg = d.join("small.toml");
-    std::fs::write(&cfg, SMALL).unwrap();
-    for (k, out) in [("1", "one"), ("4", "four")] {
+    let cfg = d.join("coexist.toml");
+    std::fs::write(&cfg, COEXIST).unwrap();
+    for (k, out) in [("1", "one"), ("2", "two")] {
         ok(rattle()
-            .args([
-                "map",
-                "--backend",
-                "cpu",
-                "--precision",
-                "f64",
-                "--starts",
-                k,
-                "--config",
-            ])
+            .args(["map", "--backend", "cpu", "--precision", "f64"])
+            .args(["--starts", k, "--config"])
             .arg(&cfg)
             .arg("--out")
             .arg(d.join(out)));
     }
-    // Start 0 is initial.y, so the class field is the plain map's.
-    let a = std::fs::read(d.join("one-class.npy")).unwrap();
-    let b = std::fs::read(d.join("four-class.npy")).unwrap();
-    assert!(a == b);
-    let att = std::fs::read(d.join("four-attractors.npy")).unwrap();
-    let npy = npyz::NpyFile::new(&att[..]).unwrap();
-    let v: Vec<u8> = npy.into_vec().unwrap();
-    assert!(v.iter().all(|&n| (1..=4).contains(&n)));
-    let one: Vec<u8> =
-        npyz::NpyFile::new(&std::fs::read(d.join("one-attractors.npy")).unwrap()[..])
-            .unwrap()
-            .into_vec()
-            .unwrap();
-    assert!(one.iter().all(|&n| n == 1));
-    eprintln!(
-        "cells with coexisting attractors: {}",
-        v.iter().filter(|&&n| n > 1).count()
-    );
+    // Cells at lambda = 0.09, 0.10, 0.11: only the middle one has both attractors.
+    assert_eq!(npy::<u8>(&d.join("two-attractors.npy")), vec![1, 2, 1]);
+    assert_eq!(npy::<u8>(&d.join("one-attractors.npy")), vec![1, 1, 1]);
+    // Start 0 is initial.y, so the class field is the plain map's: period-1 where both exist.
+    let class: Vec<i32> = npy(&d.join("two-class.npy"));
+    assert_eq!(class, vec![1, 1, 2]);
+    assert_eq!(class, npy::<i32>(&d.join("one-class.npy")));
 }
 
 #[test]
 fn continuation_follows_the_attractor_in_both_directions() {
+    // Same coexistence along eta (lambda = 0.095): going up the chain stays on period-1, going
+    // down on period-2, over about [1.329, 1.335]; every point from rest gives period-1 there.
+    // Were the chains' initial states ignored, the down chain would be the plain run.
     let d = scratch("cont");
-    let cfg = d.join("c.toml");
-    std::fs::write(
-        &cfg,
-        "[run]\ntransient_periods = 100\nsample_periods = 20\n[sweep]\nfrom = 1.42\nto = 1.6\npoints = 12\n",
-    )
-    .unwrap();
-    ok(rattle()
-        .args([
-            "bifurcation",
-            "--backend",
-            "cpu",
-            "--continuation",
-            "both",
-            "--config",
-        ])
-        .arg(&cfg)
-        .arg("--out")
-        .arg(d.join("c")));
+    let run = |extra: &[&str], out: &str| {
+        ok(rattle()
+            .args([
+                "bifurcation",
+                "--backend",
+                "cpu",
+                "--precision",
+                "f64",
+                "--config",
+            ])
+            .arg(common::config("fig2.toml"))
+            .args(["--R", "0.59", "--lambda", "0.095"])
+            .args(["--set", "sweep.from=1.326", "--set", "sweep.to=1.342"])
+            .args([
+                "--set",
+                "sweep.points=17",
+                "--set",
+                "run.transient_periods=300",
+            ])
+            .args(["--set", "run.sample_periods=100"])
+            .args(extra)
+            .arg("--out")
+            .arg(d.join(out)));
+        json(&d.join(format!("{out}.json")))
+    };
+    let j = run(&["--continuation", "both"], "c");
+    let plain = run(&[], "p");
     let csv = std::fs::read_to_string(d.join("c.csv")).unwrap();
     assert!(csv.starts_with("direction,eta,sample"));
-    assert_eq!(
-        csv.lines().filter(|l| l.starts_with("up,")).count(),
-        12 * 20
-    );
-    assert_eq!(
-        csv.lines().filter(|l| l.starts_with("down,")).count(),
-        12 * 20
-    );
-    let j: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("c.json")).unwrap()).unwrap();
-    // On this periodic branch both directions follow the same period-1 orbit.
-    for dir in ["points_up", "points_down"] {
-        let pts = j[dir].as_array().unwrap();
-        assert_eq!(pts.len(), 12);
+    for dir in ["up,", "down,"] {
+        assert_eq!(csv.lines().filter(|l| l.starts_with(dir)).count(), 17 * 100);
+    }
+    let hyst: Vec<f64> = j["hysteresis_values"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(hyst.iter().all(|v| (1.328..=1.336).contains(v)), "{hyst:?}");
+    for eta in [1.331, 1.332, 1.333] {
         assert!(
-            pts.iter().all(|p| p["class"] == "period-1"),
-            "{dir}: {pts:?}"
+            hyst.iter().any(|v| (v - eta).abs() < 1e-9),
+            "{eta}: {hyst:?}"
         );
     }
-    assert_eq!(j["hysteresis_values"].as_array().unwrap().len(), 0);
+    let class = |j: &serde_json::Value, key: &str, eta: f64| {
+        j[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| (p["value"].as_f64().unwrap() - eta).abs() < 1e-9)
+            .unwrap()["class"]
+            .clone()
+    };
+    for &eta in &hyst {
+        assert_eq!(class(&j, "points_up", eta), "period-1", "{eta}");
+        assert_eq!(class(&j, "points_down", eta), "period-2", "{eta}");
+        assert_eq!(class(&plain, "points", eta), "period-1", "{eta}");
+    }
 }
 
 #[test]

@@ -10,7 +10,7 @@ pub use output::{
 };
 pub use parts::{
     MapOptions, MapSummary, Part, compute_part, merge, merge_files, parse_shard, part_path,
-    read_part, run, run_all_adapters, work, write_part,
+    read_part, run, run_all_adapters, run_shared, work, write_part,
 };
 
 use crate::classify::Class;

@@ -305,6 +305,17 @@ pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> Result<MapS
         eprintln!("adapter: {}", crate::gpu::describe(&g.info));
     }
     let engines: Vec<Engine> = gpus.into_iter().map(|g| Engine::Gpu(Box::new(g))).collect();
+    run_shared(&engines, cfg, out, starts)
+}
+
+/// A map split into one contiguous share per engine, computed concurrently, merged as shards
+/// are; the result equals a single engine's map.
+pub fn run_shared(
+    engines: &[Engine],
+    cfg: &Config,
+    out: &Path,
+    starts: usize,
+) -> Result<MapSummary, MapError> {
     let n = engines.len();
     let t = std::time::Instant::now();
     let parts: Vec<Result<Part, MapError>> = std::thread::scope(|s| {
@@ -339,7 +350,7 @@ pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> Result<MapS
     };
     Ok(MapSummary {
         backend: "gpu".into(),
-        device: format!("{n} adapters"),
+        device: format!("{n} engines"),
         files: write_outputs(out, &cfg, &fields, &report)?,
         integration_s: t.elapsed().as_secs_f64(),
         counts: fields.counts(),
