@@ -8,12 +8,13 @@ use crate::engine::Engine;
 use crate::error::{Error, Result};
 use crate::gpu::{GpuError, Timings};
 use crate::method::{Diagnostics, RunResult};
-use crate::output::{Staged, with_ext};
+use crate::output::{OutputError, Staged, with_ext};
 use crate::progress::{Progress, Silent};
 use crate::render::{DensityPlot, density_png, panels_png};
 use crate::spec::{Points, RunSpec};
 use serde::Serialize;
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -154,6 +155,8 @@ pub fn run(
     continuation: Option<Continuation>,
     progress: &dyn Progress,
 ) -> Result<Bifurcation> {
+    let chains = continuation.map_or(1, |c| c.directions().len());
+    crate::memory::check_bifurcation(cfg, chains)?;
     let t0 = Instant::now();
     let values = cfg.sweep_values();
     let (runs, timings): (Vec<(Option<Direction>, Vec<RunResult>)>, _) = match continuation {
@@ -269,44 +272,62 @@ fn plot_points(var: &str, points: &[SweepPoint]) -> Vec<(f64, f64)> {
         .collect()
 }
 
+// Report structs list their fields in alphabetical order: the file is streamed (a diagram of
+// millions of points must not be built in memory) and keeps the key order of earlier versions.
 #[derive(Serialize)]
 struct PointJson {
-    value: f64,
     class: String,
-    period: Option<u32>,
-    impacts_per_period: f64,
     diagnostics: Diagnostics,
+    impacts_per_period: f64,
+    period: Option<u32>,
+    value: f64,
 }
 
 #[derive(Serialize)]
 struct TimingsJson {
-    setup_s: Option<f64>,
     integration_s: f64,
-    readback_s: Option<f64>,
     kernel_s: Option<f64>,
-    total_s: f64,
+    readback_s: Option<f64>,
     rk4_steps: f64,
+    setup_s: Option<f64>,
     steps_per_s: f64,
+    total_s: f64,
 }
 
 #[derive(Serialize)]
-struct BifurcationJson<'a> {
-    version: &'static str,
-    command: &'static str,
+struct BifurcationJson<'a, P: Serialize> {
     backend: &'static str,
-    device: &'a str,
-    precision: &'static str,
-    config: &'a Config,
-    timings: TimingsJson,
     class_counts: BTreeMap<String, usize>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    points: Option<Vec<PointJson>>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    points_up: Option<Vec<PointJson>>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    points_down: Option<Vec<PointJson>>,
+    command: &'static str,
+    /// As a JSON value, whose keys are sorted.
+    config: serde_json::Value,
+    device: &'a str,
     #[serde(skip_serializing_if = "Option::is_none")]
     hysteresis_values: Option<Vec<f64>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    points: Option<P>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    points_down: Option<P>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    points_up: Option<P>,
+    precision: &'static str,
+    timings: TimingsJson,
+    version: &'static str,
+}
+
+/// Serializes the points of a chain one by one as they are written.
+struct Chain<'a>(&'a [SweepPoint]);
+
+impl Serialize for Chain<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_seq(self.0.iter().map(|pt| PointJson {
+            class: pt.class.name(),
+            diagnostics: pt.result.diag,
+            impacts_per_period: pt.impacts_per_period(),
+            period: pt.class.period(),
+            value: pt.value,
+        }))
+    }
 }
 
 /// Writes PREFIX.csv (parameter, sample index, state; with the direction of a continuation),
@@ -387,24 +408,7 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
             *counts.entry(pt.class.name()).or_default() += 1;
         }
     }
-    let point_json = |points: &[SweepPoint]| -> Vec<PointJson> {
-        points
-            .iter()
-            .map(|pt| PointJson {
-                value: pt.value,
-                class: pt.class.name(),
-                period: pt.class.period(),
-                impacts_per_period: pt.impacts_per_period(),
-                diagnostics: pt.result.diag,
-            })
-            .collect()
-    };
-    let chain = |d: Direction| {
-        b.runs
-            .iter()
-            .find(|r| r.0 == Some(d))
-            .map(|r| point_json(&r.1))
-    };
+    let chain = |d: Direction| b.runs.iter().find(|r| r.0 == Some(d)).map(|r| Chain(&r.1));
     let steps = b.rk4_steps();
     let j = BifurcationJson {
         version: env!("CARGO_PKG_VERSION"),
@@ -412,7 +416,7 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         backend: b.backend,
         device: &b.device,
         precision: cfg.method.precision.name(),
-        config: cfg,
+        config: serde_json::to_value(cfg)?,
         timings: TimingsJson {
             setup_s: b.timings.map(|t| t.setup_s),
             integration_s: b.integration_s,
@@ -423,14 +427,21 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
             steps_per_s: steps / b.integration_s,
         },
         class_counts: counts,
-        points: (!cont).then(|| point_json(&b.runs[0].1)),
+        points: (!cont).then(|| Chain(&b.runs[0].1)),
         points_up: chain(Direction::Up),
         points_down: chain(Direction::Down),
         hysteresis_values: b.hysteresis(),
     };
-    // Through a Value, whose maps sort their keys: a stable file whatever the field order.
-    let text = serde_json::to_string_pretty(&serde_json::to_value(&j)?)?;
-    staged.write(&with_ext(out, "json"), text.as_bytes())?;
+    let json_path = with_ext(out, "json");
+    let io = |source| OutputError::Io {
+        path: json_path.display().to_string(),
+        source,
+    };
+    let mut w =
+        std::io::BufWriter::new(std::fs::File::create(staged.path(&json_path)).map_err(io)?);
+    serde_json::to_writer_pretty(&mut w, &j)?;
+    w.flush().map_err(io)?;
+    drop(w);
     Ok(staged.commit()?)
 }
 

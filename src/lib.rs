@@ -13,6 +13,7 @@ pub mod engine;
 pub mod error;
 pub mod gpu;
 pub mod map;
+pub mod memory;
 pub mod method;
 pub mod model;
 pub mod output;

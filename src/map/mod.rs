@@ -37,6 +37,8 @@ pub enum MapError {
     Merge(String),
     #[error("JSON: {0}")]
     Json(#[from] serde_json::Error),
+    #[error(transparent)]
+    Config(#[from] crate::config::ConfigError),
 }
 
 /// Number of cells of the configured map.

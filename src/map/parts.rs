@@ -12,17 +12,118 @@ use crate::progress::Progress;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// A shard's partial output.
+/// A shard's partial output. Its run identity (version, config, starts, backend kind, shard
+/// count) must match exactly for the part to be merged or resumed.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Part {
     pub version: String,
     pub config: Config,
+    /// Initial states per cell (`--starts`).
+    pub starts: usize,
     pub shard: (usize, usize),
     pub range: (usize, usize),
     pub device: String,
     pub backend: String,
     pub timings: Timings,
     pub fields: Fields,
+    /// The file it was read from (for messages).
+    #[serde(skip)]
+    pub source: Option<PathBuf>,
+}
+
+impl Part {
+    /// The file name, or the shard, for messages.
+    pub fn name(&self) -> String {
+        self.source.as_ref().map_or_else(
+            || format!("shard {}/{}", self.shard.0, self.shard.1),
+            |p| p.display().to_string(),
+        )
+    }
+
+    /// Why this part does not belong to the run of `other` (None if it does). Every input
+    /// that changes a number is compared: version, the whole config (method, N, periods,
+    /// tolerances, precision, model, grid), starts, backend kind, shard count.
+    pub fn differs_from(
+        &self,
+        version: &str,
+        cfg: &Config,
+        starts: usize,
+        backend: &str,
+        n: usize,
+    ) -> Option<String> {
+        let json = |c: &Config| serde_json::to_value(c).ok();
+        if self.version != version {
+            Some(format!("version {} (this run: {version})", self.version))
+        } else if json(&self.config) != json(cfg) {
+            Some("a different config".into())
+        } else if self.starts != starts {
+            Some(format!("--starts {} (this run: {starts})", self.starts))
+        } else if self.backend != backend {
+            Some(format!("backend {} (this run: {backend})", self.backend))
+        } else if self.shard.1 != n {
+            Some(format!("{} shards (this run: {n})", self.shard.1))
+        } else {
+            None
+        }
+    }
+
+    /// Checks that the contents are possible: array lengths, class codes, failure flags,
+    /// attractor counts, the cell range of the shard.
+    pub fn check(&self) -> Result<(), String> {
+        let f = &self.fields;
+        let (i, n) = self.shard;
+        let cells = cell_count(&self.config);
+        if n == 0 || i >= n || shard_range(cells, i, n) != (self.range.0..self.range.1) {
+            return Err(format!(
+                "shard {i}/{n} with cells {:?} of {cells}",
+                self.range
+            ));
+        }
+        let len = self.range.1 - self.range.0;
+        let lens = [
+            f.class.len(),
+            f.period.len(),
+            f.impacts_per_period.len(),
+            f.lyapunov.len(),
+            f.impacts.len(),
+            f.sticks.len(),
+            f.locks.len(),
+            f.overflows.len(),
+            f.nonfinite.len(),
+            f.attractors.len(),
+        ];
+        if lens.iter().any(|&l| l != len) {
+            return Err(format!("field lengths {lens:?}, expected {len} each"));
+        }
+        if !(1..=64).contains(&self.starts) {
+            return Err(format!("starts {} outside [1, 64]", self.starts));
+        }
+        for c in 0..len {
+            let class = f.class[c];
+            let bad = if !(-5..=64).contains(&class) {
+                Some(format!("class code {class}"))
+            } else if f.nonfinite[c] > 1 || (f.nonfinite[c] == 1) != (class == -2) {
+                Some(format!("nonfinite {} with class {class}", f.nonfinite[c]))
+            } else if f.period[c] != class.max(0) {
+                Some(format!("period {} with class {class}", f.period[c]))
+            } else if !(1..=self.starts).contains(&(f.attractors[c] as usize)) {
+                Some(format!(
+                    "{} attractors from {} starts",
+                    f.attractors[c], self.starts
+                ))
+            } else if !(f.impacts_per_period[c] >= 0.0 && f.impacts_per_period[c].is_finite()) {
+                Some(format!("impacts per period {}", f.impacts_per_period[c]))
+            } else if f.lyapunov[c].is_some_and(|v| !v.is_finite()) {
+                Some("non-finite exponent".into())
+            } else {
+                None
+            };
+            if let Some(b) = bad {
+                return Err(format!("cell {}: impossible value: {b}", self.range.0 + c));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Computes shard `i` of `n` of the map and packs it as a partial output.
@@ -38,12 +139,14 @@ pub fn compute_part(
     Ok(Part {
         version: env!("CARGO_PKG_VERSION").into(),
         config: cfg.clone(),
+        starts: starts.max(1),
         shard: (i, n),
         range: (range.start, range.end),
         device: engine.device(),
         backend: engine.name().into(),
         timings,
         fields: Fields::from_cells(&cells),
+        source: None,
     })
 }
 
@@ -52,10 +155,18 @@ pub fn part_path(prefix: &Path, i: usize, n: usize) -> PathBuf {
     with_ext(prefix, &format!("part-{i}-of-{n}.json"))
 }
 
+/// Writes a part file (streamed: a large shard is not held as text).
 pub fn write_part(path: &Path, part: &Part) -> Result<(), MapError> {
     let mut st = Staged::new();
-    let text = serde_json::to_string(part).map_err(MapError::Json)?;
-    st.write(path, text.as_bytes())?;
+    let io = |source| crate::output::OutputError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    let f = std::fs::File::create(st.path(path)).map_err(io)?;
+    let mut w = std::io::BufWriter::new(f);
+    serde_json::to_writer(&mut w, part)?;
+    std::io::Write::flush(&mut w).map_err(io)?;
+    drop(w);
     st.commit()?;
     Ok(())
 }
@@ -66,22 +177,33 @@ pub fn read_part(path: &Path) -> Result<Part, MapError> {
         message,
     };
     let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
-    serde_json::from_str(&text).map_err(|e| err(e.to_string()))
+    let mut part: Part = serde_json::from_str(&text).map_err(|e| err(e.to_string()))?;
+    part.check().map_err(err)?;
+    part.source = Some(path.to_path_buf());
+    Ok(part)
 }
 
-/// Joins the parts of one sharded map; they must share the config and cover every cell once.
+/// Joins the parts of one sharded map; they must come from one run (see
+/// [`Part::differs_from`]), hold possible values and cover every cell once.
 pub fn merge(mut parts: Vec<Part>) -> Result<(Config, Fields, Vec<Part>), MapError> {
     let first = parts
         .first()
         .ok_or_else(|| MapError::Merge("no parts given".into()))?;
-    let cfg_json = serde_json::to_value(&first.config).map_err(MapError::Json)?;
     let n = first.shard.1;
     for p in &parts {
-        let v = serde_json::to_value(&p.config).map_err(MapError::Json)?;
-        if v != cfg_json || p.shard.1 != n {
+        p.check()
+            .map_err(|e| MapError::Merge(format!("{}: {e}", p.name())))?;
+        if let Some(d) = p.differs_from(
+            &first.version,
+            &first.config,
+            first.starts,
+            &first.backend,
+            n,
+        ) {
             return Err(MapError::Merge(format!(
-                "part {}/{} has a different config or shard count than part {}/{}",
-                p.shard.0, p.shard.1, first.shard.0, n
+                "{} is not part of the run of {}: it has {d}",
+                p.name(),
+                first.name()
             )));
         }
     }
@@ -131,6 +253,37 @@ pub fn parse_shard(s: &str) -> Result<(usize, usize), String> {
         return Err(bad());
     }
     Ok((i, n))
+}
+
+impl MapOptions<'_> {
+    /// Refuses splits that cannot work (more shards than cells, --shard with --checkpoint)
+    /// and runs that do not fit in memory, before anything is computed.
+    pub fn check(&self, cfg: &Config) -> Result<(), MapError> {
+        let cells = cell_count(cfg);
+        let bad = |m: String| Err(MapError::Merge(m));
+        if self.shard.is_some() && self.checkpoint.is_some() {
+            return bad("--shard and --checkpoint exclude each other: a shard is one part".into());
+        }
+        if let Some((_, n)) = self.shard
+            && n > cells
+        {
+            return bad(format!(
+                "--shard I/{n}: more shares than the map's {cells} cells"
+            ));
+        }
+        if let Some(k) = self.checkpoint
+            && !(1..=cells).contains(&k)
+        {
+            return bad(format!(
+                "--checkpoint {k}: allowed 1 to the map's {cells} cells"
+            ));
+        }
+        let held = self
+            .shard
+            .map_or(cells, |(i, n)| shard_range(cells, i, n).len());
+        crate::memory::check_map(cfg, held, self.starts)?;
+        Ok(())
+    }
 }
 
 /// What a map run did.
@@ -198,6 +351,7 @@ pub fn run(
 ) -> Result<MapSummary, MapError> {
     let t = std::time::Instant::now();
     let cells = cell_count(cfg);
+    o.check(cfg)?;
     let mut summary = MapSummary {
         backend: engine.name().into(),
         device: engine.device(),
@@ -219,10 +373,15 @@ pub fn run(
     let mut parts = Vec::with_capacity(n);
     for i in 0..n {
         let path = part_path(out, i, n);
-        // Resume: a finished shard of the same configuration is reused.
+        // Resume: a finished shard of the same run is reused; a part of another run (or an
+        // unreadable one) is recomputed and replaced.
+        let version = env!("CARGO_PKG_VERSION");
+        let starts = o.starts.max(1);
         if n > 1
             && let Ok(p) = read_part(&path)
-            && serde_json::to_value(&p.config)? == serde_json::to_value(cfg)?
+            && p.shard == (i, n)
+            && p.differs_from(version, cfg, starts, engine.name(), n)
+                .is_none()
         {
             progress.advance(p.fields.len() as u64 * per_cell);
             summary.resumed.push((i, n, path));
@@ -299,6 +458,7 @@ pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> Result<MapS
             "--adapters all combines with neither --shard, --checkpoint nor --compare".into(),
         ));
     }
+    o.check(cfg)?;
     let starts = o.starts;
     let gpus = crate::gpu::Gpu::all()?;
     for g in &gpus {

@@ -1,0 +1,93 @@
+//! Host memory bounds: what a run will hold, counted before anything is allocated, against
+//! what the machine has available.
+
+use crate::config::{Config, ConfigError};
+
+/// Share of the available memory a run may plan to use (the rest is for the system, the GPU
+/// driver's staging and allocator overhead).
+const USABLE: f64 = 0.8;
+
+/// Bytes of host memory available to a run: `RATTLE_MEMORY_LIMIT` (bytes) if set, else the
+/// kernel's MemAvailable, else 4 GiB.
+pub fn available() -> u64 {
+    if let Some(v) = std::env::var("RATTLE_MEMORY_LIMIT")
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
+    {
+        return v;
+    }
+    std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|m| {
+            m.lines()
+                .find(|l| l.starts_with("MemAvailable:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok())
+        })
+        .map_or(4 << 30, |kib| kib * 1024)
+}
+
+fn gib(b: f64) -> String {
+    format!("{:.2} GiB", b / (1u64 << 30) as f64)
+}
+
+/// Bytes a bifurcation diagram holds per point and chain: its samples (f64 states, the
+/// backend's staging copy and the plotted values) and the per-point result, class and report.
+pub fn bifurcation_bytes_per_point(samples: u32) -> u64 {
+    samples as u64 * (32 + 32 + 16) + 512
+}
+
+/// Bytes a map holds per cell: per start its summary, parameters and initial state; the
+/// merged fields (twice while merging), classes, colours and exponents for the images.
+pub fn map_bytes_per_cell(starts: usize) -> u64 {
+    starts as u64 * (112 + 16 + 32) + 2 * 72 + 64
+}
+
+/// Refuses a bifurcation whose estimate exceeds the usable memory.
+pub fn check_bifurcation(cfg: &Config, chains: usize) -> Result<(), ConfigError> {
+    let per = bifurcation_bytes_per_point(cfg.run.sample_periods) * chains as u64;
+    let need = per as f64 * cfg.sweep.points as f64;
+    let have = available() as f64 * USABLE;
+    if need > have {
+        return Err(ConfigError::Range {
+            key: "sweep.points x run.sample_periods".into(),
+            value: format!(
+                "{} x {} (about {} in memory)",
+                cfg.sweep.points,
+                cfg.run.sample_periods,
+                gib(need)
+            ),
+            range: format!(
+                "at most {} of the {} available, i.e. sweep.points <= {} at these samples",
+                gib(have),
+                gib(have / USABLE),
+                (have / per as f64) as u64
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Refuses a map (or a share of `cells` of it) whose estimate exceeds the usable memory.
+pub fn check_map(cfg: &Config, cells: usize, starts: usize) -> Result<(), ConfigError> {
+    let per = map_bytes_per_cell(starts.max(1));
+    let need = per as f64 * cells as f64;
+    let have = available() as f64 * USABLE;
+    if need > have {
+        return Err(ConfigError::Range {
+            key: "map.x_points x map.y_points".into(),
+            value: format!(
+                "{} x {} with {starts} start(s) (about {} in memory)",
+                cfg.map.x_points,
+                cfg.map.y_points,
+                gib(need)
+            ),
+            range: format!(
+                "at most {} of the {} available, i.e. <= {} cells (or use --shard)",
+                gib(have),
+                gib(have / USABLE),
+                (have / per as f64) as u64
+            ),
+        });
+    }
+    Ok(())
+}

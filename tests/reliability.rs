@@ -1,0 +1,237 @@
+//! No silently wrong map: run identity of parts and checkpoints, impossible part contents,
+//! memory bounds, outputs that belong together.
+
+use std::path::{Path, PathBuf};
+
+mod common;
+use common::{npy, ok, rattle, scratch};
+
+/// 1 x 3 cells at eta = 1.33, R = 0.59: the middle cell has two attractors (see tests/map.rs).
+const COEXIST: &str = "[model]\neta = 1.33\n[method]\nsteps_per_period = 64\n[run]\n\
+    transient_periods = 300\nsample_periods = 50\n[map]\nx = \"R\"\nx_from = 0.58\n\
+    x_to = 0.60\nx_points = 1\ny = \"lambda\"\ny_from = 0.085\ny_to = 0.115\ny_points = 3\n";
+
+fn setup(name: &str) -> (PathBuf, PathBuf) {
+    let d = scratch(name);
+    let cfg = d.join("c.toml");
+    std::fs::write(&cfg, COEXIST).unwrap();
+    (d, cfg)
+}
+
+fn map(cfg: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    rattle()
+        .args(["map", "--backend", "cpu", "--precision", "f64", "--config"])
+        .arg(cfg)
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn checkpoints_of_another_run_are_recomputed_not_reused() {
+    let (d, cfg) = setup("ident-ckpt");
+    let p = d.join("m");
+    // Parts of a --starts 1 run under the names a 3-shard checkpoint uses.
+    for i in 0..3 {
+        let o = map(&cfg, &p, &["--starts", "1", "--shard", &format!("{i}/3")]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let o = map(&cfg, &p, &["--starts", "2", "--checkpoint", "3"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("already done"), "{}", stderr(&o));
+    let fresh = map(&cfg, &d.join("fresh"), &["--starts", "2"]);
+    assert!(fresh.status.success());
+    assert_eq!(npy::<u8>(&d.join("m-attractors.npy")), vec![1, 2, 1]);
+    assert_eq!(
+        std::fs::read(d.join("m-attractors.npy")).unwrap(),
+        std::fs::read(d.join("fresh-attractors.npy")).unwrap()
+    );
+    // The same run resumed does reuse its parts.
+    for i in 0..2 {
+        ok(rattle()
+            .args(["map", "--backend", "cpu", "--precision", "f64", "--config"])
+            .arg(&cfg)
+            .args(["--starts", "2", "--shard", &format!("{i}/3"), "--out"])
+            .arg(d.join("r")));
+    }
+    let o = map(&cfg, &d.join("r"), &["--starts", "2", "--checkpoint", "3"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o).matches("already done").count(),
+        2,
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn merge_refuses_parts_of_different_runs() {
+    let (d, cfg) = setup("ident-merge");
+    let p = d.join("m");
+    let parts: Vec<PathBuf> = (0..3)
+        .map(|i| {
+            let starts = if i == 2 { "2" } else { "1" };
+            let o = map(
+                &cfg,
+                &p,
+                &["--starts", starts, "--shard", &format!("{i}/3")],
+            );
+            assert!(o.status.success(), "{}", stderr(&o));
+            d.join(format!("m.part-{i}-of-3.json"))
+        })
+        .collect();
+    let o = rattle()
+        .arg("merge")
+        .args(&parts)
+        .arg("--out")
+        .arg(d.join("merged"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("m.part-2-of-3.json"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("starts"), "{}", stderr(&o));
+    assert!(!d.join("merged-class.npy").exists());
+    // Different N (or any other key) is another run too.
+    let o = map(
+        &cfg,
+        &p,
+        &["--set", "method.steps_per_period=128", "--shard", "2/3"],
+    );
+    assert!(o.status.success());
+    let o = rattle()
+        .arg("merge")
+        .args(&parts)
+        .arg("--out")
+        .arg(d.join("merged"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("config"), "{}", stderr(&o));
+}
+
+#[test]
+fn impossible_part_contents_are_refused_with_the_file_name() {
+    let (d, cfg) = setup("ident-edit");
+    let p = d.join("m");
+    for i in 0..3 {
+        let o = map(&cfg, &p, &["--shard", &format!("{i}/3")]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let part = d.join("m.part-1-of-3.json");
+    let original: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&part).unwrap()).unwrap();
+    type Edit = fn(&mut serde_json::Value);
+    let edits: [(&str, Edit); 4] = [
+        ("class -99", |j| j["fields"]["class"][0] = (-99).into()),
+        ("nonfinite next to a valid class", |j| {
+            j["fields"]["nonfinite"][0] = 1.into()
+        }),
+        ("wrong array length", |j| {
+            j["fields"]["impacts"]
+                .as_array_mut()
+                .unwrap()
+                .push(3.into())
+        }),
+        ("attractors above starts", |j| {
+            j["fields"]["attractors"][0] = 5.into()
+        }),
+    ];
+    for (what, edit) in edits {
+        let mut j = original.clone();
+        edit(&mut j);
+        std::fs::write(&part, serde_json::to_string(&j).unwrap()).unwrap();
+        let o = rattle()
+            .arg("merge")
+            .args((0..3).map(|i| d.join(format!("m.part-{i}-of-3.json"))))
+            .arg("--out")
+            .arg(d.join("merged"))
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "{what}: accepted");
+        assert!(
+            stderr(&o).contains("m.part-1-of-3.json"),
+            "{what}: {}",
+            stderr(&o)
+        );
+    }
+}
+
+#[test]
+fn work_beyond_the_machine_memory_is_refused_before_computing() {
+    let d = scratch("memory");
+    // 1e7 points x 2 samples at N = 8: cheap to compute, but its per-point results, plot and
+    // report need several GiB; with the available memory lowered to 1 GiB it must be refused
+    // at once, naming the keys, and write nothing.
+    let t = std::time::Instant::now();
+    let o = rattle()
+        .env("RATTLE_MEMORY_LIMIT", "1073741824")
+        .args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args([
+            "--set",
+            "sweep.points=10000000",
+            "--set",
+            "run.sample_periods=2",
+        ])
+        .args([
+            "--set",
+            "run.transient_periods=0",
+            "--set",
+            "method.steps_per_period=8",
+        ])
+        .arg("--out")
+        .arg(d.join("b"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("sweep.points") && e.contains("GiB"), "{e}");
+    assert!(
+        t.elapsed().as_secs_f64() < 20.0,
+        "refused only after computing"
+    );
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+    // A map whose fields do not fit is refused the same way.
+    let o = rattle()
+        .env("RATTLE_MEMORY_LIMIT", "1073741824")
+        .args(["map", "--backend", "cpu", "--config"])
+        .arg(common::config("r_lambda.toml"))
+        .args(["--set", "map.x_points=8192", "--set", "map.y_points=8192"])
+        .arg("--out")
+        .arg(d.join("m"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("map.x_points x map.y_points"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+}
+
+#[test]
+fn more_checkpoints_or_shards_than_cells_are_refused() {
+    let (d, cfg) = setup("ckpt-count");
+    for extra in [
+        &["--checkpoint", "100000000"][..],
+        &["--checkpoint", "4"][..],
+        &["--shard", "0/4294967296"][..],
+        &["--shard", "0/4", "--checkpoint", "2"][..],
+    ] {
+        let o = map(&cfg, &d.join("m"), extra);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("cells") || stderr(&o).contains("--shard"),
+            "{extra:?}: {}",
+            stderr(&o)
+        );
+    }
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1, "only the config");
+}
