@@ -8,6 +8,7 @@ use rattle::bifurcation::{self, Continuation};
 use rattle::config::{Backend, Config, Precision};
 use rattle::engine::Engine;
 use rattle::map::{self, MapOptions};
+use rattle::output::check_prefix;
 use rattle::spec::RunSpec;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -243,6 +244,7 @@ fn run(cli: Cli) -> Result<()> {
             continuation,
         } => {
             let cfg = common.load()?;
+            check_prefix(&out, &["csv", "png", "json"])?;
             let engine = Engine::open(cfg.method.backend);
             let what = bifurcation::work(&engine, &cfg, continuation);
             let pb = progress_bar(what, "bifurcation");
@@ -264,6 +266,7 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             let cfg = common.load()?;
             cfg.validate_map()?;
+            check_prefix(&out, &["png", "json"])?;
             let other = compare
                 .map(|p| {
                     // The other config keeps its own eta; every other override applies.
@@ -285,6 +288,7 @@ fn run(cli: Cli) -> Result<()> {
             map_cmd(&cfg, &out, &opts, adapters)
         }
         Cmd::Merge { parts, out } => {
+            check_prefix(&out, &["png", "json"])?;
             print_files(&map::merge_files(&parts, &out)?.files);
             Ok(())
         }
@@ -296,6 +300,7 @@ fn run(cli: Cli) -> Result<()> {
             backend,
             precision,
         } => {
+            check_prefix(&out, &[])?;
             let pb = progress_bar(4 * points.unwrap_or(2000) as u64, "figure");
             let files = bifurcation::paper_figure(
                 &configs,
@@ -320,6 +325,7 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             use rattle::accuracy::{Options, study, write_outputs};
             let cfg = common.load()?;
+            check_prefix(&out, &["csv", "png", "json"])?;
             let t0 = Instant::now();
             let o = Options {
                 ensemble,

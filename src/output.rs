@@ -1,7 +1,12 @@
-//! Output files that appear all together or not at all: everything is written to
-//! `NAME.partial` first and renamed only when every file of the run was written.
+//! Output files that appear all together or not at all. Every file of a run is written under
+//! a temporary name unique to the run; at commit, under a lock shared by all runs writing into
+//! the same directory, every destination is checked and then all are renamed into place (and
+//! files the run no longer produces are removed), so that concurrent runs on one prefix leave
+//! one run's whole set. An uncommitted set is removed.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant, SystemTime};
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -14,26 +19,46 @@ pub enum OutputError {
     Other { path: String, message: String },
 }
 
-/// A set of output files committed together.
-pub struct Staged {
-    files: Vec<(PathBuf, PathBuf)>,
-}
-
-impl Default for Staged {
-    fn default() -> Self {
-        Self::new()
+fn io(path: &Path) -> impl Fn(std::io::Error) -> OutputError + '_ {
+    move |source| OutputError::Io {
+        path: path.display().to_string(),
+        source,
     }
 }
+
+fn other(path: &Path, message: impl Into<String>) -> OutputError {
+    OutputError::Other {
+        path: path.display().to_string(),
+        message: message.into(),
+    }
+}
+
+/// A set of output files committed together.
+#[derive(Default)]
+pub struct Staged {
+    /// (temporary, final) paths.
+    files: Vec<(PathBuf, PathBuf)>,
+    /// Files of an earlier run that this set does not produce.
+    stale: Vec<PathBuf>,
+}
+
+/// Distinguishes the sets of one process.
+static SET: AtomicU64 = AtomicU64::new(0);
 
 impl Staged {
     pub fn new() -> Self {
-        Staged { files: Vec::new() }
+        Staged::default()
     }
 
-    /// Reserves `final_path`; returns the temporary path to write instead.
+    /// Reserves `final_path`; returns the temporary path to write instead (unique to this
+    /// process and set, so that concurrent runs never share one).
     pub fn path(&mut self, final_path: &Path) -> PathBuf {
         let mut tmp = final_path.as_os_str().to_owned();
-        tmp.push(".partial");
+        tmp.push(format!(
+            ".{}-{}.partial",
+            std::process::id(),
+            SET.fetch_add(1, Ordering::Relaxed)
+        ));
         let tmp = PathBuf::from(tmp);
         self.files.push((tmp.clone(), final_path.to_path_buf()));
         tmp
@@ -42,22 +67,40 @@ impl Staged {
     /// Writes bytes to a staged file.
     pub fn write(&mut self, final_path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
         let tmp = self.path(final_path);
-        std::fs::write(&tmp, bytes).map_err(|source| OutputError::Io {
-            path: final_path.display().to_string(),
-            source,
-        })
+        std::fs::write(&tmp, bytes).map_err(io(final_path))
     }
 
-    /// Renames every staged file into place.
+    /// `path`, if it exists, is removed at commit: the set no longer contains it.
+    pub fn remove_stale(&mut self, path: &Path) {
+        self.stale.push(path.to_path_buf());
+    }
+
+    /// Renames every staged file into place; returns the final paths.
     pub fn commit(mut self) -> Result<Vec<PathBuf>, OutputError> {
         let files = std::mem::take(&mut self.files);
+        let Some((_, first)) = files.first() else {
+            return Ok(Vec::new());
+        };
+        let _lock = DirLock::acquire(first)?;
+        // Every destination is checked before the first rename: a failure leaves nothing.
+        for (_, dst) in &files {
+            if dst.is_dir() {
+                self.files = files.clone();
+                return Err(other(dst, "a directory is in the way"));
+            }
+        }
         let mut done = Vec::new();
         for (tmp, dst) in &files {
-            std::fs::rename(tmp, dst).map_err(|source| OutputError::Io {
-                path: dst.display().to_string(),
-                source,
-            })?;
+            if let Err(e) = std::fs::rename(tmp, dst) {
+                self.files = files[done.len()..].to_vec();
+                return Err(io(dst)(e));
+            }
             done.push(dst.clone());
+        }
+        for p in &self.stale {
+            if p.exists() {
+                std::fs::remove_file(p).map_err(io(p))?;
+            }
         }
         Ok(done)
     }
@@ -72,10 +115,90 @@ impl Drop for Staged {
     }
 }
 
+/// A lock file in the directory of the outputs, held while a set is renamed into place.
+struct DirLock(PathBuf);
+
+impl DirLock {
+    /// A lock older than this belongs to a run that died during its (short) commit.
+    const STALE: Duration = Duration::from_secs(60);
+
+    fn acquire(file: &Path) -> Result<DirLock, OutputError> {
+        let dir = file.parent().filter(|p| !p.as_os_str().is_empty());
+        let path = dir.unwrap_or(Path::new(".")).join(".rattle-commit.lock");
+        let t = Instant::now();
+        loop {
+            match std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&path)
+            {
+                Ok(_) => return Ok(DirLock(path)),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let age = std::fs::metadata(&path)
+                        .and_then(|m| m.modified())
+                        .ok()
+                        .and_then(|m| SystemTime::now().duration_since(m).ok());
+                    if age.is_some_and(|a| a > Self::STALE) {
+                        let _ = std::fs::remove_file(&path);
+                    } else if t.elapsed() > 2 * Self::STALE {
+                        return Err(other(&path, "output directory locked by another run"));
+                    }
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+                Err(e) => return Err(io(&path)(e)),
+            }
+        }
+    }
+}
+
+impl Drop for DirLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
 /// `PREFIX.ext` for an output prefix.
 pub fn with_ext(prefix: &Path, ext: &str) -> PathBuf {
     let mut s = prefix.as_os_str().to_owned();
     s.push(".");
     s.push(ext);
     PathBuf::from(s)
+}
+
+/// `PREFIX-suffix` for an output prefix.
+pub fn with_suffix(prefix: &Path, suffix: &str) -> PathBuf {
+    let mut s = prefix.as_os_str().to_owned();
+    s.push("-");
+    s.push(suffix);
+    PathBuf::from(s)
+}
+
+/// Checks, before any computation, that files `PREFIX.*` can be written: the prefix names a
+/// file (not a directory), its directory exists and is writable, and none of `PREFIX.ext`
+/// for `exts` is a directory.
+pub fn check_prefix(prefix: &Path, exts: &[&str]) -> Result<(), OutputError> {
+    let s = prefix.as_os_str().to_string_lossy();
+    if s.is_empty() || s.ends_with('/') || prefix.is_dir() || prefix.file_name().is_none() {
+        return Err(other(
+            prefix,
+            "the output prefix must name files, e.g. --out results/fig2 (not a directory)",
+        ));
+    }
+    let dir = prefix
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        return Err(other(dir, "the output directory does not exist"));
+    }
+    let probe = dir.join(format!(".rattle-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"").map_err(io(dir))?;
+    let _ = std::fs::remove_file(&probe);
+    for ext in exts {
+        let p = with_ext(prefix, ext);
+        if p.is_dir() {
+            return Err(other(&p, "a directory is in the way"));
+        }
+    }
+    Ok(())
 }

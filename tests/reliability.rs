@@ -235,3 +235,120 @@ fn more_checkpoints_or_shards_than_cells_are_refused() {
     }
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1, "only the config");
 }
+
+fn bifurcation(out: &Path, points: u32) -> std::process::Command {
+    let mut c = rattle();
+    c.args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args(["--set", &format!("sweep.points={points}")])
+        .args([
+            "--set",
+            "run.transient_periods=5",
+            "--set",
+            "run.sample_periods=4",
+        ])
+        .args(["--set", "method.steps_per_period=16"])
+        .arg("--out")
+        .arg(out);
+    c
+}
+
+#[test]
+fn concurrent_runs_on_one_prefix_leave_one_runs_whole_set() {
+    let d = scratch("concurrent");
+    let b = d.join("b");
+    for trial in 0..6 {
+        let mut x = bifurcation(&b, 300).spawn().unwrap();
+        let mut y = bifurcation(&b, 301).spawn().unwrap();
+        assert!(x.wait().unwrap().success() && y.wait().unwrap().success());
+        let j = common::json(&d.join("b.json"));
+        let points = j["config"]["sweep"]["points"].as_u64().unwrap();
+        let rows = std::fs::read_to_string(d.join("b.csv"))
+            .unwrap()
+            .lines()
+            .count()
+            - 1;
+        assert_eq!(
+            rows as u64,
+            points * 4,
+            "trial {trial}: CSV of another run than the JSON"
+        );
+        let left: Vec<_> = std::fs::read_dir(&d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .filter(|n| !n.starts_with("b.") || n.contains("partial"))
+            .collect();
+        assert!(left.is_empty(), "trial {trial}: left {left:?}");
+    }
+}
+
+#[test]
+fn an_unwritable_destination_fails_first_and_leaves_nothing() {
+    let d = scratch("dest");
+    // A destination that is a directory: nothing is computed or written.
+    std::fs::create_dir(d.join("b.json")).unwrap();
+    let o = bifurcation(&d.join("b"), 50).output().unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("b.json"), "{}", stderr(&o));
+    let names: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, vec!["b.json"], "left {names:?}");
+    // A missing directory is reported before the computation, with its path.
+    let t = std::time::Instant::now();
+    let o = rattle()
+        .args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .arg("--out")
+        .arg(d.join("nodir/b"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("nodir"), "{}", stderr(&o));
+    assert!(
+        t.elapsed().as_secs_f64() < 5.0,
+        "refused only after computing"
+    );
+    let o = rattle()
+        .args(["accuracy", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .arg("--out")
+        .arg(d.join("nodir/acc"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("nodir"), "{}", stderr(&o));
+    // A prefix that names a directory would write hidden files.
+    let o = bifurcation(Path::new(&format!("{}/", d.display())), 5)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!d.join(".csv").exists());
+}
+
+/// Stribeck friction with a huge quadratic term: every cell's state overflows (CPU, f32 and
+/// f64 alike).
+const OVERFLOW: &str = "[model]\nfriction = \"stribeck\"\neta = 1.33\n[method]\n\
+    steps_per_period = 64\n[run]\ntransient_periods = 300\nsample_periods = 50\n[map]\n\
+    x = \"l2\"\nx_from = 1e3\nx_to = 1e6\nx_points = 3\ny = \"fs\"\ny_from = 0.2\n\
+    y_to = 0.3\ny_points = 1\n";
+
+#[test]
+fn a_map_without_exponents_removes_the_stale_exponent_image() {
+    let (d, cfg) = setup("stale");
+    let o = map(&cfg, &d.join("m"), &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.join("m-lyapunov.png").exists());
+    // Same prefix, a map in which every cell fails: no exponent to draw.
+    std::fs::write(&cfg, OVERFLOW).unwrap();
+    let o = map(&cfg, &d.join("m"), &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let class: Vec<i32> = npy(&d.join("m-class.npy"));
+    assert!(class.iter().all(|&c| c == -2), "{class:?}");
+    assert!(
+        !d.join("m-lyapunov.png").exists(),
+        "stale exponent image left"
+    );
+    assert!(stderr(&o).contains("lyapunov"), "{}", stderr(&o));
+}

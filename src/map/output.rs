@@ -209,6 +209,14 @@ pub fn write_outputs(
                 height: 800,
             },
         )?;
+    } else {
+        // No exponent to draw: an image of an earlier run must not stay beside this data.
+        let old = with_ext(&crate::output::with_suffix(prefix, "lyapunov"), "png");
+        eprintln!(
+            "warning: no cell has a Lyapunov exponent; {} is not drawn",
+            old.display()
+        );
+        st.remove_stale(&old);
     }
     let shape = [ny as u64, nx as u64];
     let npy = |st: &mut Staged, name: &str, write: &dyn Fn(&Path) -> std::io::Result<()>| {
