@@ -445,17 +445,30 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
     Ok(staged.commit()?)
 }
 
-/// The paper's Figs. 2, 3, 4a and 4b side by side (configs `fig2`, `fig3`, `fig4a`, `fig4b`
-/// in `dir`, each changed by `adjust`), written to `out`. Progress counts sweep points.
+/// The configurations of the paper's figures, built into the binary so that `figure paper`
+/// works from any directory.
+pub const PAPER_CONFIGS: [(&str, &str); 4] = [
+    ("fig2", include_str!("../configs/fig2.toml")),
+    ("fig3", include_str!("../configs/fig3.toml")),
+    ("fig4a", include_str!("../configs/fig4a.toml")),
+    ("fig4b", include_str!("../configs/fig4b.toml")),
+];
+
+/// The paper's Figs. 2, 3, 4a and 4b side by side (the built-in configs, or `fig2.toml` ...
+/// `fig4b.toml` in `dir`; each changed by `adjust`), written to `out`. Progress counts sweep
+/// points.
 pub fn paper_figure(
-    dir: &Path,
+    dir: Option<&Path>,
     adjust: &dyn Fn(&mut Config),
     out: &Path,
     progress: &dyn Progress,
 ) -> Result<Vec<PathBuf>> {
     let mut data = Vec::new();
-    for name in ["fig2", "fig3", "fig4a", "fig4b"] {
-        let mut cfg = Config::read(&dir.join(format!("{name}.toml")), &[])?;
+    for (name, text) in PAPER_CONFIGS {
+        let mut cfg = match dir {
+            Some(d) => Config::read(&d.join(format!("{name}.toml")), &[])?,
+            None => Config::parse(text, &[])?,
+        };
         adjust(&mut cfg);
         cfg.validate()?;
         let engine = Engine::open(cfg.method.backend);

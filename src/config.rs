@@ -250,6 +250,9 @@ pub struct Config {
     pub run: RunConfig,
     pub sweep: SweepConfig,
     pub map: MapConfig,
+    /// `[model]` keys given in the file or overrides (for notes on keys that do not apply).
+    #[serde(skip)]
+    pub given_model_keys: Vec<String>,
 }
 
 /// Largest map (cells), bounded by host memory for the per-cell results.
@@ -285,15 +288,36 @@ impl Config {
         Ok(cfg)
     }
 
-    fn parse(text: &str, overrides: &[String]) -> Result<Config, ConfigError> {
+    /// Parses without validating (see [`Config::read`]).
+    pub fn parse(text: &str, overrides: &[String]) -> Result<Config, ConfigError> {
         let mut table: toml::Table =
             toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))?;
         for o in overrides {
             apply_override(&mut table, o)?;
         }
-        table
+        let given = match table.get("model") {
+            Some(toml::Value::Table(t)) => t.keys().cloned().collect(),
+            _ => Vec::new(),
+        };
+        let mut cfg: Config = table
             .try_into()
-            .map_err(|e: toml::de::Error| ConfigError::Parse(e.to_string()))
+            .map_err(|e: toml::de::Error| ConfigError::Parse(e.to_string()))?;
+        cfg.given_model_keys = given;
+        Ok(cfg)
+    }
+
+    /// Keys that were given but do not apply (Stribeck levels under Coulomb friction and the
+    /// reverse), one line each.
+    pub fn notes(&self) -> Vec<String> {
+        let (law, unused): (&str, &[&str]) = match self.model.friction {
+            FrictionLaw::Coulomb => ("coulomb", &["fs", "fk", "l1", "l2"]),
+            FrictionLaw::Stribeck => ("stribeck", &["lambda"]),
+        };
+        self.given_model_keys
+            .iter()
+            .filter(|k| unused.contains(&k.as_str()))
+            .map(|k| format!("model.{k} is ignored with friction = \"{law}\""))
+            .collect()
     }
 
     /// Model parameters in the integrator's form.
@@ -343,7 +367,14 @@ impl Config {
             .collect()
     }
 
+    /// Checks everything a command uses: [`Config::validate_base`] and the sweep.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_base()?;
+        self.validate_sweep()
+    }
+
+    /// Checks model, initial state, method and run (what every command uses).
+    pub fn validate_base(&self) -> Result<(), ConfigError> {
         let m = &self.model;
         if !(m.lambda.is_finite() && m.lambda >= 0.0) {
             return Err(ConfigError::range("model.lambda", m.lambda, "[0, inf)"));
@@ -413,7 +444,71 @@ impl Config {
                 "(0, inf)",
             ));
         }
+        self.check_precision(
+            [
+                ("model.eta", m.eta),
+                ("model.R", m.restitution),
+                ("model.lambda", m.lambda),
+                ("model.fs", m.fs),
+                ("model.fk", m.fk),
+                ("model.l1", m.l1),
+                ("model.l2", m.l2),
+                ("model.r", m.r),
+                ("model.delta", m.delta),
+                ("model.b1", m.b1),
+                ("model.mu", m.mu),
+            ]
+            .into_iter()
+            .chain(
+                [
+                    "initial.y[0]",
+                    "initial.y[1]",
+                    "initial.y[2]",
+                    "initial.y[3]",
+                ]
+                .into_iter()
+                .zip(self.initial.y),
+            ),
+        )?;
+        Ok(())
+    }
+
+    /// Refuses values the configured precision cannot represent (f32: nonzero magnitudes
+    /// outside [1.2e-38, 3.4e38] would become 0 or infinite).
+    fn check_precision<'a>(
+        &self,
+        values: impl IntoIterator<Item = (&'a str, f64)>,
+    ) -> Result<(), ConfigError> {
+        if self.method.precision == Precision::F64 {
+            return Ok(());
+        }
+        for (key, v) in values {
+            let a = v.abs();
+            if a != 0.0 && !(f32::MIN_POSITIVE as f64..=f32::MAX as f64).contains(&a) {
+                return Err(ConfigError::range(
+                    key,
+                    v,
+                    "0 or magnitudes in [1.2e-38, 3.4e38] with method.precision = \"f32\" \
+                     (use \"f64\")",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks the `[sweep]` section (bifurcation diagrams and the commands that sweep eta).
+    pub fn validate_sweep(&self) -> Result<(), ConfigError> {
+        let m = &self.model;
+        let r = &self.run;
         let s = &self.sweep;
+        if s.points > 1 && s.from == s.to {
+            return Err(ConfigError::range(
+                "sweep.to",
+                s.to,
+                "a value other than sweep.from (a range of non-zero width)",
+            ));
+        }
+        self.check_precision([("sweep.from", s.from), ("sweep.to", s.to)])?;
         if s.param == Param::Lambda && m.friction != FrictionLaw::Coulomb {
             return Err(ConfigError::range(
                 "sweep.param",
@@ -518,6 +613,12 @@ impl Config {
             p.validate()
                 .map_err(|e| ConfigError::range(key, v, &format!("{} for `{name}`", e.range)))?;
         }
+        self.check_precision([
+            ("map.x_from", m.x_from),
+            ("map.x_to", m.x_to),
+            ("map.y_from", m.y_from),
+            ("map.y_to", m.y_to),
+        ])?;
         if m.x_from == m.x_to || m.y_from == m.y_to {
             return Err(ConfigError::range(
                 "map range",
@@ -547,6 +648,12 @@ fn apply_override(table: &mut toml::Table, o: &str) -> Result<(), ConfigError> {
         ConfigError::Parse(format!("override `{o}` is not of the form key=value"))
     })?;
     let key = key.trim();
+    if o.chars().any(char::is_control) {
+        return Err(ConfigError::Parse(format!(
+            "override `{}` contains a newline or control character; give one key=value per --set",
+            o.escape_debug()
+        )));
+    }
     let (section, name) = match key.split_once('.') {
         Some((s, n)) => (s.to_string(), n.to_string()),
         None if MODEL_KEYS.contains(&key) => ("model".to_string(), key.to_string()),

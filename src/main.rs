@@ -84,9 +84,10 @@ enum Cmd {
         /// Which figure.
         #[arg(value_enum)]
         which: Figure,
-        /// Directory with fig2.toml, fig3.toml, fig4a.toml, fig4b.toml.
-        #[arg(long, default_value = "configs")]
-        configs: PathBuf,
+        /// Directory with fig2.toml, fig3.toml, fig4a.toml, fig4b.toml (default: the built-in
+        /// copies of configs/).
+        #[arg(long)]
+        configs: Option<PathBuf>,
         /// Parameter points per panel (overrides sweep.points).
         #[arg(long)]
         points: Option<u32>,
@@ -194,12 +195,22 @@ impl Common {
         m.lambda = self.lambda.unwrap_or(m.lambda);
         cfg.method.precision = self.precision.unwrap_or(cfg.method.precision);
         cfg.method.backend = self.backend.unwrap_or(cfg.method.backend);
-        cfg.validate()?;
+        cfg.validate_base()?;
+        for n in cfg.notes() {
+            eprintln!("note: {n}");
+        }
         Ok(cfg)
     }
 
+    /// The configuration, with the `[sweep]` checked too where the command uses it.
     fn load(&self) -> Result<Config> {
         self.load_from(&self.config)
+    }
+
+    fn load_sweep(&self) -> Result<Config> {
+        let cfg = self.load()?;
+        cfg.validate_sweep()?;
+        Ok(cfg)
     }
 }
 
@@ -243,7 +254,7 @@ fn run(cli: Cli) -> Result<()> {
             out,
             continuation,
         } => {
-            let cfg = common.load()?;
+            let cfg = common.load_sweep()?;
             check_prefix(&out, &["csv", "png", "json"])?;
             let engine = Engine::open(cfg.method.backend);
             let what = bifurcation::work(&engine, &cfg, continuation);
@@ -303,7 +314,7 @@ fn run(cli: Cli) -> Result<()> {
             check_prefix(&out, &[])?;
             let pb = progress_bar(4 * points.unwrap_or(2000) as u64, "figure");
             let files = bifurcation::paper_figure(
-                &configs,
+                configs.as_deref(),
                 &|c: &mut Config| {
                     c.sweep.points = points.unwrap_or(c.sweep.points);
                     c.method.backend = backend.unwrap_or(c.method.backend);
@@ -324,7 +335,7 @@ fn run(cli: Cli) -> Result<()> {
             transient,
         } => {
             use rattle::accuracy::{Options, study, write_outputs};
-            let cfg = common.load()?;
+            let cfg = common.load_sweep()?;
             check_prefix(&out, &["csv", "png", "json"])?;
             let t0 = Instant::now();
             let o = Options {
@@ -350,7 +361,7 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             print!(
                 "{}",
-                rattle::bench::validate(&common.load()?, state_points)?
+                rattle::bench::validate(&common.load_sweep()?, state_points)?
             );
             Ok(())
         }
@@ -360,7 +371,7 @@ fn run(cli: Cli) -> Result<()> {
             periods,
             json,
         } => {
-            let cfg = common.load()?;
+            let cfg = common.load_sweep()?;
             let rows = rattle::bench::bench(&cfg, points, periods, &common.backends())?;
             print!("{}", rattle::bench::bench_table(&rows));
             if json {

@@ -352,3 +352,146 @@ fn a_map_without_exponents_removes_the_stale_exponent_image() {
     );
     assert!(stderr(&o).contains("lyapunov"), "{}", stderr(&o));
 }
+
+fn point(args: &[&str]) -> std::process::Output {
+    rattle()
+        .args(["point", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args([
+            "--set",
+            "run.transient_periods=10",
+            "--set",
+            "run.sample_periods=5",
+        ])
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn inputs_are_checked_before_anything_runs() {
+    let fails = |o: &std::process::Output, key: &str| {
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(o));
+        assert!(stderr(o).contains(key), "must name {key}: {}", stderr(o));
+    };
+    // A value with a newline would smuggle a second key.
+    fails(&point(&["--set", "r=0.9\nR=0.1"]), "newline");
+    // NaN on the command line is a number out of range, not a string.
+    let o = point(&["--eta", "nan"]);
+    fails(&o, "model.eta");
+    assert!(!stderr(&o).contains("string"), "{}", stderr(&o));
+    // A clearance f32 rounds to zero is refused in f32, accepted in f64.
+    fails(
+        &point(&["--set", "r=1e-300", "--precision", "f32"]),
+        "model.r",
+    );
+    let c = "[model]\nr = 1e-300\n[method]\nprecision = \"f64\"\n";
+    rattle::config::Config::from_toml(c, &[]).unwrap();
+    // The config's own values are checked even when the command line overrides them.
+    let d = scratch("tpu");
+    std::fs::write(d.join("c.toml"), "[method]\nbackend = \"tpu\"\n").unwrap();
+    let o = rattle()
+        .args(["point", "--backend", "cpu", "--config"])
+        .arg(d.join("c.toml"))
+        .output()
+        .unwrap();
+    fails(&o, "tpu");
+    // A sweep of zero width fails before computing, not in the plot.
+    let o = rattle()
+        .args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args(["--set", "sweep.from=1.5", "--set", "sweep.to=1.5", "--out"])
+        .arg(d.join("b"))
+        .output()
+        .unwrap();
+    fails(&o, "sweep.to");
+    assert!(!d.join("b.json").exists());
+    // Keys of the other friction law are reported as ignored.
+    let o = point(&["--set", "fs=0.3"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("model.fs is ignored"), "{}", stderr(&o));
+    // point does not use [map]: a map-only mistake does not stop it; map refuses it.
+    std::fs::write(d.join("m.toml"), "[map]\nx_points = 0\n").unwrap();
+    let run = |sub: &str| {
+        let mut c = rattle();
+        c.args([sub, "--backend", "cpu", "--config"])
+            .arg(d.join("m.toml"));
+        c.args([
+            "--set",
+            "run.transient_periods=5",
+            "--set",
+            "run.sample_periods=2",
+        ]);
+        c.arg("--out").arg(d.join("mm"));
+        if sub == "point" {
+            c = rattle();
+            c.args(["point", "--backend", "cpu", "--config"])
+                .arg(d.join("m.toml"));
+            c.args([
+                "--set",
+                "run.transient_periods=5",
+                "--set",
+                "run.sample_periods=2",
+            ]);
+        }
+        c.output().unwrap()
+    };
+    assert!(run("point").status.success());
+    fails(&run("map"), "map.x_points");
+}
+
+#[test]
+fn bifurcation_with_failed_points_writes_them_as_failed() {
+    let d = scratch("failed-bif");
+    ok(rattle()
+        .args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(common::config("fig3.toml"))
+        .args([
+            "--set",
+            "sweep.param=l2",
+            "--set",
+            "sweep.from=1e3",
+            "--set",
+            "sweep.to=1e6",
+        ])
+        .args([
+            "--set",
+            "sweep.points=5",
+            "--set",
+            "run.transient_periods=50",
+        ])
+        .args(["--set", "run.sample_periods=10", "--out"])
+        .arg(d.join("b")));
+    let j = common::json(&d.join("b.json"));
+    let pts = j["points"].as_array().unwrap();
+    let failed = pts.iter().filter(|p| p["class"] == "failed").count();
+    assert!(failed >= 4, "{}", j["class_counts"]);
+    for p in pts {
+        assert_eq!(
+            p["class"] == "failed",
+            p["diagnostics"]["nonfinite"] == true,
+            "{p}"
+        );
+    }
+}
+
+#[test]
+fn the_paper_figure_needs_no_checkout() {
+    let d = scratch("paper");
+    let o = rattle()
+        .current_dir(&d)
+        .args([
+            "figure",
+            "paper",
+            "--points",
+            "3",
+            "--backend",
+            "cpu",
+            "--out",
+            "p.png",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.join("p.png").exists());
+}
