@@ -2,78 +2,11 @@
 // rules), one invocation per parameter point. Read method.rs for the reasoning; comments here
 // only note what differs in form.
 //
-// `F` is f32; the host rewrites the alias line to f64 for the f64 variant. In F only
+// The host prepends `alias F = f32;` or `alias F = f64;`, the constants (MODE_*, EV_*, slots
+// U_*, R_*, Y_*, C_*, codes VARY_*) and the `Control` uniform, all generated from
+// src/gpu/layout.rs, so nothing of the host/kernel contract is declared here. In F only
 // + - * / sqrt, comparisons and conversions are used (no cos/exp: unreliable in f64 on some
 // drivers): the forcing comes from a host-computed table, and abs/min/max are selects.
-alias F = f32;
-
-const MODE_SLIP_POS: u32 = 0u;
-const MODE_SLIP_NEG: u32 = 1u;
-const MODE_STICK: u32 = 2u;
-const MODE_LOCK_POS: u32 = 3u;
-const MODE_LOCK_NEG: u32 = 4u;
-
-const EV_NONE: u32 = 0u;
-const EV_IMPACT_POS: u32 = 1u;
-const EV_IMPACT_NEG: u32 = 2u;
-const EV_REVERSAL: u32 = 3u;
-const EV_RELEASE_POS: u32 = 4u;
-const EV_RELEASE_NEG: u32 = 5u;
-
-const MAX_ROOT_ITERS: u32 = 40u;
-const MAX_PERIOD: u32 = 64u;
-
-// Per-point u32 state, structure of arrays: us[slot * n_points + i].
-const U_MODE: u32 = 0u;
-const U_IMPACTS: u32 = 1u;
-const U_SAMPLE_IMPACTS: u32 = 2u;
-const U_STICKS: u32 = 3u;
-const U_LOCKS: u32 = 4u;
-const U_OVERFLOWS: u32 = 5u;
-const U_NONFINITE: u32 = 6u;
-const U_DET_COUNT: u32 = 7u;
-const U_DET_LO: u32 = 8u;
-const U_DET_HI: u32 = 9u;
-// Set when the driver cut a loop short (llvmpipe limits the loop iterations of one
-// invocation); the host then rejects the run instead of returning a wrong answer.
-const U_TRUNCATED: u32 = 10u;
-// Twin trajectory of the Lyapunov estimate: its mode and failure flag.
-const U_TWIN_MODE: u32 = 11u;
-const U_TWIN_BAD: u32 = 12u;
-// Slot of the Lyapunov log sum in `ring`, after the detector's ring, lo and hi.
-const R_LOG_SUM: u32 = 66u;
-
-// Layout of `consts`: parameters, method constants, then the forcing table (cos, sin) at
-// phases 2*pi*j/(2N), j = 0..2N.
-const C_ZENO: u32 = 10u;
-const C_TOL: u32 = 11u;
-const C_PERIOD_TOL: u32 = 12u;
-const C_DPHI: u32 = 13u;
-const C_TWIN: u32 = 14u;
-const C_TABLE: u32 = 16u;
-
-// Parameter codes for per-point values (VARY_LAMBDA sets fs and fk).
-const VARY_LAMBDA: u32 = 10u;
-const VARY_NONE: u32 = 255u;
-
-struct Control {
-    n_points: u32,
-    steps: u32,
-    periods: u32,
-    period0: u32,
-    transient: u32,
-    samples: u32,
-    store: u32,
-    max_events: u32,
-    n_vary: u32,
-    vary0: u32,
-    vary1: u32,
-    naive: u32,
-    row: u32,
-    lyap: u32,
-    pad1: u32,
-    pad2: u32,
-}
 
 @group(0) @binding(0) var<uniform> ctl: Control;
 @group(0) @binding(1) var<storage, read> consts: array<F>;
@@ -565,8 +498,8 @@ fn detector_push(i: u32, x: F) {
     var lo = x;
     var hi = x;
     if (count > 0u) {
-        lo = fmin(ring[MAX_PERIOD * n + i], x);
-        hi = fmax(ring[(MAX_PERIOD + 1u) * n + i], x);
+        lo = fmin(ring[R_LO * n + i], x);
+        hi = fmax(ring[R_HI * n + i], x);
     }
     let tl = consts[C_PERIOD_TOL] * fmax(hi - lo, F(1.0));
     var plo = us[U_DET_LO * n + i];
@@ -583,25 +516,40 @@ fn detector_push(i: u32, x: F) {
         }
     }
     ring[(count % MAX_PERIOD) * n + i] = x;
-    ring[MAX_PERIOD * n + i] = lo;
-    ring[(MAX_PERIOD + 1u) * n + i] = hi;
+    ring[R_LO * n + i] = lo;
+    ring[R_HI * n + i] = hi;
     us[U_DET_COUNT * n + i] = count + 1u;
     us[U_DET_LO * n + i] = plo;
     us[U_DET_HI * n + i] = phi;
 }
 
+// A state in `ys` from slot `base` on (Y_MAIN or Y_TWIN).
+fn load_y(base: u32, i: u32) -> vec4<F> {
+    let n = ctl.n_points;
+    return vec4<F>(ys[base * n + i], ys[(base + 1u) * n + i], ys[(base + 2u) * n + i],
+                   ys[(base + 3u) * n + i]);
+}
+
+fn store_y(base: u32, i: u32, y: vec4<F>) {
+    let n = ctl.n_points;
+    ys[base * n + i] = y.x;
+    ys[(base + 1u) * n + i] = y.y;
+    ys[(base + 2u) * n + i] = y.z;
+    ys[(base + 3u) * n + i] = y.w;
+}
+
 fn set_param(code: u32, v: F) {
     switch code {
-        case 0u: { prm.eta = v; }
-        case 1u: { prm.restitution = v; }
-        case 2u: { prm.fs = v; }
-        case 3u: { prm.fk = v; }
-        case 4u: { prm.l1 = v; }
-        case 5u: { prm.l2 = v; }
-        case 6u: { prm.r = v; }
-        case 7u: { prm.delta = v; }
-        case 8u: { prm.b1 = v; }
-        case 9u: { prm.mu = v; }
+        case VARY_ETA: { prm.eta = v; }
+        case VARY_RESTITUTION: { prm.restitution = v; }
+        case VARY_FS: { prm.fs = v; }
+        case VARY_FK: { prm.fk = v; }
+        case VARY_L1: { prm.l1 = v; }
+        case VARY_L2: { prm.l2 = v; }
+        case VARY_R: { prm.r = v; }
+        case VARY_DELTA: { prm.delta = v; }
+        case VARY_B1: { prm.b1 = v; }
+        case VARY_MU: { prm.mu = v; }
         case VARY_LAMBDA: {
             prm.fs = v;
             prm.fk = v;
@@ -610,15 +558,15 @@ fn set_param(code: u32, v: F) {
     }
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x + gid.y * ctl.row;
     let n = ctl.n_points;
     if (i >= n) {
         return;
     }
-    prm = Params(consts[0], consts[1], consts[2], consts[3], consts[4], consts[5], consts[6],
-                 consts[7], consts[8], consts[9]);
+    prm = Params(consts[C_ETA], consts[C_RESTITUTION], consts[C_FS], consts[C_FK], consts[C_L1],
+                 consts[C_L2], consts[C_R], consts[C_DELTA], consts[C_B1], consts[C_MU]);
     if (ctl.n_vary > 0u) {
         set_param(ctl.vary0, pvals[i * ctl.n_vary]);
     }
@@ -630,7 +578,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     dphi = consts[C_DPHI];
     h = dphi / eta();
 
-    st.y = vec4<F>(ys[i], ys[n + i], ys[2u * n + i], ys[3u * n + i]);
+    st.y = load_y(Y_MAIN, i);
     st.mode = us[U_MODE * n + i];
     st.impacts = us[U_IMPACTS * n + i];
     st.sticks = us[U_STICKS * n + i];
@@ -639,7 +587,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     st.nonfinite = us[U_NONFINITE * n + i];
     var sample_impacts = us[U_SAMPLE_IMPACTS * n + i];
     let d0 = consts[C_TWIN];
-    tw_y = vec4<F>(ys[4u * n + i], ys[5u * n + i], ys[6u * n + i], ys[7u * n + i]);
+    tw_y = load_y(Y_TWIN, i);
     tw_mode = us[U_TWIN_MODE * n + i];
     tw_bad = us[U_TWIN_BAD * n + i];
     var log_sum = ring[R_LOG_SUM * n + i];
@@ -667,7 +615,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let s = idx - ctl.transient;
             sample_impacts += st.impacts - before;
             if (ctl.store != 0u) {
-                let o = (i * ctl.samples + s) * 4u;
+                let o = (i * ctl.samples + s) * STATE_DIM;
                 samples[o] = st.y.x;
                 samples[o + 1u] = st.y.y;
                 samples[o + 2u] = st.y.z;
@@ -696,14 +644,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         us[U_TRUNCATED * n + i] = 1u;
     }
 
-    ys[i] = st.y.x;
-    ys[n + i] = st.y.y;
-    ys[2u * n + i] = st.y.z;
-    ys[3u * n + i] = st.y.w;
-    ys[4u * n + i] = tw_y.x;
-    ys[5u * n + i] = tw_y.y;
-    ys[6u * n + i] = tw_y.z;
-    ys[7u * n + i] = tw_y.w;
+    store_y(Y_MAIN, i, st.y);
+    store_y(Y_TWIN, i, tw_y);
     us[U_TWIN_MODE * n + i] = tw_mode;
     us[U_TWIN_BAD * n + i] = tw_bad;
     ring[R_LOG_SUM * n + i] = log_sum;

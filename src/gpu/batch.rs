@@ -1,0 +1,379 @@
+//! A job's buffers: how its points split into batches, the buffers shared by all batches,
+//! one batch's buffers and bind group, and the decoding of what a batch reads back.
+
+use super::layout::{
+    C_B1, C_DELTA, C_DPHI, C_ETA, C_FK, C_FS, C_L1, C_L2, C_MU, C_PERIOD_TOL, C_R, C_RESTITUTION,
+    C_TABLE, C_TOL, C_TWIN, C_ZENO, Control, R_LOG_SUM, R_SLOTS, STATE_DIM, U_DET_COUNT, U_DET_HI,
+    U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS,
+    U_STICKS, U_TRUNCATED, U_TWIN_BAD, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
+};
+use super::{Gpu, GpuError, Job};
+use crate::classify::{Class, PeriodDetector, class_of};
+use crate::method::{Diagnostics, ImpactMethod, RunResult, forcing_table, twin_offset};
+use crate::model::{Mode, Params, initial_mode};
+use crate::real::Real;
+use crate::spec::RunSpec;
+use bytemuck::Pod;
+use std::marker::PhantomData;
+use std::ops::Range;
+
+/// How a job splits into batches: every binding of a batch stays within the adapter's
+/// max_storage_buffer_binding_size (and the job's lower test limit).
+pub(super) struct Plan {
+    /// Points per batch.
+    batch: usize,
+    /// Bytes of stored samples per point, 0 when the job reads back only classes.
+    store_bytes: u64,
+}
+
+impl Plan {
+    pub(super) fn new<F: Real>(job: &Job, limits: &wgpu::Limits) -> Result<Plan, GpuError> {
+        let pts = &job.points;
+        let n = pts.len();
+        let nv = pts.vary.len();
+        if nv > 2 || pts.values.len() != n * nv || pts.y0s.is_some_and(|y| y.len() != n) {
+            return Err(GpuError::Job(format!(
+                "{} varying parameters, {} values, {:?} initial states for {n} points",
+                nv,
+                pts.values.len(),
+                pts.y0s.map(|y| y.len())
+            )));
+        }
+        let fsz = size_of::<F>() as u64;
+        let store_bytes = if job.store_samples {
+            job.spec.samples as u64 * STATE_DIM as u64 * fsz
+        } else {
+            0
+        };
+        // Bytes per point of each binding; the largest decides the batch size.
+        let per_point = [
+            Y_SLOTS as u64 * fsz,
+            U_SLOTS as u64 * 4,
+            R_SLOTS as u64 * fsz,
+            store_bytes,
+            (nv as u64).max(1) * fsz,
+        ];
+        let max_bind = job
+            .max_binding_bytes
+            .unwrap_or(u64::MAX)
+            .min(limits.max_storage_buffer_binding_size)
+            .min(limits.max_buffer_size);
+        let worst = *per_point.iter().max().unwrap();
+        let batch = (max_bind / worst) as usize;
+        if batch == 0 {
+            return Err(GpuError::Job(format!(
+                "one point needs {worst} bytes in one binding, more than the adapter's {max_bind}"
+            )));
+        }
+        Ok(Plan {
+            batch: batch.min(n.max(1)),
+            store_bytes,
+        })
+    }
+
+    /// The point ranges of the batches.
+    pub(super) fn batches(&self, n: usize) -> impl Iterator<Item = Range<usize>> {
+        let batch = self.batch;
+        (0..n).step_by(batch).map(move |s| s..(s + batch).min(n))
+    }
+}
+
+/// Buffers shared by every batch of a job: the constants and the control uniform.
+pub(super) struct Shared {
+    consts: wgpu::Buffer,
+    pub(super) control: wgpu::Buffer,
+}
+
+impl Shared {
+    pub(super) fn new<F: Real + Pod>(gpu: &Gpu, spec: &RunSpec) -> Shared {
+        Shared {
+            consts: gpu.storage_init("consts", bytemuck::cast_slice(&consts::<F>(spec))),
+            control: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("control"),
+                size: size_of::<Control>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        }
+    }
+}
+
+/// The `consts` buffer: base parameters, method constants, forcing table. Everything is
+/// computed in f64 and rounded once to F, except the tolerance, which is a multiple of F's
+/// epsilon.
+fn consts<F: Real>(spec: &RunSpec) -> Vec<F> {
+    let s = &spec.settings;
+    let b = &spec.params;
+    let nsteps = s.steps_per_period;
+    let mut c = vec![F::zero(); C_TABLE as usize];
+    for (slot, v) in [
+        (C_ETA, b.eta),
+        (C_RESTITUTION, b.restitution),
+        (C_FS, b.fs),
+        (C_FK, b.fk),
+        (C_L1, b.l1),
+        (C_L2, b.l2),
+        (C_R, b.r),
+        (C_DELTA, b.delta),
+        (C_B1, b.b1),
+        (C_MU, b.mu),
+        (C_ZENO, s.zeno_speed),
+        (C_PERIOD_TOL, spec.period_tol),
+        (C_DPHI, 2.0 * std::f64::consts::PI / nsteps as f64),
+    ] {
+        c[slot as usize] = F::of(v);
+    }
+    c[C_TOL as usize] = F::EPSILON * F::of(16.0);
+    c[C_TWIN as usize] = twin_offset::<F>();
+    c.extend(forcing_table(nsteps).iter().flatten().map(|&v| F::of(v)));
+    c
+}
+
+/// One batch of points on the GPU: its buffers, bind group, grid and control block.
+pub(super) struct Batch<F> {
+    /// The job's points in this batch.
+    pub(super) range: Range<usize>,
+    /// Workgroups in x and y.
+    pub(super) grid: (u32, u32),
+    /// Control block of the batch; the dispatch loop sets the periods of each dispatch.
+    pub(super) control: Control,
+    pub(super) pipeline: wgpu::ComputePipeline,
+    pub(super) bind: wgpu::BindGroup,
+    ys: wgpu::Buffer,
+    us: wgpu::Buffer,
+    samples: wgpu::Buffer,
+    ring: wgpu::Buffer,
+    _pvals: wgpu::Buffer,
+    _f: PhantomData<F>,
+}
+
+impl<F: Real + Pod> Batch<F> {
+    /// Uploads the per-point values and initial states of the points in `range`.
+    pub(super) fn new(
+        gpu: &Gpu,
+        pipeline: &wgpu::ComputePipeline,
+        shared: &Shared,
+        job: &Job,
+        plan: &Plan,
+        range: Range<usize>,
+    ) -> Result<Batch<F>, GpuError> {
+        let (pts, spec) = (&job.points, job.spec);
+        let nv = pts.vary.len();
+        let (start, m) = (range.start, range.len());
+        // A binding cannot be empty: without varying parameters one unused value.
+        let pv: Vec<F> = if nv == 0 {
+            vec![F::zero()]
+        } else {
+            pts.values[start * nv..range.end * nv]
+                .iter()
+                .map(|&v| F::of(v))
+                .collect()
+        };
+        let mut ys = vec![F::zero(); Y_SLOTS as usize * m];
+        let mut us = vec![0u32; U_SLOTS as usize * m];
+        for i in 0..m {
+            let y0 = pts.y0(spec, start + i);
+            let mut p: Params<F> = spec.params.cast();
+            for (c, v) in pts.vary.iter().enumerate() {
+                v.set(&mut p, F::of(pts.values[(start + i) * nv + c]));
+            }
+            let yf = y0.map(F::of);
+            for (c, &v) in yf.iter().enumerate() {
+                ys[at(Y_MAIN + c as u32, m, i)] = v;
+            }
+            us[at(U_MODE, m, i)] = initial_mode(&p, &yf, F::one()) as u32;
+            // Non-finite input fails the point before it runs (as `Integrator::start`).
+            us[at(U_NONFINITE, m, i)] =
+                (!p.is_finite() || !yf.iter().all(|v| v.is_finite())) as u32;
+            // Every period is possible until a sample rules it out.
+            us[at(U_DET_LO, m, i)] = u32::MAX;
+            us[at(U_DET_HI, m, i)] = u32::MAX;
+        }
+        let fsz = size_of::<F>() as u64;
+        let pvals = gpu.storage_init("pvals", bytemuck::cast_slice(&pv));
+        let ys = gpu.storage_init("ys", bytemuck::cast_slice(&ys));
+        let us = gpu.storage_init("us", bytemuck::cast_slice(&us));
+        let samples = gpu.storage_empty("samples", m as u64 * plan.store_bytes);
+        // The ring starts zeroed (wgpu clears new buffers); the detector's count guards it.
+        let ring = gpu.storage_empty("ring", m as u64 * R_SLOTS as u64 * fsz);
+        let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("integrate"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                entry(0, &shared.control),
+                entry(1, &shared.consts),
+                entry(2, &pvals),
+                entry(3, &ys),
+                entry(4, &us),
+                entry(5, &samples),
+                entry(6, &ring),
+            ],
+        });
+
+        // Beyond the per-dimension limit the workgroups fill rows of a 2-D grid.
+        let groups = (m as u32).div_ceil(WORKGROUP);
+        let max_dim = job
+            .max_groups_per_dim
+            .unwrap_or(u32::MAX)
+            .min(gpu.limits.max_compute_workgroups_per_dimension);
+        let gx = groups.min(max_dim).max(1);
+        let gy = groups.div_ceil(gx);
+        if gy > max_dim {
+            return Err(GpuError::Job(format!(
+                "{m} points exceed a {max_dim}^2 dispatch"
+            )));
+        }
+        let s = &spec.settings;
+        let code = |c: usize| pts.vary.get(c).map_or(VARY_NONE, |v| v.code());
+        let control = Control {
+            n_points: m as u32,
+            steps: s.steps_per_period,
+            transient: spec.transient,
+            samples: spec.samples,
+            store: job.store_samples as u32,
+            max_events: s.max_events,
+            n_vary: nv as u32,
+            vary0: code(0),
+            vary1: code(1),
+            naive: (s.impacts == ImpactMethod::Naive) as u32,
+            row: gx * WORKGROUP,
+            lyap: s.lyapunov as u32,
+            ..Control::default()
+        };
+        Ok(Batch {
+            range,
+            grid: (gx, gy),
+            control,
+            pipeline: pipeline.clone(),
+            bind,
+            ys,
+            us,
+            samples,
+            ring,
+            _pvals: pvals,
+            _f: PhantomData,
+        })
+    }
+
+    /// Reads back what decoding needs, one copy per buffer.
+    pub(super) fn read_back(
+        &self,
+        gpu: &Gpu,
+        job: &Job,
+        plan: &Plan,
+    ) -> Result<ReadBack<F>, GpuError> {
+        let m = self.range.len() as u64;
+        let fsz = size_of::<F>() as u64;
+        // The main state only: the twin is the kernel's business.
+        let ys = gpu.read_storage(&self.ys, (Y_MAIN + STATE_DIM) as u64 * m * fsz)?;
+        let ring = if job.spec.settings.lyapunov {
+            gpu.read_storage(&self.ring, m * R_SLOTS as u64 * fsz)?
+        } else {
+            Vec::new()
+        };
+        let us = gpu.read_storage(&self.us, U_SLOTS as u64 * m * 4)?;
+        let samples = if job.store_samples {
+            gpu.read_storage(&self.samples, m * plan.store_bytes)?
+        } else {
+            Vec::new()
+        };
+        Ok(ReadBack {
+            start: self.range.start,
+            m: self.range.len(),
+            ys,
+            us,
+            ring,
+            samples,
+        })
+    }
+}
+
+fn entry(binding: u32, buf: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buf.as_entire_binding(),
+    }
+}
+
+/// What one batch read back, in the kernel's layout.
+pub(super) struct ReadBack<F> {
+    /// Index in the job of the batch's first point, and the batch's points.
+    start: usize,
+    m: usize,
+    ys: Vec<F>,
+    us: Vec<u32>,
+    /// Empty without the Lyapunov estimate.
+    ring: Vec<F>,
+    /// Empty unless the job stores samples.
+    samples: Vec<F>,
+}
+
+impl<F: Real> ReadBack<F> {
+    fn u(&self, slot: u32, i: usize) -> u32 {
+        self.us[at(slot, self.m, i)]
+    }
+
+    /// Index in the job of the first point whose loops the driver cut short.
+    pub(super) fn truncated(&self) -> Option<usize> {
+        (0..self.m)
+            .find(|&i| self.u(U_TRUNCATED, i) != 0)
+            .map(|i| self.start + i)
+    }
+
+    /// Appends the batch's results and on-GPU classes, in point order.
+    pub(super) fn decode(&self, job: &Job, results: &mut Vec<RunResult>, classes: &mut Vec<Class>) {
+        let spec = job.spec;
+        let per_point = spec.samples as usize;
+        let dim = STATE_DIM as usize;
+        for i in 0..self.m {
+            let u = |slot| self.u(slot, i);
+            let diag = Diagnostics {
+                impacts: u(U_IMPACTS) as u64,
+                sticks: u(U_STICKS) as u64,
+                locks: u(U_LOCKS) as u64,
+                overflows: u(U_OVERFLOWS) as u64,
+                nonfinite: u(U_NONFINITE) != 0,
+            };
+            // A failed point stopped sampling where it failed; the detector counted its samples.
+            let count = u(U_DET_COUNT);
+            let n_samples = if diag.nonfinite {
+                count as usize
+            } else {
+                per_point
+            };
+            let samples = if job.store_samples {
+                (0..n_samples)
+                    .map(|k| {
+                        let o = (i * per_point + k) * dim;
+                        [0, 1, 2, 3].map(|c| self.samples[o + c].to_f64())
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            let possible = u(U_DET_LO) as u64 | ((u(U_DET_HI) as u64) << 32);
+            classes.push(class_of(
+                diag.nonfinite,
+                count as usize,
+                u(U_SAMPLE_IMPACTS) as u64,
+                || PeriodDetector::period_from(possible, count),
+            ));
+            // Mean log growth per unit time over the sampled periods.
+            let lyapunov = if spec.settings.lyapunov && u(U_TWIN_BAD) == 0 && count > 0 {
+                let eta = job.points.params(&spec.params, self.start + i).eta;
+                let period = 2.0 * std::f64::consts::PI / eta;
+                self.ring[at(R_LOG_SUM, self.m, i)].to_f64() / (count as f64 * period)
+            } else {
+                f64::NAN
+            };
+            results.push(RunResult {
+                lyapunov,
+                samples,
+                sample_impacts: u(U_SAMPLE_IMPACTS) as u64,
+                diag,
+                final_y: [0, 1, 2, 3].map(|c| self.ys[at(Y_MAIN + c, self.m, i)].to_f64()),
+                final_mode: Mode::from_u32(u(U_MODE)),
+            });
+        }
+    }
+}

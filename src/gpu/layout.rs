@@ -1,0 +1,261 @@
+//! The host/kernel contract, written once: precision, storage slots, codes and the `Control`
+//! uniform. The kernel does not declare any of it: `prelude` generates the WGSL declarations
+//! from the Rust definitions below and `kernel::shader_source` prepends them to
+//! `shaders/integrate.wgsl`, so a slot renumbered here moves on both sides at once.
+//! tests/shaders.rs parses the generated source with naga and checks every constant's value
+//! and the `Control` member offsets against this file.
+//!
+//! Per-point buffers are structures of arrays: slot `s` of point `i` of `n` sits at
+//! `s * n + i` (see [`at`]), so neighbouring invocations touch neighbouring words.
+
+use crate::classify;
+use crate::config::Precision;
+use crate::method;
+use crate::model::{Mode, Param};
+use std::fmt::Write;
+
+/// A commented group of u32 constants of the prelude.
+struct Group {
+    heading: &'static str,
+    items: &'static [(&'static str, u32)],
+}
+
+/// Declares `pub const NAME: u32` items and the `Group` that lists them (by their Rust names,
+/// so the WGSL names cannot drift from the host's).
+macro_rules! u32_group {
+    ($group:ident, $heading:literal { $( $(#[$m:meta])* $name:ident = $value:expr; )* }) => {
+        $( $(#[$m])* pub const $name: u32 = $value; )*
+        const $group: Group = Group {
+            heading: $heading,
+            items: &[$((stringify!($name), $name)),*],
+        };
+    };
+}
+
+u32_group!(DISPATCH, "Invocations per workgroup (`@workgroup_size`)." {
+    WORKGROUP = 64;
+});
+
+u32_group!(MODES, "Motion modes, as model::Mode." {
+    MODE_SLIP_POS = Mode::SlipPos as u32;
+    MODE_SLIP_NEG = Mode::SlipNeg as u32;
+    MODE_STICK = Mode::Stick as u32;
+    MODE_LOCK_POS = Mode::LockPos as u32;
+    MODE_LOCK_NEG = Mode::LockNeg as u32;
+});
+
+u32_group!(EVENTS, "Event kinds, as method::EV_*." {
+    EV_NONE = method::EV_NONE;
+    EV_IMPACT_POS = method::EV_IMPACT_POS;
+    EV_IMPACT_NEG = method::EV_IMPACT_NEG;
+    EV_REVERSAL = method::EV_REVERSAL;
+    EV_RELEASE_POS = method::EV_RELEASE_POS;
+    EV_RELEASE_NEG = method::EV_RELEASE_NEG;
+});
+
+u32_group!(LIMITS, "Limits shared with the CPU twin." {
+    /// Iteration cap of the root finder.
+    MAX_ROOT_ITERS = method::MAX_ROOT_ITERS;
+    /// Longest period the detector finds (bits of U_DET_LO/HI, values of its ring).
+    MAX_PERIOD = classify::MAX_PERIOD as u32;
+    /// Components of a state (y1..y4, one vec4).
+    STATE_DIM = 4;
+});
+
+u32_group!(US, "Slots of `us`, u32 per point: us[slot * n_points + i]." {
+    U_MODE = 0;
+    U_IMPACTS = 1;
+    /// Impacts during the sampled periods (the class needs them, not the transient's).
+    U_SAMPLE_IMPACTS = 2;
+    U_STICKS = 3;
+    U_LOCKS = 4;
+    U_OVERFLOWS = 5;
+    U_NONFINITE = 6;
+    /// Period detector: section values pushed, and the 64 bits of still possible periods.
+    U_DET_COUNT = 7;
+    U_DET_LO = 8;
+    U_DET_HI = 9;
+    /// Set when the driver cut a loop short (llvmpipe limits the loop iterations of one
+    /// invocation); the host then rejects the run instead of returning a wrong answer.
+    U_TRUNCATED = 10;
+    /// Twin trajectory of the Lyapunov estimate: its mode and failure flag.
+    U_TWIN_MODE = 11;
+    U_TWIN_BAD = 12;
+    U_SLOTS = 13;
+});
+
+// The detector's MAX_PERIOD past section values sit at slots 0..MAX_PERIOD.
+u32_group!(RING, "Slots of `ring`, F per point: past values, their range, the log sum." {
+    /// Range of the values pushed so far (the detector's tolerance scales with it).
+    R_LO = MAX_PERIOD;
+    R_HI = MAX_PERIOD + 1;
+    /// Sum of the log growth of the twin's distance (Lyapunov estimate).
+    R_LOG_SUM = MAX_PERIOD + 2;
+    R_SLOTS = MAX_PERIOD + 3;
+});
+
+u32_group!(YS, "Slots of `ys`, F per point: main and twin state, STATE_DIM slots each." {
+    Y_MAIN = 0;
+    Y_TWIN = Y_MAIN + STATE_DIM;
+    Y_SLOTS = Y_TWIN + STATE_DIM;
+});
+
+// Base parameters in the order of the kernel's Params, method constants, then the forcing
+// table: (cos, sin) at phases 2*pi*j/(2N), j = 0..2N.
+u32_group!(CONSTS, "Slots of `consts`, F shared by all points." {
+    C_ETA = 0;
+    C_RESTITUTION = 1;
+    C_FS = 2;
+    C_FK = 3;
+    C_L1 = 4;
+    C_L2 = 5;
+    C_R = 6;
+    C_DELTA = 7;
+    C_B1 = 8;
+    C_MU = 9;
+    /// Relative speed below which an impact ends in co-motion.
+    C_ZENO = 10;
+    /// Root finder tolerance in theta, 16 epsilon of F.
+    C_TOL = 11;
+    C_PERIOD_TOL = 12;
+    /// Forcing phase of one RK4 step, 2 pi / N.
+    C_DPHI = 13;
+    /// Initial distance of the Lyapunov twin.
+    C_TWIN = 14;
+    /// Start of the forcing table (slot 15 is unused).
+    C_TABLE = 16;
+});
+
+/// `Control.vary0/1` of a point set with fewer varying parameters.
+pub const VARY_NONE: u32 = 255;
+
+/// Kernel name of a parameter's code (`Param::code`), after the field it sets in the kernel's
+/// Params (exhaustive, so a new parameter cannot be forgotten here).
+fn vary_name(p: Param) -> &'static str {
+    match p {
+        Param::Eta => "VARY_ETA",
+        Param::R => "VARY_RESTITUTION",
+        Param::Fs => "VARY_FS",
+        Param::Fk => "VARY_FK",
+        Param::L1 => "VARY_L1",
+        Param::L2 => "VARY_L2",
+        Param::Clearance => "VARY_R",
+        Param::Delta => "VARY_DELTA",
+        Param::B1 => "VARY_B1",
+        Param::Mu => "VARY_MU",
+        Param::Lambda => "VARY_LAMBDA",
+    }
+}
+
+const GROUPS: [Group; 8] = [DISPATCH, MODES, EVENTS, LIMITS, US, RING, YS, CONSTS];
+
+/// Declares the `Control` uniform (u32 members only, so repr(C) and the WGSL uniform layout
+/// agree member by member) and the list of its members for the prelude and the tests.
+macro_rules! control {
+    ($( $(#[$m:meta])* $field:ident, )*) => {
+        /// Uniform control block of one dispatch.
+        #[repr(C)]
+        #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+        pub struct Control {
+            $( $(#[$m])* pub $field: u32, )*
+        }
+
+        impl Control {
+            /// Member names and byte offsets, in declaration order.
+            pub const MEMBERS: &[(&str, usize)] =
+                &[$((stringify!($field), std::mem::offset_of!(Control, $field))),*];
+        }
+    };
+}
+
+control! {
+    /// Points of this batch.
+    n_points,
+    /// RK4 steps per forcing period.
+    steps,
+    /// Periods of this dispatch.
+    periods,
+    /// Index of the first period of this dispatch.
+    period0,
+    /// Periods before sampling starts, and sampled periods.
+    transient,
+    samples,
+    /// Whether samples are stored (bifurcation) or only classified.
+    store,
+    max_events,
+    /// Varying parameters (0..2) and their codes (VARY_*).
+    n_vary,
+    vary0,
+    vary1,
+    /// Naive impact handling (checked after the step) instead of event location.
+    naive,
+    /// Invocations per row of a 2-D grid (dispatches beyond the per-dimension limit).
+    row,
+    /// Whether the Lyapunov twin runs.
+    lyap,
+    /// Pads the uniform to a multiple of 16 bytes.
+    pad1,
+    pad2,
+}
+
+/// Index of slot `slot` of point `i` among `n` (structure of arrays).
+pub fn at(slot: u32, n: usize, i: usize) -> usize {
+    slot as usize * n + i
+}
+
+/// Every generated u32 constant, name and value.
+pub fn constants() -> Vec<(&'static str, u32)> {
+    let fixed = GROUPS.iter().flat_map(|g| g.items.iter().copied());
+    let vary = Param::ALL.iter().map(|&p| (vary_name(p), p.code()));
+    fixed
+        .chain(vary)
+        .chain([("VARY_NONE", VARY_NONE)])
+        .collect()
+}
+
+/// WGSL name of a precision (the kernel's `F`).
+fn wgsl_type(precision: Precision) -> &'static str {
+    match precision {
+        Precision::F32 => "f32",
+        Precision::F64 => "f64",
+    }
+}
+
+/// WGSL declarations of the contract, prepended to the kernel.
+pub fn prelude(precision: Precision) -> String {
+    let mut s = String::new();
+    write_prelude(&mut s, precision).expect("writing to a String cannot fail");
+    s
+}
+
+fn write_prelude(s: &mut String, precision: Precision) -> std::fmt::Result {
+    writeln!(
+        s,
+        "// Generated by the host from src/gpu/layout.rs; edit there, not here."
+    )?;
+    writeln!(
+        s,
+        "\n// Precision: f32, or f64 where the adapter has SHADER_F64."
+    )?;
+    writeln!(s, "alias F = {};", wgsl_type(precision))?;
+    for g in &GROUPS {
+        writeln!(s, "\n// {}", g.heading)?;
+        for (name, value) in g.items {
+            writeln!(s, "const {name}: u32 = {value}u;")?;
+        }
+    }
+    writeln!(
+        s,
+        "\n// Codes of per-point parameters, model::Param::code (LAMBDA sets fs and fk)."
+    )?;
+    for p in Param::ALL {
+        writeln!(s, "const {}: u32 = {}u;", vary_name(p), p.code())?;
+    }
+    writeln!(s, "const VARY_NONE: u32 = {VARY_NONE}u;")?;
+    writeln!(s, "\n// Uniform control block of one dispatch.")?;
+    writeln!(s, "struct Control {{")?;
+    for (name, _) in Control::MEMBERS {
+        writeln!(s, "    {name}: u32,")?;
+    }
+    writeln!(s, "}}\n")
+}
