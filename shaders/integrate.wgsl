@@ -446,12 +446,21 @@ fn step(k: u32) {
     if (ctl.naive != 0u && naive_impact(k)) {
         f0 = field(st.y, st.mode, forcing(k, F(1.0)).x);
     }
-    // x != x is the NaN test; the bound catches infinities.
+    // NaN or infinity (tested on the bits), or a state beyond any physical scale.
     let y = st.y;
     let big = F(1e30);
-    if (any(y != y) || fmax(fmax(fabs(y.x), fabs(y.y)), fmax(fabs(y.z), fabs(y.w))) > big) {
+    if (!finite4(y) || fmax(fmax(fabs(y.x), fabs(y.y)), fmax(fabs(y.z), fabs(y.w))) > big) {
         st.nonfinite = 1u;
     }
+}
+
+// Finiteness by the bits of the f32 value (f64 values beyond f32's range become infinite and
+// fail, as they fail the bound above): NaN and infinity have every exponent bit set. A float
+// comparison such as `x != x` is not a NaN test on drivers that assume IEEE special values
+// never occur (llvmpipe folds it to false).
+fn finite4(y: vec4<F>) -> bool {
+    let e = bitcast<vec4<u32>>(vec4<f32>(y)) & vec4<u32>(0x7f800000u);
+    return all(e != vec4<u32>(0x7f800000u));
 }
 
 // Returns false when the period did not run to its end (non-finite state or a loop cut short).

@@ -94,12 +94,16 @@ impl Engine {
     ) -> Result<(Vec<RunResult>, Timings), GpuError> {
         match self {
             Engine::Gpu(g) => {
-                let out = g.run(&Job::new(spec, *points, true), progress)?;
+                let mut out = g.run(&Job::new(spec, *points, true), progress)?;
+                out.results
+                    .iter_mut()
+                    .for_each(RunResult::enforce_failure_rule);
                 Ok((out.results, out.timings))
             }
             Engine::Cpu => {
                 let t = Instant::now();
-                let results = crate::cpu::run(spec, points, progress);
+                let mut results = crate::cpu::run(spec, points, progress);
+                results.iter_mut().for_each(RunResult::enforce_failure_rule);
                 let timings = Timings {
                     integration_s: t.elapsed().as_secs_f64(),
                     ..Timings::default()
@@ -120,12 +124,16 @@ impl Engine {
     ) -> Result<(Vec<Summary>, Timings), GpuError> {
         match self {
             Engine::Gpu(g) => {
-                let out = g.run(&Job::new(spec, *points, false), progress)?;
+                let mut out = g.run(&Job::new(spec, *points, false), progress)?;
                 let s = out
                     .results
-                    .iter()
+                    .iter_mut()
                     .zip(&out.classes)
-                    .map(|(r, c)| Summary::new(*c, r, spec.samples as usize, spec))
+                    .map(|(r, c)| {
+                        r.enforce_failure_rule();
+                        let c = if r.diag.nonfinite { Class::Failed } else { *c };
+                        Summary::new(c, r, spec.samples as usize, spec)
+                    })
                     .collect();
                 Ok((s, out.timings))
             }

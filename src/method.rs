@@ -289,6 +289,18 @@ impl RunResult {
         )
     }
 
+    /// The failure rule shared by every backend: a run whose state or samples left the finite
+    /// range is non-finite, and a failed run has no exponent.
+    pub fn enforce_failure_rule(&mut self) {
+        let bad = |y: &[f64; 4]| y.iter().any(|v| !v.is_finite());
+        if bad(&self.final_y) || self.samples.iter().any(bad) {
+            self.diag.nonfinite = true;
+        }
+        if self.diag.nonfinite {
+            self.lyapunov = f64::NAN;
+        }
+    }
+
     /// Mean impacts per sampled period.
     pub fn impacts_per_period(&self) -> f64 {
         self.sample_impacts as f64 / self.samples.len().max(1) as f64

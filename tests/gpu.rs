@@ -375,3 +375,38 @@ fn map_over_all_adapters_equals_the_single_adapter_map() {
     let a = std::fs::read(d.join("all-class.npy")).unwrap();
     assert_eq!(a, std::fs::read(d.join("one-class.npy")).unwrap());
 }
+
+#[test]
+fn overflowing_points_fail_on_the_gpu_as_on_the_cpu() {
+    if gpu().is_none() {
+        return;
+    }
+    // Stribeck friction with a huge quadratic term: the state overflows within a few steps.
+    // Every backend and precision must call these points failed, say non-finite, and give no
+    // exponent (the GPU once read the NaN state as "no impact" with a finite exponent).
+    let text = "[model]\nfriction = \"stribeck\"\neta = 1.33\n[method]\nsteps_per_period = 64\n\
+        [run]\ntransient_periods = 300\nsample_periods = 50\n[map]\nx = \"l2\"\nx_from = 1e3\n\
+        x_to = 1e6\nx_points = 4\ny = \"fs\"\ny_from = 0.2\ny_to = 0.3\ny_points = 2\n";
+    let mut cfg = rattle::config::Config::from_toml(text, &[]).unwrap();
+    let cells = rattle::map::cell_count(&cfg);
+    for prec in [Precision::F32, Precision::F64] {
+        cfg.method.precision = prec;
+        let g = gpu().unwrap().lock().unwrap();
+        let engine = Engine::Gpu(Box::new(Gpu::new().unwrap()));
+        drop(g);
+        for e in [&engine, &Engine::Cpu] {
+            let (cells_out, _) = rattle::map::compute(e, &cfg, 0..cells, 1, &Silent).unwrap();
+            for (c, (s, _)) in cells_out.iter().enumerate() {
+                assert_eq!(s.class, Class::Failed, "{} {prec:?} cell {c}: {s:?}", e.name());
+                assert!(s.diag.nonfinite, "{} {prec:?} cell {c}", e.name());
+                assert!(s.lyapunov.is_nan(), "{} {prec:?} cell {c}", e.name());
+            }
+            // One point with its samples (the `point` command's path).
+            cfg.model.l2 = 1e4;
+            let r = rattle::point::run(e, &cfg, &Silent).unwrap();
+            assert_eq!(r.class, "failed", "{} {prec:?}", e.name());
+            assert!(r.diagnostics.nonfinite, "{} {prec:?}", e.name());
+            assert!(r.lyapunov.is_nan(), "{} {prec:?}", e.name());
+        }
+    }
+}
