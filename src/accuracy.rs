@@ -163,7 +163,11 @@ pub fn study(
         ));
     }
     let mut rows = Vec::new();
-    let engines: Vec<Engine> = o.backends.iter().map(|&b| Engine::open(b)).collect();
+    let engines: Vec<Engine> = o
+        .backends
+        .iter()
+        .map(|&b| Engine::open(b))
+        .collect::<Result<_, _>>()?;
     let combos = || {
         let mut v = Vec::new();
         for e in &engines {

@@ -45,7 +45,7 @@ pub fn bench(
     let n_steps = spec.settings.steps_per_period;
     let mut rows = Vec::new();
     for &b in backends {
-        let engine = Engine::open(b);
+        let engine = Engine::open(b)?;
         for prec in [Precision::F32, Precision::F64] {
             spec.precision = prec;
             let res = engine
@@ -172,7 +172,7 @@ fn run(
 /// The validation report: state differences after 1, 10 and 100 periods from the same start
 /// (`state_points` points spread over the sweep), and class agreement over the whole sweep.
 pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
-    let gpu = Engine::open(Backend::Gpu);
+    let gpu = Engine::open(Backend::Gpu)?;
     if !matches!(gpu, Engine::Gpu(_)) {
         return Err(Error::Invalid(
             "validate needs a GPU adapter (none found)".into(),

@@ -471,7 +471,7 @@ pub fn paper_figure(
         };
         adjust(&mut cfg);
         cfg.validate()?;
-        let engine = Engine::open(cfg.method.backend);
+        let engine = Engine::open(cfg.method.backend)?;
         let b = run(&engine, &cfg, None, &Silent)?;
         progress.advance(cfg.sweep.points as u64);
         let xy = plot_points(&cfg.sweep.plot, &b.runs[0].1);

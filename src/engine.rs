@@ -44,18 +44,20 @@ const CPU_BLOCK: usize = 4096;
 
 impl Engine {
     /// Opens the configured backend; a GPU request without any adapter falls back to the CPU
-    /// with one warning line naming why.
-    pub fn open(backend: Backend) -> Engine {
+    /// with one warning line naming why. An adapter named by WGPU_ADAPTER_NAME that does not
+    /// exist is an error (the user asked for that device).
+    pub fn open(backend: Backend) -> Result<Engine, GpuError> {
         match backend {
-            Backend::Cpu => Engine::Cpu,
+            Backend::Cpu => Ok(Engine::Cpu),
             Backend::Gpu => match Gpu::new() {
                 Ok(g) => {
                     eprintln!("adapter: {}", crate::gpu::describe(&g.info));
-                    Engine::Gpu(Box::new(g))
+                    Ok(Engine::Gpu(Box::new(g)))
                 }
+                Err(e @ GpuError::NoSuchAdapter { .. }) => Err(e),
                 Err(e) => {
                     eprintln!("warning: {e}; falling back to the cpu backend");
-                    Engine::Cpu
+                    Ok(Engine::Cpu)
                 }
             },
         }

@@ -256,7 +256,7 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             let cfg = common.load_sweep()?;
             check_prefix(&out, &["csv", "png", "json"])?;
-            let engine = Engine::open(cfg.method.backend);
+            let engine = Engine::open(cfg.method.backend)?;
             let what = bifurcation::work(&engine, &cfg, continuation);
             let pb = progress_bar(what, "bifurcation");
             let b = bifurcation::run(&engine, &cfg, continuation, &|n| pb.inc(n))?;
@@ -352,7 +352,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Cmd::Adapters => {
-            print!("{}", rattle::gpu::adapters_report());
+            print!("{}", rattle::gpu::adapters_report()?);
             Ok(())
         }
         Cmd::Validate {
@@ -384,7 +384,7 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 fn point(cfg: &Config, as_json: bool) -> Result<()> {
-    let engine = Engine::open(cfg.method.backend);
+    let engine = Engine::open(cfg.method.backend)?;
     let per_point = engine.progress_per_point(&RunSpec::new(cfg));
     let pb = progress_bar(per_point, "point");
     let r = rattle::point::run(&engine, cfg, &|n| pb.inc(n))?;
@@ -401,7 +401,7 @@ fn map_cmd(cfg: &Config, out: &Path, opts: &MapOptions, adapters: Adapters) -> R
     let summary = if adapters == Adapters::All {
         map::run_all_adapters(cfg, out, opts)?
     } else {
-        let engine = Engine::open(cfg.method.backend);
+        let engine = Engine::open(cfg.method.backend)?;
         let pb = progress_bar(map::work(&engine, cfg, opts), "map");
         let s = map::run(&engine, cfg, out, opts, &|n| pb.inc(n))?;
         pb.finish_and_clear();

@@ -397,7 +397,12 @@ fn overflowing_points_fail_on_the_gpu_as_on_the_cpu() {
         for e in [&engine, &Engine::Cpu] {
             let (cells_out, _) = rattle::map::compute(e, &cfg, 0..cells, 1, &Silent).unwrap();
             for (c, (s, _)) in cells_out.iter().enumerate() {
-                assert_eq!(s.class, Class::Failed, "{} {prec:?} cell {c}: {s:?}", e.name());
+                assert_eq!(
+                    s.class,
+                    Class::Failed,
+                    "{} {prec:?} cell {c}: {s:?}",
+                    e.name()
+                );
                 assert!(s.diag.nonfinite, "{} {prec:?} cell {c}", e.name());
                 assert!(s.lyapunov.is_nan(), "{} {prec:?} cell {c}", e.name());
             }

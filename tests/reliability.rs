@@ -495,3 +495,26 @@ fn the_paper_figure_needs_no_checkout() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(d.join("p.png").exists());
 }
+
+#[test]
+fn an_adapter_name_that_matches_nothing_is_an_error_not_a_panic() {
+    for args in [
+        &["adapters"][..],
+        &["point", "--backend", "gpu", "--config"][..],
+    ] {
+        let mut c = rattle();
+        c.env("WGPU_ADAPTER_NAME", "nonexistent-adapter-xyz")
+            .args(args);
+        if args[0] == "point" {
+            c.arg(common::config("fig2.toml"));
+        }
+        let o = c.output().unwrap();
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        let e = stderr(&o);
+        assert!(
+            e.contains("matches no adapter") && e.contains("available"),
+            "{e}"
+        );
+        assert!(!e.contains("panicked"), "{e}");
+    }
+}

@@ -36,6 +36,8 @@ use wgpu::util::DeviceExt;
 pub enum GpuError {
     #[error("no GPU adapter: {0}")]
     NoAdapter(String),
+    #[error("WGPU_ADAPTER_NAME={name} matches no adapter; available: {available}")]
+    NoSuchAdapter { name: String, available: String },
     #[error("GPU device request failed on {adapter}: {message}")]
     Device { adapter: String, message: String },
     #[error("adapter {0} has no SHADER_F64 feature; use --precision f32 or --backend cpu")]
@@ -104,23 +106,19 @@ pub struct Gpu {
     pub timeout: Duration,
 }
 
-/// What wgpu sees, and the index of the adapter rattle would use.
-pub fn list_adapters() -> (Vec<wgpu::AdapterInfo>, Option<wgpu::AdapterInfo>) {
+/// What wgpu sees, and the adapter rattle would use (or why none).
+pub fn list_adapters() -> (Vec<wgpu::AdapterInfo>, Result<wgpu::AdapterInfo, GpuError>) {
     let instance = instance();
     let all = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
         .iter()
         .map(|a| a.get_info())
         .collect();
-    let chosen = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
-        &instance, None,
-    ))
-    .ok()
-    .map(|a| a.get_info());
-    (all, chosen)
+    (all, select(&instance).map(|a| a.get_info()))
 }
 
-/// The `rattle adapters` listing: every adapter wgpu sees, and the one rattle would use.
-pub fn adapters_report() -> String {
+/// The `rattle adapters` listing: every adapter wgpu sees, and the one rattle would use; an
+/// error when WGPU_ADAPTER_NAME names none of them.
+pub fn adapters_report() -> Result<String, GpuError> {
     let (all, chosen) = list_adapters();
     let mut s = String::new();
     if all.is_empty() {
@@ -129,10 +127,35 @@ pub fn adapters_report() -> String {
     for a in &all {
         s += &format!("  {}\n", describe(a));
     }
-    s + &match chosen {
-        Some(a) => format!("would use: {}\n", describe(&a)),
-        None => "would use: cpu backend (no adapter)\n".to_string(),
+    match chosen {
+        Ok(a) => Ok(s + &format!("would use: {}\n", describe(&a))),
+        Err(e @ GpuError::NoSuchAdapter { .. }) => Err(e),
+        Err(_) => Ok(s + "would use: cpu backend (no adapter)\n"),
     }
+}
+
+/// The adapter named by WGPU_ADAPTER_NAME (a case-insensitive part of its name), else the
+/// default one. wgpu's own helper panics when the name matches nothing; this says which
+/// adapters exist instead.
+fn select(instance: &wgpu::Instance) -> Result<wgpu::Adapter, GpuError> {
+    if let Ok(name) = std::env::var("WGPU_ADAPTER_NAME") {
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+        let want = name.to_lowercase();
+        return adapters
+            .into_iter()
+            .find(|a| a.get_info().name.to_lowercase().contains(&want))
+            .ok_or(GpuError::NoSuchAdapter {
+                name,
+                available: if names.is_empty() {
+                    "none".into()
+                } else {
+                    names.join("; ")
+                },
+            });
+    }
+    pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
+        .map_err(|e| GpuError::NoAdapter(e.to_string()))
 }
 
 fn instance() -> wgpu::Instance {
@@ -156,12 +179,7 @@ pub fn describe(info: &wgpu::AdapterInfo) -> String {
 impl Gpu {
     /// Opens the adapter chosen from the environment with its real limits.
     pub fn new() -> Result<Gpu, GpuError> {
-        let instance = instance();
-        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
-            &instance, None,
-        ))
-        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        Gpu::open(adapter)
+        Gpu::open(select(&instance())?)
     }
 
     /// Opens every adapter of the selected backends (for `--adapters all`).
