@@ -97,6 +97,7 @@ impl Engine {
         match self {
             Engine::Gpu(g) => {
                 let mut out = g.run(&Job::new(spec, *points, true), progress)?;
+                rerun_on_cpu(spec, points, &mut out);
                 out.results
                     .iter_mut()
                     .for_each(RunResult::enforce_failure_rule);
@@ -127,6 +128,7 @@ impl Engine {
         match self {
             Engine::Gpu(g) => {
                 let mut out = g.run(&Job::new(spec, *points, false), progress)?;
+                rerun_on_cpu(spec, points, &mut out);
                 let s = out
                     .results
                     .iter_mut()
@@ -159,5 +161,38 @@ impl Engine {
                 Ok((out, timings))
             }
         }
+    }
+}
+
+/// Computes the points the GPU driver cut short on the CPU twin (same spec and precision) and
+/// marks them, instead of losing the whole run.
+fn rerun_on_cpu(spec: &RunSpec, points: &Points, out: &mut crate::gpu::GpuOutput) {
+    if out.truncated.is_empty() {
+        return;
+    }
+    let idx = std::mem::take(&mut out.truncated);
+    let nv = points.vary.len();
+    let values: Vec<f64> = idx
+        .iter()
+        .flat_map(|&i| points.values[i * nv..(i + 1) * nv].iter().copied())
+        .collect();
+    let y0s: Vec<[f64; 4]> = idx.iter().map(|&i| points.y0(spec, i)).collect();
+    let sub = Points {
+        vary: points.vary,
+        values: if nv == 0 { points.values } else { &values },
+        y0s: Some(&y0s),
+    };
+    eprintln!(
+        "warning: {} point(s) exceeded the GPU driver's loop budget and were computed by the \
+         CPU twin (diagnostics: cpu_rerun)",
+        idx.len()
+    );
+    for (k, mut r) in crate::cpu::run(spec, &sub, &crate::progress::Silent)
+        .into_iter()
+        .enumerate()
+    {
+        r.diag.cpu_rerun = true;
+        out.classes[idx[k]] = r.class(spec.period_tol);
+        out.results[idx[k]] = r;
     }
 }

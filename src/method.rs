@@ -73,6 +73,9 @@ pub struct Diagnostics {
     pub overflows: u64,
     /// The state became non-finite; integration stopped there.
     pub nonfinite: bool,
+    /// Computed by the CPU twin because the GPU driver cut the kernel's loops short.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub cpu_rerun: bool,
 }
 
 /// cos and sin of the forcing at the grid's stage phases 2*pi*j/(2N), j = 0..=2N.

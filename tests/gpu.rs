@@ -415,3 +415,28 @@ fn overflowing_points_fail_on_the_gpu_as_on_the_cpu() {
         }
     }
 }
+
+#[test]
+fn points_beyond_the_drivers_loop_budget_are_computed_on_the_cpu_and_marked() {
+    let Some(g) = gpu() else {
+        return;
+    };
+    let on_cpu_adapter = g.lock().unwrap().info.device_type == wgpu::DeviceType::Cpu;
+    // Chattering without the Zeno cut: hundreds of events per period, beyond the 65535 loop
+    // iterations llvmpipe allows an invocation per dispatch. The run must not be lost.
+    let text = "[model]\nR = 0.3\neta = 0.8\n[method]\nzeno_speed = 0.0\nprecision = \"f64\"\n\
+        [run]\ntransient_periods = 20\nsample_periods = 10\n";
+    let cfg = rattle::config::Config::from_toml(text, &[]).unwrap();
+    let engine = Engine::Gpu(Box::new(Gpu::new().unwrap()));
+    let r = rattle::point::run(&engine, &cfg, &Silent).expect("the run survives");
+    let c = rattle::point::run(&Engine::Cpu, &cfg, &Silent).unwrap();
+    if on_cpu_adapter {
+        assert!(
+            r.diagnostics.cpu_rerun,
+            "expected the CPU rerun on llvmpipe"
+        );
+        assert_eq!(r.samples, c.samples, "the rerun is the CPU twin's run");
+    }
+    assert_eq!(r.class, c.class);
+    assert!(!c.diagnostics.cpu_rerun);
+}

@@ -313,10 +313,10 @@ impl<F: Real> ReadBack<F> {
         self.us[at(slot, self.m, i)]
     }
 
-    /// Index in the job of the first point whose loops the driver cut short.
-    pub(super) fn truncated(&self) -> Option<usize> {
+    /// Indices in the job of the points whose loops the driver cut short.
+    pub(super) fn truncated(&self) -> impl Iterator<Item = usize> + '_ {
         (0..self.m)
-            .find(|&i| self.u(U_TRUNCATED, i) != 0)
+            .filter(|&i| self.u(U_TRUNCATED, i) != 0)
             .map(|i| self.start + i)
     }
 
@@ -333,6 +333,7 @@ impl<F: Real> ReadBack<F> {
                 locks: u(U_LOCKS) as u64,
                 overflows: u(U_OVERFLOWS) as u64,
                 nonfinite: u(U_NONFINITE) != 0,
+                cpu_rerun: false,
             };
             // A failed point stopped sampling where it failed; the detector counted its samples.
             let count = u(U_DET_COUNT);

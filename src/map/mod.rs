@@ -130,6 +130,8 @@ pub struct Fields {
     pub locks: Vec<u64>,
     pub overflows: Vec<u64>,
     pub nonfinite: Vec<u8>,
+    /// 1 where the GPU driver cut the kernel short and the CPU twin computed the cell.
+    pub cpu_rerun: Vec<u8>,
     /// Distinct attractors reached from the `--starts` initial states (1 without).
     #[serde(default)]
     pub attractors: Vec<u8>,
@@ -162,6 +164,7 @@ impl Fields {
             locks: s.iter().map(|c| c.diag.locks).collect(),
             overflows: s.iter().map(|c| c.diag.overflows).collect(),
             nonfinite: s.iter().map(|c| c.diag.nonfinite as u8).collect(),
+            cpu_rerun: s.iter().map(|c| c.diag.cpu_rerun as u8).collect(),
         }
     }
 
@@ -183,6 +186,7 @@ impl Fields {
         self.locks.extend(o.locks);
         self.overflows.extend(o.overflows);
         self.nonfinite.extend(o.nonfinite);
+        self.cpu_rerun.extend(o.cpu_rerun);
         self.attractors.extend(o.attractors);
     }
 
@@ -206,6 +210,7 @@ impl Fields {
             locks: self.locks[i],
             overflows: self.overflows[i],
             nonfinite: self.nonfinite[i] != 0,
+            cpu_rerun: self.cpu_rerun[i] != 0,
         }
     }
 }

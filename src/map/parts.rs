@@ -90,6 +90,7 @@ impl Part {
             f.locks.len(),
             f.overflows.len(),
             f.nonfinite.len(),
+            f.cpu_rerun.len(),
             f.attractors.len(),
         ];
         if lens.iter().any(|&l| l != len) {
@@ -102,6 +103,8 @@ impl Part {
             let class = f.class[c];
             let bad = if !(-5..=64).contains(&class) {
                 Some(format!("class code {class}"))
+            } else if f.cpu_rerun[c] > 1 {
+                Some(format!("cpu_rerun {}", f.cpu_rerun[c]))
             } else if f.nonfinite[c] > 1 || (f.nonfinite[c] == 1) != (class == -2) {
                 Some(format!("nonfinite {} with class {class}", f.nonfinite[c]))
             } else if f.period[c] != class.max(0) {
