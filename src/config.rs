@@ -255,6 +255,16 @@ pub struct Config {
     pub given_model_keys: Vec<String>,
 }
 
+/// Typed command-line overrides (`--eta`, `--R`, `--lambda`, `--precision`, `--backend`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Overrides {
+    pub eta: Option<f64>,
+    pub restitution: Option<f64>,
+    pub lambda: Option<f64>,
+    pub precision: Option<Precision>,
+    pub backend: Option<Backend>,
+}
+
 /// Largest map (cells), bounded by host memory for the per-cell results.
 pub const MAX_MAP_CELLS: u64 = 1 << 26;
 
@@ -269,6 +279,20 @@ impl Config {
     pub fn load(path: &Path, overrides: &[String]) -> Result<Config, ConfigError> {
         let cfg = Self::read(path, overrides)?;
         cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Reads `path` with `--set` overrides, then the typed command-line ones, and checks
+    /// what every command uses ([`Config::validate_base`]).
+    pub fn load_with(path: &Path, set: &[String], o: &Overrides) -> Result<Config, ConfigError> {
+        let mut cfg = Self::read(path, set)?;
+        let m = &mut cfg.model;
+        m.eta = o.eta.unwrap_or(m.eta);
+        m.restitution = o.restitution.unwrap_or(m.restitution);
+        m.lambda = o.lambda.unwrap_or(m.lambda);
+        cfg.method.precision = o.precision.unwrap_or(cfg.method.precision);
+        cfg.method.backend = o.backend.unwrap_or(cfg.method.backend);
+        cfg.validate_base()?;
         Ok(cfg)
     }
 
@@ -676,59 +700,5 @@ fn apply_override(table: &mut toml::Table, o: &str) -> Result<(), ConfigError> {
             Ok(())
         }
         _ => Err(ConfigError::Parse(format!("`{section}` is not a table"))),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn defaults_are_the_paper() {
-        let c = Config::from_toml("", &[]).unwrap();
-        let p = c.params();
-        assert_eq!((p.restitution, p.fs, p.fk, p.r), (0.6, 0.02, 0.02, 0.8));
-        assert_eq!((p.delta, p.b1, p.mu), (0.5, 0.1, 0.693));
-    }
-
-    #[test]
-    fn errors_name_the_key() {
-        let e = Config::from_toml("[model]\nfoo = 1\n", &[])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("foo"), "{e}");
-        let e = Config::from_toml("[model]\nR = 1.5\n", &[])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("model.R") && e.contains("[0, 1]"), "{e}");
-        let e = Config::from_toml("[model]\nmu = 0.0\n", &[])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("model.mu") && e.contains("(0, inf)"), "{e}");
-        let e = Config::from_toml("[model]\nb1 = nan\n", &[])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("model.b1"), "{e}");
-        let e = Config::from_toml("", &["eta=-1".into()])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("model.eta"), "{e}");
-        let e = Config::from_toml("[sweep]\nparam = \"R\"\nto = 2.0\n", &[])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("sweep.to") && e.contains("[0, 1]"), "{e}");
-    }
-
-    #[test]
-    fn overrides_apply() {
-        let c = Config::from_toml(
-            "[model]\nR = 0.6\n",
-            &["R=0.62".into(), "run.sample_periods=64".into()],
-        )
-        .unwrap();
-        assert_eq!(c.model.restitution, 0.62);
-        assert_eq!(c.run.sample_periods, 64);
-        let c = Config::from_toml("", &["friction=stribeck".into()]).unwrap();
-        assert_eq!(c.params().fs, 0.25);
     }
 }

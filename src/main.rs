@@ -5,7 +5,7 @@ use anyhow::Result;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rattle::bifurcation::{self, Continuation};
-use rattle::config::{Backend, Config, Precision};
+use rattle::config::{Backend, Config, Overrides, Precision};
 use rattle::engine::Engine;
 use rattle::map::{self, MapOptions};
 use rattle::output::check_prefix;
@@ -188,27 +188,29 @@ impl Common {
 
     /// The configuration of `path` with this command line's overrides, validated.
     fn load_from(&self, path: &Path) -> Result<Config> {
-        let mut cfg = Config::read(path, &self.set)?;
-        let m = &mut cfg.model;
-        m.eta = self.eta.unwrap_or(m.eta);
-        m.restitution = self.restitution.unwrap_or(m.restitution);
-        m.lambda = self.lambda.unwrap_or(m.lambda);
-        cfg.method.precision = self.precision.unwrap_or(cfg.method.precision);
-        cfg.method.backend = self.backend.unwrap_or(cfg.method.backend);
-        cfg.validate_base()?;
+        let o = Overrides {
+            eta: self.eta,
+            restitution: self.restitution,
+            lambda: self.lambda,
+            precision: self.precision,
+            backend: self.backend,
+        };
+        let cfg = Config::load_with(path, &self.set, &o)?;
         for n in cfg.notes() {
             eprintln!("note: {n}");
         }
         Ok(cfg)
     }
 
-    /// The configuration, with the `[sweep]` checked too where the command uses it.
-    fn load(&self) -> Result<Config> {
-        self.load_from(&self.config)
+    fn load_map(&self, path: &Path) -> Result<Config> {
+        let cfg = self.load_from(path)?;
+        cfg.validate_map()?;
+        Ok(cfg)
     }
 
+    /// With `[sweep]` checked too, for the commands that sweep.
     fn load_sweep(&self) -> Result<Config> {
-        let cfg = self.load()?;
+        let cfg = self.load_from(&self.config)?;
         cfg.validate_sweep()?;
         Ok(cfg)
     }
@@ -233,12 +235,6 @@ fn progress_bar(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
-fn print_files(files: &[PathBuf]) {
-    for f in files {
-        println!("{}", f.display());
-    }
-}
-
 fn main() {
     if let Err(e) = run(Cli::parse()) {
         eprintln!("error: {e:#}");
@@ -246,9 +242,10 @@ fn main() {
     }
 }
 
+/// Runs a command; returns the files it wrote, printed one per line.
 fn run(cli: Cli) -> Result<()> {
-    match cli.cmd {
-        Cmd::Point { common, json } => point(&common.load()?, json),
+    let files = match cli.cmd {
+        Cmd::Point { common, json } => point(&common.load_from(&common.config)?, json)?,
         Cmd::Bifurcation {
             common,
             out,
@@ -261,10 +258,8 @@ fn run(cli: Cli) -> Result<()> {
             let pb = progress_bar(what, "bifurcation");
             let b = bifurcation::run(&engine, &cfg, continuation, &|n| pb.inc(n))?;
             pb.finish_and_clear();
-            let files = bifurcation::write_outputs(&out, &b)?;
             eprint!("{}", b.summary());
-            print_files(&files);
-            Ok(())
+            bifurcation::write_outputs(&out, &b)?
         }
         Cmd::Map {
             common,
@@ -275,33 +270,25 @@ fn run(cli: Cli) -> Result<()> {
             starts,
             adapters,
         } => {
-            let cfg = common.load()?;
-            cfg.validate_map()?;
+            let cfg = common.load_map(&common.config)?;
             check_prefix(&out, &["png", "json"])?;
-            let other = compare
-                .map(|p| {
-                    // The other config keeps its own eta; every other override applies.
-                    let c = Common {
-                        eta: None,
-                        ..common.clone()
-                    };
-                    let o = c.load_from(&p)?;
-                    o.validate_map()?;
-                    anyhow::Ok(o)
-                })
-                .transpose()?;
+            // The other config keeps its own eta; every other override applies.
+            let c = Common {
+                eta: None,
+                ..common.clone()
+            };
+            let other = compare.map(|p| c.load_map(&p)).transpose()?;
             let opts = MapOptions {
                 starts: starts as usize,
                 shard,
                 checkpoint,
                 compare: other.as_ref(),
             };
-            map_cmd(&cfg, &out, &opts, adapters)
+            map_cmd(&cfg, &out, &opts, adapters)?
         }
         Cmd::Merge { parts, out } => {
             check_prefix(&out, &["png", "json"])?;
-            print_files(&map::merge_files(&parts, &out)?.files);
-            Ok(())
+            map::merge_files(&parts, &out)?.files
         }
         Cmd::Figure {
             which: Figure::Paper,
@@ -324,8 +311,7 @@ fn run(cli: Cli) -> Result<()> {
                 &|n| pb.inc(n),
             )?;
             pb.finish_and_clear();
-            print_files(&files);
-            Ok(())
+            files
         }
         Cmd::Accuracy {
             common,
@@ -347,23 +333,19 @@ fn run(cli: Cli) -> Result<()> {
             let (rows, reference) = study(&cfg, &o, &mut |s| {
                 eprintln!("accuracy: {s} ({:.0} s)", t0.elapsed().as_secs_f64())
             })?;
-            let secs = t0.elapsed().as_secs_f64();
-            print_files(&write_outputs(&out, &cfg, &rows, &reference, secs)?);
-            Ok(())
+            write_outputs(&out, &cfg, &rows, &reference, t0.elapsed().as_secs_f64())?
         }
         Cmd::Adapters => {
             print!("{}", rattle::gpu::adapters_report()?);
-            Ok(())
+            vec![]
         }
         Cmd::Validate {
             common,
             state_points,
         } => {
-            print!(
-                "{}",
-                rattle::bench::validate(&common.load_sweep()?, state_points)?
-            );
-            Ok(())
+            let cfg = common.load_sweep()?;
+            print!("{}", rattle::bench::validate(&cfg, state_points)?);
+            vec![]
         }
         Cmd::Bench {
             common,
@@ -378,12 +360,16 @@ fn run(cli: Cli) -> Result<()> {
                 let ok: Vec<_> = rows.iter().flatten().collect();
                 println!("{}", serde_json::to_string_pretty(&ok)?);
             }
-            Ok(())
+            vec![]
         }
+    };
+    for f in files {
+        println!("{}", f.display());
     }
+    Ok(())
 }
 
-fn point(cfg: &Config, as_json: bool) -> Result<()> {
+fn point(cfg: &Config, as_json: bool) -> Result<Vec<PathBuf>> {
     let engine = Engine::open(cfg.method.backend)?;
     let per_point = engine.progress_per_point(&RunSpec::new(cfg));
     let pb = progress_bar(per_point, "point");
@@ -394,20 +380,19 @@ fn point(cfg: &Config, as_json: bool) -> Result<()> {
     } else {
         print!("{r}");
     }
-    Ok(())
+    Ok(vec![])
 }
 
-fn map_cmd(cfg: &Config, out: &Path, opts: &MapOptions, adapters: Adapters) -> Result<()> {
+fn map_cmd(cfg: &Config, out: &Path, o: &MapOptions, adapters: Adapters) -> Result<Vec<PathBuf>> {
     let summary = if adapters == Adapters::All {
-        map::run_all_adapters(cfg, out, opts)?
+        map::run_all_adapters(cfg, out, o)?
     } else {
         let engine = Engine::open(cfg.method.backend)?;
-        let pb = progress_bar(map::work(&engine, cfg, opts), "map");
-        let s = map::run(&engine, cfg, out, opts, &|n| pb.inc(n))?;
+        let pb = progress_bar(map::work(&engine, cfg, o), "map");
+        let s = map::run(&engine, cfg, out, o, &|n| pb.inc(n))?;
         pb.finish_and_clear();
         s
     };
     eprint!("{}", summary.report(cfg));
-    print_files(&summary.files);
-    Ok(())
+    Ok(summary.files)
 }
