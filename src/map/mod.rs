@@ -35,6 +35,9 @@ pub enum MapError {
     Read { path: String, message: String },
     #[error("{0}")]
     Merge(String),
+    /// Options that cannot work together or with this map.
+    #[error("{0}")]
+    Options(String),
     #[error("JSON: {0}")]
     Json(#[from] serde_json::Error),
     #[error(transparent)]

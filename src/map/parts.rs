@@ -12,6 +12,11 @@ use crate::progress::Progress;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+/// Impossible contents of a part file.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct PartError(pub String);
+
 /// A shard's partial output. Its run identity (version, config, starts, backend kind, shard
 /// count) must match exactly for the part to be merged or resumed.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -69,15 +74,15 @@ impl Part {
 
     /// Checks that the contents are possible: array lengths, class codes, failure flags,
     /// attractor counts, the cell range of the shard.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), PartError> {
         let f = &self.fields;
         let (i, n) = self.shard;
         let cells = cell_count(&self.config);
         if n == 0 || i >= n || shard_range(cells, i, n) != (self.range.0..self.range.1) {
-            return Err(format!(
+            return Err(PartError(format!(
                 "shard {i}/{n} with cells {:?} of {cells}",
                 self.range
-            ));
+            )));
         }
         let len = self.range.1 - self.range.0;
         let lens = [
@@ -94,10 +99,12 @@ impl Part {
             f.attractors.len(),
         ];
         if lens.iter().any(|&l| l != len) {
-            return Err(format!("field lengths {lens:?}, expected {len} each"));
+            return Err(PartError(format!(
+                "field lengths {lens:?}, expected {len} each"
+            )));
         }
         if !(1..=64).contains(&self.starts) {
-            return Err(format!("starts {} outside [1, 64]", self.starts));
+            return Err(PartError(format!("starts {} outside [1, 64]", self.starts)));
         }
         for c in 0..len {
             let class = f.class[c];
@@ -122,7 +129,10 @@ impl Part {
                 None
             };
             if let Some(b) = bad {
-                return Err(format!("cell {}: impossible value: {b}", self.range.0 + c));
+                return Err(PartError(format!(
+                    "cell {}: impossible value: {b}",
+                    self.range.0 + c
+                )));
             }
         }
         Ok(())
@@ -181,7 +191,7 @@ pub fn read_part(path: &Path) -> Result<Part, MapError> {
     };
     let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
     let mut part: Part = serde_json::from_str(&text).map_err(|e| err(e.to_string()))?;
-    part.check().map_err(err)?;
+    part.check().map_err(|e| err(e.to_string()))?;
     part.source = Some(path.to_path_buf());
     Ok(part)
 }
@@ -245,8 +255,12 @@ pub struct MapOptions<'a> {
 }
 
 /// Parses `--shard I/N`.
-pub fn parse_shard(s: &str) -> Result<(usize, usize), String> {
-    let bad = || format!("`{s}`: --shard must be I/N with 0 <= I < N, e.g. 0/4");
+pub fn parse_shard(s: &str) -> Result<(usize, usize), MapError> {
+    let bad = || {
+        MapError::Options(format!(
+            "`{s}`: --shard must be I/N with 0 <= I < N, e.g. 0/4"
+        ))
+    };
     let (i, n) = s.split_once('/').ok_or_else(bad)?;
     let (i, n): (usize, usize) = (
         i.trim().parse().map_err(|_| bad())?,
@@ -263,7 +277,7 @@ impl MapOptions<'_> {
     /// and runs that do not fit in memory, before anything is computed.
     pub fn check(&self, cfg: &Config) -> Result<(), MapError> {
         let cells = cell_count(cfg);
-        let bad = |m: String| Err(MapError::Merge(m));
+        let bad = |m: String| Err(MapError::Options(m));
         if self.shard.is_some() && self.checkpoint.is_some() {
             return bad("--shard and --checkpoint exclude each other: a shard is one part".into());
         }
@@ -418,7 +432,7 @@ pub fn run(
     };
     if let Some(other) = o.compare {
         if other.map != cfg.map {
-            return Err(MapError::Merge(
+            return Err(MapError::Options(
                 "--compare: the other config must have the same [map] grid".into(),
             ));
         }
@@ -457,7 +471,7 @@ pub fn run(
 /// concurrently, merged as shards are.
 pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> Result<MapSummary, MapError> {
     if o.shard.is_some() || o.checkpoint.is_some() || o.compare.is_some() {
-        return Err(MapError::Merge(
+        return Err(MapError::Options(
             "--adapters all combines with neither --shard, --checkpoint nor --compare".into(),
         ));
     }
