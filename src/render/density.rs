@@ -1,0 +1,224 @@
+//! Bifurcation diagrams: (parameter, state) samples shaded by log density.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use super::{
+    Area, RenderError, build_chart, check_range, check_size, draw_axes, draw_err, ensure_font,
+    extent, fmt_tick, invalid, layout, pad, paint, render_png,
+};
+
+/// Colour of the densest pixels.
+const INK: RGBColor = RGBColor(8, 16, 48);
+
+/// Bifurcation diagram: (parameter, state) samples shaded by log density.
+pub struct DensityPlot<'a> {
+    pub title: &'a str,
+    pub x_label: &'a str,
+    pub y_label: &'a str,
+    pub x_range: (f64, f64),
+    /// `None`: data extent (finite points inside `x_range`) plus a 3% margin.
+    pub y_range: Option<(f64, f64)>,
+    pub points: &'a [(f64, f64)],
+    /// Used by [`density_png`]; ignored by [`panels_png`], which splits its canvas.
+    pub width: u32,
+    pub height: u32,
+}
+
+pub fn density_png(path: &Path, plot: &DensityPlot) -> Result<(), RenderError> {
+    render_png(path, plot.width, plot.height, |root| {
+        density_panel(root, plot)
+    })
+}
+
+/// Draws several density plots on a `cols`-wide grid (row-major order).
+pub fn panels_png(
+    path: &Path,
+    panels: &[DensityPlot],
+    cols: usize,
+    width: u32,
+    height: u32,
+) -> Result<(), RenderError> {
+    if panels.is_empty() || cols == 0 {
+        return Err(invalid(
+            "panels_png needs at least one panel and one column",
+        ));
+    }
+    let cols = cols.min(panels.len());
+    let rows = panels.len().div_ceil(cols);
+    render_png(path, width, height, |root| {
+        for (area, plot) in root.split_evenly((rows, cols)).iter().zip(panels) {
+            density_panel(area, plot)?;
+        }
+        Ok(())
+    })
+}
+
+/// Draws one density plot filling `area` (white background included).
+pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<(), RenderError> {
+    ensure_font()?;
+    let (w, h) = area.dim_in_pixel();
+    check_size("panel", w, h)?;
+    let (x0, x1) = check_range("x_range", plot.x_range)?;
+    let in_x = |&&(x, y): &&(f64, f64)| y.is_finite() && x >= x0 && x <= x1;
+    let (y0, y1) = match plot.y_range {
+        Some(r) => check_range("y_range", r)?,
+        None => extent(plot.points.iter().filter(in_x).map(|p| p.1))
+            .map(|r| check_range("auto y_range", pad(r, 0.03)))
+            .ok_or_else(|| invalid(format!("'{}': no finite points in x_range", plot.title)))??,
+    };
+    area.fill(&WHITE).map_err(draw_err)?;
+    let l = layout(w, h);
+    let mut chart = build_chart(area, plot.title, &l, (x0, x1), (y0, y1))?;
+
+    // Histogram at exactly the plotting area's pixel resolution, using the
+    // chart's own coordinate mapping so density and axes line up.
+    let (xr, yr) = chart.plotting_area().get_pixel_range();
+    let pw = (xr.end - xr.start).max(0) as usize;
+    let mut hist = vec![0u32; pw * (yr.end - yr.start).max(0) as usize];
+    for &(x, y) in plot.points.iter().filter(in_x) {
+        if (y0..=y1).contains(&y) {
+            let (px, py) = chart.backend_coord(&(x, y));
+            // Negative offsets wrap to huge values and fail the bounds check.
+            let (c, r) = ((px - xr.start) as usize, (py - yr.start) as usize);
+            if c < pw
+                && let Some(n) = hist.get_mut(r * pw + c)
+            {
+                *n += 1;
+            }
+        }
+    }
+    let max = f64::from(hist.iter().copied().max().unwrap_or(0));
+    if max == 0.0 {
+        return Err(invalid(format!(
+            "'{}': no finite points inside the axes",
+            plot.title
+        )));
+    }
+    // White to ink; t is always finite here (max > 0), which plotters'
+    // colour maps need: they panic on NaN.
+    let shade = DerivedColorMap::new(&[WHITE, INK]);
+    paint(&chart, |c, r, w, _| {
+        let n = hist[r * w + c];
+        // A floor keeps isolated chaotic samples visible next to dense
+        // periodic branches that pile hundreds of samples into one pixel.
+        let t = 0.3 + 0.7 * f64::from(n).ln_1p() / max.ln_1p();
+        (n > 0).then(|| shade.get_color(t))
+    })?;
+    // Axes last so they sit on top of the density.
+    let (fx, fy) = (
+        |v: &f64| fmt_tick(*v, x1 - x0),
+        |v: &f64| fmt_tick(*v, y1 - y0),
+    );
+    let labels = (plot.x_label, plot.y_label);
+    draw_axes(&mut chart, &l, labels, (&fx, &fy), false)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::test_util::{load, tmp};
+
+    fn dark(p: &image::Rgb<u8>) -> bool {
+        p.0.iter().all(|&c| c < 120)
+    }
+
+    fn density(points: &[(f64, f64)]) -> DensityPlot<'_> {
+        DensityPlot {
+            title: "test",
+            x_label: "r",
+            y_label: "x",
+            x_range: (0.0, 1.0),
+            y_range: Some((0.0, 1.0)),
+            points,
+            width: 600,
+            height: 400,
+        }
+    }
+
+    #[test]
+    fn density_marks_points_dark() {
+        // A horizontal line at y = 0.5 across the middle fifth of the x range.
+        let pts: Vec<_> = (0..2000)
+            .map(|i| (0.4 + 0.2 * f64::from(i) / 2000.0, 0.5))
+            .collect();
+        let path = tmp("density.png");
+        density_png(&path, &density(&pts)).expect("render");
+        let img = load(&path, 600, 400);
+        let col = |x: u32, rows: std::ops::Range<u32>| {
+            rows.filter(|&y| dark(img.get_pixel(x, y))).count()
+        };
+        assert!(
+            col(300, 100..300) > 0,
+            "line should be dark in the centre column"
+        );
+        assert_eq!(col(300, 60..150), 0, "area above the line stays white");
+        assert_eq!(col(200, 100..300), 0, "area left of the line stays white");
+    }
+
+    #[test]
+    fn density_auto_range_and_panels() {
+        let pts: Vec<_> = (0..500)
+            .map(|i| (f64::from(i) / 500.0, (f64::from(i) * 0.1).sin()))
+            .collect();
+        let mut with_nan = pts.clone();
+        with_nan.push((0.5, f64::NAN));
+        let plot = DensityPlot {
+            y_range: None,
+            points: &with_nan,
+            ..density(&pts)
+        };
+        let path = tmp("panels.png");
+        panels_png(&path, &[density(&pts), plot, density(&pts)], 2, 900, 700).expect("render");
+        load(&path, 900, 700);
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let path = tmp("bad.png");
+        let nan = [(f64::NAN, 0.5), (0.5, f64::INFINITY)];
+        let auto = DensityPlot {
+            y_range: None,
+            points: &nan,
+            ..density(&nan)
+        };
+        for plot in [density(&[]), density(&nan), auto] {
+            assert!(matches!(
+                density_png(&path, &plot),
+                Err(RenderError::InvalidInput(_))
+            ));
+        }
+        let pts = [(0.5, 0.5)];
+        let backwards = DensityPlot {
+            x_range: (1.0, 0.0),
+            ..density(&pts)
+        };
+        assert!(density_png(&path, &backwards).is_err());
+        let tiny = DensityPlot {
+            width: 10,
+            ..density(&pts)
+        };
+        assert!(density_png(&path, &tiny).is_err());
+        assert!(panels_png(&path, &[], 2, 800, 600).is_err());
+        assert!(!path.exists(), "no file may be left behind");
+        let missing_dir = tmp("no_such_dir").join("x.png");
+        assert!(matches!(
+            density_png(&missing_dir, &density(&pts)),
+            Err(RenderError::Io { .. })
+        ));
+    }
+
+    #[test]
+    fn smallest_sizes_do_not_panic() {
+        let pts = [(0.2, 0.3), (0.7, 0.9)];
+        let path = tmp("small.png");
+        let small = DensityPlot {
+            width: 150,
+            height: 150,
+            ..density(&pts)
+        };
+        density_png(&path, &small).expect("150x150 density");
+        panels_png(&path, &[density(&pts), density(&pts)], 2, 300, 150).expect("panels");
+    }
+}
