@@ -8,6 +8,16 @@
 // + - * / sqrt, comparisons and conversions are used (no cos/exp: unreliable in f64 on some
 // drivers): the forcing comes from a host-computed table, and abs/min/max are selects.
 
+// Rungs of the kernel ladder (`rattle bench --ladder`): each piece of the kernel can be left
+// out at pipeline creation, so that a rung is compiled without the pieces above it (on
+// llvmpipe the code present costs even where it does not run). The production kernel has
+// every piece (the defaults).
+override LADDER_FINITE: bool = true;
+override LADDER_DETECTOR: bool = true;
+override LADDER_TWIN: bool = true;
+override LADDER_GUARDS: bool = true;
+override LADDER_EVENTS: bool = true;
+
 @group(0) @binding(0) var<uniform> ctl: Control;
 @group(0) @binding(1) var<storage, read> consts: array<F>;
 @group(0) @binding(2) var<storage, read> pvals: array<F>;
@@ -261,11 +271,9 @@ fn forcing(k: u32, theta: F) -> vec2<F> {
     return vec2<F>(cj * cs.x - sj * cs.y, sj * cs.x + cj * cs.y);
 }
 
-fn rk4(y: vec4<F>, mode: u32, k: u32, theta0: F, dtheta: F, k1: vec4<F>) -> vec4<F> {
-    let dt = dtheta * h;
+// c2, c4: forcing at the middle and the end of the (sub)step, computed by the caller.
+fn rk4(y: vec4<F>, mode: u32, dt: F, k1: vec4<F>, c2: F, c4: F) -> vec4<F> {
     let half = F(0.5) * dt;
-    let c2 = forcing(k, theta0 + F(0.5) * dtheta).x;
-    let c4 = forcing(k, theta0 + dtheta).x;
     let k2 = field(y + half * k1, mode, c2);
     let k3 = field(y + half * k2, mode, c2);
     let k4 = field(y + dt * k3, mode, c4);
@@ -278,8 +286,9 @@ struct Hit {
     ev: u32,
 }
 
-fn locate(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, k: u32, theta0: F,
-          dtheta: F) -> Hit {
+// cs0, cs1: forcing (cos, sin) at the start and the end of the step.
+fn locate(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, cs0: vec2<F>,
+          cs1: vec2<F>, dtheta: F) -> Hit {
     let dt = dtheta * h;
     // Up to three guards: (impact+, impact-, reversal) in slip, (release+, release-) else.
     var b0 = no_bracket();
@@ -304,8 +313,6 @@ fn locate(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, k: u32,
         b2 = bracket(s * (y0.y - y0.w), s * (y1.y - y1.w), s * (f0.y - f0.w) * dt,
                      s * (f1.y - f1.w) * dt, EV_REVERSAL);
     } else {
-        let cs0 = forcing(k, theta0);
-        let cs1 = forcing(k, theta0 + dtheta);
         let tn0 = needed_force(y0, cs0.x);
         let tn1 = needed_force(y1, cs1.x);
         let td0 = needed_force_rate(y0, f0.y, cs0.y) * dt;
@@ -375,8 +382,7 @@ fn after_impact(stop: i32, c: F) {
     }
 }
 
-fn apply_event(ev: u32, k: u32, theta: F) {
-    let c = forcing(k, theta).x;
+fn apply_event(ev: u32, c: F) {
     if (ev == EV_IMPACT_POS || ev == EV_IMPACT_NEG) {
         st.y = impact(st.y);
         st.impacts += 1u;
@@ -409,47 +415,68 @@ fn naive_impact(k: u32) -> bool {
         return false;
     }
     st.y.z = st.y.x + select(-r(), r(), stop > 0);
-    apply_event(select(EV_IMPACT_NEG, EV_IMPACT_POS, stop > 0), k, F(1.0));
+    apply_event(select(EV_IMPACT_NEG, EV_IMPACT_POS, stop > 0), forcing(k, F(1.0)).x);
     return true;
 }
 
 // Field at the start of the current step (first-same-as-last), carried between steps.
 var<private> f0: vec4<F>;
 
+// One grid step. The loop alternates a trial to the end of the step and, after an event was
+// located, the sub-step up to it; written with one call of rk4 and of forcing per stage (the
+// CPU twin calls them where they are needed), because llvmpipe inlines every call site into
+// one function and its size, not the work executed, decides the speed of the whole kernel.
 fn step(k: u32) {
     var theta0 = F(0.0);
     var events = 0u;
+    // Sub-step to the located event, as a fraction of the step; < 0 while on a trial.
+    var de = F(-1.0);
+    var hit = Hit(F(2.0), EV_NONE);
+    // Forcing at the start of the (sub)step.
+    var cs0 = forcing(k, F(0.0));
     loop {
         let dtheta = F(1.0) - theta0;
-        let y1 = rk4(st.y, st.mode, k, theta0, dtheta, f0);
-        let c1 = forcing(k, F(1.0)).x;
-        let f1 = field(y1, st.mode, c1);
-        let hit = locate(st.y, y1, f0, f1, st.mode, k, theta0, dtheta);
-        if (hit.ev == EV_NONE || events >= ctl.max_events) {
-            if (hit.ev != EV_NONE) {
-                st.overflows += 1u;
+        let trial = de < F(0.0);
+        let span = select(de, dtheta, trial);
+        let c2 = forcing(k, theta0 + F(0.5) * span).x;
+        let cs4 = forcing(k, theta0 + span);
+        let y1 = rk4(st.y, st.mode, span * h, f0, c2, cs4.x);
+        if (trial) {
+            // forcing(k, 1) is a table entry: theta0 + dtheta may miss 1 by an ulp.
+            let f1 = field(y1, st.mode, consts[C_TABLE + 2u * min(2u * k + 2u, 2u * ctl.steps)]);
+            if (LADDER_GUARDS) {
+                hit = locate(st.y, y1, f0, f1, st.mode, cs0, cs4, dtheta);
             }
-            st.y = y1;
-            f0 = f1;
-            break;
+            if (hit.ev == EV_NONE || events >= ctl.max_events || !LADDER_EVENTS) {
+                if (hit.ev != EV_NONE) {
+                    st.overflows += 1u;
+                }
+                st.y = y1;
+                f0 = f1;
+                break;
+            }
+            de = hit.t * dtheta;
+            continue;
         }
-        let de = hit.t * dtheta;
-        st.y = rk4(st.y, st.mode, k, theta0, de, f0);
+        st.y = y1;
         theta0 = select(theta0 + de, F(1.0), hit.t >= F(1.0));
-        apply_event(hit.ev, k, theta0);
+        cs0 = forcing(k, theta0);
+        apply_event(hit.ev, cs0.x);
         events += 1u;
-        f0 = field(st.y, st.mode, forcing(k, theta0).x);
+        f0 = field(st.y, st.mode, cs0.x);
+        de = F(-1.0);
         if (theta0 >= F(1.0)) {
             break;
         }
     }
-    if (ctl.naive != 0u && naive_impact(k)) {
+    if (LADDER_EVENTS && ctl.naive != 0u && naive_impact(k)) {
         f0 = field(st.y, st.mode, forcing(k, F(1.0)).x);
     }
     // NaN or infinity (tested on the bits), or a state beyond any physical scale.
     let y = st.y;
     let big = F(1e30);
-    if (!finite4(y) || fmax(fmax(fabs(y.x), fabs(y.y)), fmax(fabs(y.z), fabs(y.w))) > big) {
+    if (LADDER_FINITE
+        && (!finite4(y) || fmax(fmax(fabs(y.x), fabs(y.y)), fmax(fabs(y.z), fabs(y.w))) > big)) {
         st.nonfinite = 1u;
     }
 }
@@ -623,15 +650,17 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (idx >= ctl.transient && st.nonfinite == 0u) {
             let s = idx - ctl.transient;
             sample_impacts += st.impacts - before;
-            if (ctl.store != 0u) {
+            if (LADDER_DETECTOR && ctl.store != 0u) {
                 let o = (i * ctl.samples + s) * STATE_DIM;
                 samples[o] = st.y.x;
                 samples[o + 1u] = st.y.y;
                 samples[o + 2u] = st.y.z;
                 samples[o + 3u] = st.y.w;
             }
-            detector_push(i, st.y.x);
-            if (ctl.lyap != 0u && tw_bad == 0u) {
+            if (LADDER_DETECTOR) {
+                detector_push(i, st.y.x);
+            }
+            if (LADDER_TWIN && ctl.lyap != 0u && tw_bad == 0u) {
                 let main = st;
                 st.y = tw_y;
                 st.mode = tw_mode;

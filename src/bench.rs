@@ -5,7 +5,7 @@ use crate::classify::Class;
 use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
 use crate::error::{Error, Result};
-use crate::gpu::Timings;
+use crate::gpu::{Job, Rung, Timings};
 use crate::method::{Diagnostics, RunResult};
 use crate::model::Param;
 use crate::progress::Silent;
@@ -341,4 +341,83 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
     )?;
     row(&mut out, "cpu f32", &cpu32);
     Ok(out)
+}
+
+/// `rattle bench`: the table of every backend and precision (and its JSON), or the ladder.
+pub fn report(
+    cfg: &Config,
+    points: usize,
+    periods: u32,
+    backends: &[Backend],
+    json: bool,
+    ladder: bool,
+) -> Result<String> {
+    if ladder {
+        return self::ladder(cfg, points, periods);
+    }
+    let rows = bench(cfg, points, periods, backends)?;
+    let mut s = bench_table(&rows);
+    if json {
+        let ok: Vec<_> = rows.iter().flatten().collect();
+        s += &serde_json::to_string_pretty(&ok)?;
+        s.push('\n');
+    }
+    Ok(s)
+}
+
+/// The kernel ladder: the bench sweep on the GPU with the kernel compiled rung by rung (see
+/// [`Rung`]), in f32 and (where the adapter has it) f64; the table of steps/s per rung.
+pub fn ladder(cfg: &Config, points: usize, periods: u32) -> Result<String> {
+    let engine = Engine::open(Backend::Gpu)?;
+    let Engine::Gpu(gpu) = &engine else {
+        return Err(Error::Invalid(
+            "the ladder needs a GPU adapter (none found)".into(),
+        ));
+    };
+    if points == 0 || periods < 3 {
+        return Err(Error::Invalid("--points >= 1 and --periods >= 3".into()));
+    }
+    let mut spec = RunSpec::new(cfg);
+    spec.transient = periods.saturating_sub(2);
+    spec.samples = 2;
+    let values = cfg.sweep_values_n(points as u32);
+    let steps = points as f64 * periods as f64 * spec.settings.steps_per_period as f64;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "kernel ladder: {points} points x {periods} periods x N = {} on {}",
+        spec.settings.steps_per_period,
+        gpu.adapter_name()
+    );
+    let _ = writeln!(
+        s,
+        "{:<36} {:<5} {:>11} {:>9}",
+        "rung", "prec", "steps/s", "vs bare"
+    );
+    for prec in [Precision::F32, Precision::F64] {
+        if prec == Precision::F64 && !gpu.has_f64() {
+            continue;
+        }
+        spec.precision = prec;
+        let mut bare = None;
+        for rung in Rung::ALL {
+            let job = Job {
+                rung,
+                ..Job::new(&spec, Points::along(&[Param::Eta], &values), false)
+            };
+            // The first run of a rung compiles its pipeline; time the second.
+            gpu.run(&job, &Silent)?;
+            let rate = steps / gpu.run(&job, &Silent)?.timings.integration_s;
+            let base = *bare.get_or_insert(rate);
+            let _ = writeln!(
+                s,
+                "{:<36} {:<5} {:>11.3e} {:>9.2}",
+                rung.describe(),
+                prec.name(),
+                rate,
+                rate / base
+            );
+        }
+    }
+    Ok(s)
 }

@@ -4,6 +4,7 @@
 use anyhow::Result;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rattle::bench;
 use rattle::bifurcation::{self, Continuation};
 use rattle::config::{Backend, Config, Overrides, Precision};
 use rattle::engine::Engine;
@@ -138,6 +139,9 @@ enum Cmd {
         /// Print the table as JSON too.
         #[arg(long)]
         json: bool,
+        /// The kernel ladder instead: the GPU kernel compiled piece by piece, steps/s each.
+        #[arg(long)]
+        ladder: bool,
     },
 }
 
@@ -352,14 +356,13 @@ fn run(cli: Cli) -> Result<()> {
             points,
             periods,
             json,
+            ladder,
         } => {
             let cfg = common.load_sweep()?;
-            let rows = rattle::bench::bench(&cfg, points, periods, &common.backends())?;
-            print!("{}", rattle::bench::bench_table(&rows));
-            if json {
-                let ok: Vec<_> = rows.iter().flatten().collect();
-                println!("{}", serde_json::to_string_pretty(&ok)?);
-            }
+            print!(
+                "{}",
+                bench::report(&cfg, points, periods, &common.backends(), json, ladder)?
+            );
             vec![]
         }
     };

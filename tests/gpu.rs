@@ -440,3 +440,30 @@ fn points_beyond_the_drivers_loop_budget_are_computed_on_the_cpu_and_marked() {
     assert_eq!(r.class, c.class);
     assert!(!c.diagnostics.cpu_rerun);
 }
+
+#[test]
+fn every_rung_of_the_kernel_ladder_compiles_and_the_top_rung_is_the_kernel() {
+    // The ladder (`rattle bench --ladder`) compiles the kernel with pieces left out; each rung
+    // must build and run, and the top rung must be the production kernel, bit for bit.
+    let etas: Vec<f64> = (0..64).map(|i| 1.0 + i as f64 / 64.0).collect();
+    let s = Settings::default();
+    let spec = eta_spec(s, 20, 10, false);
+    let base = Job::new(&spec, Points::along(&[Param::Eta], &etas), true);
+    let Some(full) = run_job(&base) else {
+        return;
+    };
+    for rung in rattle::gpu::Rung::ALL {
+        let out = run_job(&Job {
+            rung,
+            ..base.clone()
+        })
+        .unwrap();
+        assert_eq!(out.results.len(), etas.len(), "{rung:?}");
+        if rung == rattle::gpu::Rung::Full {
+            for (a, b) in out.results.iter().zip(&full.results) {
+                assert_eq!(a.final_y, b.final_y);
+                assert_eq!(a.samples, b.samples);
+            }
+        }
+    }
+}

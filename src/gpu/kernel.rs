@@ -2,6 +2,7 @@
 
 use super::layout;
 use crate::config::Precision;
+use std::collections::HashMap;
 use std::sync::Mutex;
 
 /// The kernel body as written. It does not compile alone: the precision alias, the constants
@@ -14,22 +15,78 @@ pub fn shader_source(precision: Precision) -> String {
     layout::prelude(precision) + SHADER
 }
 
-/// Compiled kernels per precision, built on first use (continuation runs many small jobs and
-/// compiles once; a run that never asks for f64 never compiles it).
+/// Rungs of the kernel ladder (`rattle bench --ladder`): the kernel compiled with its pieces
+/// added one at a time (pipeline-overridable constants `LADDER_*` in the shader), to find where
+/// the speed goes. `Full` is the production kernel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Rung {
+    /// RK4 steps in the current mode with the forcing table, nothing else.
+    Bare,
+    /// + the non-finite test after each step.
+    Finite,
+    /// + stroboscopic samples and the period detector.
+    Detector,
+    /// + the twin trajectory of the Lyapunov estimate (compiled in; runs only when asked).
+    Twin,
+    /// + the event guards and their brackets (a bracketed event ends the step as an overflow).
+    Guards,
+    /// + root refinement and event application: the production kernel.
+    #[default]
+    Full,
+}
+
+impl Rung {
+    pub const ALL: [Rung; 6] = [
+        Rung::Bare,
+        Rung::Finite,
+        Rung::Detector,
+        Rung::Twin,
+        Rung::Guards,
+        Rung::Full,
+    ];
+
+    pub fn describe(self) -> &'static str {
+        match self {
+            Rung::Bare => "RK4 step, forcing table",
+            Rung::Finite => "+ non-finite test",
+            Rung::Detector => "+ samples, period detector",
+            Rung::Twin => "+ twin trajectory (compiled)",
+            Rung::Guards => "+ event guards, brackets",
+            Rung::Full => "+ refinement, events (production)",
+        }
+    }
+
+    /// Values of the shader's `LADDER_*` constants.
+    fn constants(self) -> [(&'static str, f64); 5] {
+        let on = |r: Rung| if self as u8 >= r as u8 { 1.0 } else { 0.0 };
+        [
+            ("LADDER_FINITE", on(Rung::Finite)),
+            ("LADDER_DETECTOR", on(Rung::Detector)),
+            ("LADDER_TWIN", on(Rung::Twin)),
+            ("LADDER_GUARDS", on(Rung::Guards)),
+            ("LADDER_EVENTS", on(Rung::Full)),
+        ]
+    }
+}
+
+/// Compiled kernels per precision and rung, built on first use (continuation runs many small
+/// jobs and compiles once; a run that never asks for f64 never compiles it).
 #[derive(Default)]
 pub(super) struct Kernels {
-    pipelines: Mutex<[Option<wgpu::ComputePipeline>; 2]>,
+    pipelines: Mutex<HashMap<(Precision, Rung), wgpu::ComputePipeline>>,
 }
 
 impl Kernels {
-    pub(super) fn get(&self, device: &wgpu::Device, precision: Precision) -> wgpu::ComputePipeline {
-        let slot = match precision {
-            Precision::F32 => 0,
-            Precision::F64 => 1,
-        };
+    pub(super) fn get(
+        &self,
+        device: &wgpu::Device,
+        precision: Precision,
+        rung: Rung,
+    ) -> wgpu::ComputePipeline {
         let mut cache = self.pipelines.lock().unwrap();
-        cache[slot]
-            .get_or_insert_with(|| {
+        cache
+            .entry((precision, rung))
+            .or_insert_with(|| {
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("integrate"),
                     source: wgpu::ShaderSource::Wgsl(shader_source(precision).into()),
@@ -39,7 +96,10 @@ impl Kernels {
                     layout: None,
                     module: &module,
                     entry_point: Some("main"),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &rung.constants(),
+                        ..Default::default()
+                    },
                     cache: None,
                 })
             })

@@ -28,6 +28,7 @@ use batch::{Batch, Plan, Shared};
 use bytemuck::Pod;
 use dispatch::Timer;
 use kernel::Kernels;
+pub use kernel::Rung;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
@@ -59,6 +60,8 @@ pub struct Job<'a> {
     pub max_binding_bytes: Option<u64>,
     /// Lower the workgroups per dimension (tests of the 2-D dispatch).
     pub max_groups_per_dim: Option<u32>,
+    /// Kernel ladder rung (benchmarks only; `Full` computes the results).
+    pub rung: Rung,
 }
 
 impl<'a> Job<'a> {
@@ -69,6 +72,7 @@ impl<'a> Job<'a> {
             store_samples,
             max_binding_bytes: None,
             max_groups_per_dim: None,
+            rung: Rung::Full,
         }
     }
 }
@@ -292,7 +296,7 @@ impl Gpu {
         let t_setup = Instant::now();
         let spec = job.spec;
         let plan = Plan::new::<F>(job, &self.limits)?;
-        let pipeline = self.kernels.get(&self.device, spec.precision);
+        let pipeline = self.kernels.get(&self.device, spec.precision, job.rung);
         self.check_error()?;
         let shared = Shared::new::<F>(self, spec);
         let mut timer = self.timestamps.then(|| Timer::new(self));
