@@ -26,6 +26,18 @@ pub struct BenchRow {
     pub steps_per_s: f64,
 }
 
+/// The bench sweep: `points` values of eta over the config's sweep range, `periods` periods
+/// each (the last two sampled).
+fn bench_sweep(cfg: &Config, points: usize, periods: u32) -> Result<(RunSpec, Vec<f64>)> {
+    if points == 0 || periods < 3 {
+        return Err(Error::Invalid("--points >= 1 and --periods >= 3".into()));
+    }
+    let mut spec = RunSpec::new(cfg);
+    spec.transient = periods - 2;
+    spec.samples = 2;
+    Ok((spec, cfg.sweep_values_n(points as u32)))
+}
+
 /// Runs the same sweep (eta over the config's sweep range, `periods` periods, no samples) on
 /// each backend and precision. A precision the adapter lacks is reported as a row with an
 /// error, not silently dropped.
@@ -35,13 +47,7 @@ pub fn bench(
     periods: u32,
     backends: &[Backend],
 ) -> Result<Vec<Result<BenchRow>>> {
-    if points == 0 || periods < 3 {
-        return Err(Error::Invalid("--points >= 1 and --periods >= 3".into()));
-    }
-    let mut spec = RunSpec::new(cfg);
-    spec.transient = periods.saturating_sub(2);
-    spec.samples = 2;
-    let values = cfg.sweep_values_n(points as u32);
+    let (mut spec, values) = bench_sweep(cfg, points, periods)?;
     let n_steps = spec.settings.steps_per_period;
     let mut rows = Vec::new();
     for &b in backends {
@@ -374,13 +380,7 @@ pub fn ladder(cfg: &Config, points: usize, periods: u32) -> Result<String> {
             "the ladder needs a GPU adapter (none found)".into(),
         ));
     };
-    if points == 0 || periods < 3 {
-        return Err(Error::Invalid("--points >= 1 and --periods >= 3".into()));
-    }
-    let mut spec = RunSpec::new(cfg);
-    spec.transient = periods.saturating_sub(2);
-    spec.samples = 2;
-    let values = cfg.sweep_values_n(points as u32);
+    let (mut spec, values) = bench_sweep(cfg, points, periods)?;
     let steps = points as f64 * periods as f64 * spec.settings.steps_per_period as f64;
     let mut s = String::new();
     let _ = writeln!(

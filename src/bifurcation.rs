@@ -259,6 +259,29 @@ pub fn title(cfg: &Config) -> String {
     )
 }
 
+/// A density panel of the sweep of `cfg`.
+fn panel<'a>(
+    cfg: &'a Config,
+    title: &'a str,
+    x_label: &'a str,
+    points: &'a [(f64, f64)],
+    (width, height): (u32, u32),
+) -> DensityPlot<'a> {
+    DensityPlot {
+        title,
+        x_label,
+        y_label: &cfg.sweep.plot,
+        x_range: (
+            cfg.sweep.from.min(cfg.sweep.to),
+            cfg.sweep.from.max(cfg.sweep.to),
+        ),
+        y_range: None,
+        points,
+        width,
+        height,
+    }
+}
+
 /// (parameter, plotted value) of every sample of a chain.
 fn plot_points(var: &str, points: &[SweepPoint]) -> Vec<(f64, f64)> {
     points
@@ -382,19 +405,7 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         .collect();
     let panels: Vec<DensityPlot> = data
         .iter()
-        .map(|(title, xy)| DensityPlot {
-            title,
-            x_label: &x_label,
-            y_label: var,
-            x_range: (
-                cfg.sweep.from.min(cfg.sweep.to),
-                cfg.sweep.from.max(cfg.sweep.to),
-            ),
-            y_range: None,
-            points: xy,
-            width: 1200,
-            height: 800,
-        })
+        .map(|(title, xy)| panel(cfg, title, &x_label, xy, (1200, 800)))
         .collect();
     let png_path = staged.path(&with_ext(out, "png"));
     if panels.len() == 1 {
@@ -479,19 +490,7 @@ pub fn paper_figure(
     }
     let panels: Vec<DensityPlot> = data
         .iter()
-        .map(|(title, xy, cfg)| DensityPlot {
-            title,
-            x_label: "eta",
-            y_label: &cfg.sweep.plot,
-            x_range: (
-                cfg.sweep.from.min(cfg.sweep.to),
-                cfg.sweep.from.max(cfg.sweep.to),
-            ),
-            y_range: None,
-            points: xy,
-            width: 1000,
-            height: 700,
-        })
+        .map(|(title, xy, cfg)| panel(cfg, title, "eta", xy, (1000, 700)))
         .collect();
     let mut st = Staged::new();
     panels_png(&st.path(out), &panels, 2, 2000, 1400)?;
