@@ -78,18 +78,17 @@ fn is_slip(mode: u32) -> bool { return mode <= MODE_SLIP_NEG; }
 
 fn slip(s: F) -> u32 { return select(MODE_SLIP_NEG, MODE_SLIP_POS, s > F(0.0)); }
 
-fn friction(v: F) -> F {
-    let w = fabs(v);
-    return (fs() - fk()) / (F(1.0) + l1() * w) + fk() + l2() * w * w;
+// model.rs `friction`: the Stribeck law as a smooth function of the signed slip speed w.
+fn friction(w: F) -> F {
+    return (fs() - fk()) / fmax(F(1.0) + l1() * w, F(0.5)) + fk() + l2() * w * w;
 }
 
 fn field(y: vec4<F>, mode: u32, c: F) -> vec4<F> {
     if (is_slip(mode)) {
         let v = y.y - y.w;
-        var t = friction(v);
-        if (mode == MODE_SLIP_NEG) {
-            t = -t;
-        }
+        // Friction direction s of the mode; the law is evaluated at the signed speed s*v.
+        let s = select(F(-1.0), F(1.0), mode == MODE_SLIP_POS);
+        let t = s * friction(s * v);
         let d = b1() * delta() * v;
         return vec4<F>(y.y, c - b1() * y.y - y.x - d - t, y.w, (d + t) / mu());
     }

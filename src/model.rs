@@ -299,24 +299,28 @@ impl std::str::FromStr for Param {
     }
 }
 
-/// Slip friction magnitude at slip speed |v| (the mode supplies the sign).
+/// Slip friction in slip mode with direction `s` (+1 or -1), as a function of the signed slip
+/// speed w = s*v: the Stribeck law `(fs - fk)/(1 + l1 w) + fk + l2 w^2` is smooth in w and
+/// is continued past w = 0 (until the reversal event ends the mode), so a step that crosses
+/// v = 0 sees no kink and keeps fourth order; |v| would put a kink in the step. The divisor is
+/// kept from vanishing far below any overshoot a step can make. Coulomb friction
+/// (fs = fk, l1 = l2 = 0) is the constant fk.
 #[inline(always)]
-pub fn friction<F: Real>(p: &Params<F>, v: F) -> F {
-    let w = v.abs();
-    (p.fs - p.fk) / (F::one() + p.l1 * w) + p.fk + p.l2 * w * w
+pub fn friction<F: Real>(p: &Params<F>, w: F) -> F {
+    (p.fs - p.fk) / (F::one() + p.l1 * w).max(F::of(0.5)) + p.fk + p.l2 * w * w
 }
 
-/// Vector field of mode `mode` at state `y` with forcing value `c = cos(eta*tau)`.
-#[inline(always)]
 pub fn field<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode, c: F) -> [F; 4] {
     match mode {
         Mode::SlipPos | Mode::SlipNeg => {
             let v = y[1] - y[3];
-            let t = if mode == Mode::SlipPos {
-                friction(p, v)
+            // Friction direction s of the mode; the law is evaluated at the signed speed s*v.
+            let s = if mode == Mode::SlipPos {
+                F::one()
             } else {
-                -friction(p, v)
+                -F::one()
             };
+            let t = s * friction(p, s * v);
             let d = p.b1 * p.delta * v;
             [y[1], c - p.b1 * y[1] - y[0] - d - t, y[3], (d + t) / p.mu]
         }
