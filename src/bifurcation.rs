@@ -259,6 +259,94 @@ pub fn title(cfg: &Config) -> String {
     )
 }
 
+/// How a run was integrated, for captions: method, steps per period, precision, backend.
+pub fn computed_with(cfg: &Config, backend: &str, device: &str) -> String {
+    let m = &cfg.method;
+    let method = match m.impacts {
+        crate::method::ImpactMethod::Located => {
+            "event-located RK4 (impacts located inside the step)"
+        }
+        crate::method::ImpactMethod::Naive => {
+            "naive RK4 (impacts applied at step ends, first order)"
+        }
+    };
+    let dev = if device.is_empty() {
+        String::new()
+    } else {
+        format!(" ({device})")
+    };
+    format!(
+        "{method} with N = {} steps per forcing period in {} arithmetic on the {backend} \
+         backend{dev}",
+        m.steps_per_period,
+        m.precision.name()
+    )
+}
+
+/// "period-1 41%, chaotic 30%, ...": the most frequent classes, at most `k`.
+pub fn top_classes(counts: &BTreeMap<String, usize>, k: usize) -> String {
+    let total: usize = counts.values().sum();
+    let mut v: Vec<(&String, &usize)> = counts.iter().collect();
+    v.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+    v.iter()
+        .take(k)
+        .map(|(name, n)| format!("{name} {:.1}%", 100.0 * **n as f64 / total.max(1) as f64))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The caption of a diagram's JSON: what was computed, how, and what to notice.
+fn caption(b: &Bifurcation, counts: &BTreeMap<String, usize>, (w, h): (u32, u32)) -> String {
+    let c = &b.cfg;
+    let s = &c.sweep;
+    let start = match b.continuation {
+        None => format!("Every value starts from y0 = {:?} at phase 0.", c.initial.y),
+        Some(d) => format!(
+            "Parameter continuation ({}): each value starts from the final state of its \
+             neighbour in the sweep direction, the first from y0 = {:?}.",
+            match d {
+                Continuation::Up => "increasing values",
+                Continuation::Down => "decreasing values",
+                Continuation::Both => "up chain in the top panel, down chain in the bottom one",
+            },
+            c.initial.y
+        ),
+    };
+    let notice = match (b.continuation, b.hysteresis()) {
+        (Some(_), Some(hv)) => format!(
+            "The up and down chains end on different attractors (class or impacts per period) \
+             at {} of {} values (hysteresis_values): there, attractors coexist.",
+            hv.len(),
+            s.points
+        ),
+        (Some(_), None) => "Each chain follows one attractor; a jump marks where the followed \
+                            attractor ends or loses stability."
+            .into(),
+        (None, _) => "Where attractors coexist, neighbouring values started from the same y0 \
+                      can end on different ones: broken or interleaved branches come from \
+                      different attractors reached from y0, not from numerical error \
+                      (--continuation follows one attractor)."
+            .into(),
+    };
+    format!(
+        "Bifurcation diagram: {plot} at the stroboscopic section (once per forcing period) \
+         against {param} from {from} to {to}, {points} values. {start} Integrated with {how}; \
+         {tr} transient periods discarded, then {sa} section samples per value, drawn as pixels \
+         shaded by log density (raster, {w} x {h} px: {cm:.1} cm wide at 150 dpi). Most \
+         frequent classes: {top}. {notice}",
+        plot = s.plot,
+        param = s.param,
+        from = s.from,
+        to = s.to,
+        points = s.points,
+        how = computed_with(c, b.backend, &b.device),
+        tr = c.run.transient_periods,
+        sa = c.run.sample_periods,
+        cm = f64::from(w) / 150.0 * 2.54,
+        top = top_classes(counts, 4),
+    )
+}
+
 /// A density panel of the sweep of `cfg`.
 fn panel<'a>(
     cfg: &'a Config,
@@ -279,6 +367,8 @@ fn panel<'a>(
         points,
         width,
         height,
+        print_dpi: None,
+        drop_isolated: false,
     }
 }
 
@@ -320,6 +410,8 @@ struct TimingsJson {
 #[derive(Serialize)]
 struct BifurcationJson<'a, P: Serialize> {
     backend: &'static str,
+    /// What the figure shows, how it was computed, and what to notice.
+    caption: String,
     class_counts: BTreeMap<String, usize>,
     command: &'static str,
     /// As a JSON value, whose keys are sorted.
@@ -408,6 +500,7 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         .map(|(title, xy)| panel(cfg, title, &x_label, xy, (1200, 800)))
         .collect();
     let png_path = staged.path(&with_ext(out, "png"));
+    let panels_n = panels.len();
     if panels.len() == 1 {
         density_png(&png_path, &panels[0])?;
     } else {
@@ -425,6 +518,15 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         version: env!("CARGO_PKG_VERSION"),
         command: "bifurcation",
         backend: b.backend,
+        caption: caption(
+            b,
+            &counts,
+            if panels_n == 1 {
+                (1200, 800)
+            } else {
+                (1200, 1400)
+            },
+        ),
         device: &b.device,
         precision: cfg.method.precision.name(),
         config: serde_json::to_value(cfg)?,
@@ -465,9 +567,56 @@ pub const PAPER_CONFIGS: [(&str, &str); 4] = [
     ("fig4b", include_str!("../configs/fig4b.toml")),
 ];
 
+/// Print geometry of the paper figure: 17 cm wide (a journal's full text width) at 300 dpi,
+/// 2008 x 1417 px; fonts are set in points for this size (see `render::print_layout`).
+const PAPER_WIDTH_CM: f64 = 17.0;
+const PAPER_HEIGHT_CM: f64 = 12.0;
+const PAPER_DPI: f64 = 300.0;
+
+/// Short panel title: what differs between the panels (friction law and its constants, R).
+fn panel_title(letter: char, name: &str, cfg: &Config) -> String {
+    let m = &cfg.model;
+    let fig = name.strip_prefix("fig").unwrap_or(name);
+    let law = match m.friction {
+        FrictionLaw::Coulomb => format!("Coulomb, \u{3bb} = {}", m.lambda),
+        FrictionLaw::Stribeck => format!("Stribeck, fs = {}, fk = {}", m.fs, m.fk),
+    };
+    format!("({letter}) Fig. {fig}: {law}, R = {}", m.restitution)
+}
+
+#[derive(Serialize)]
+struct PaperPanelJson<'a> {
+    backend: &'static str,
+    config: &'a Config,
+    device: String,
+    /// Samples inside the axes, and isolated ones left out of the image.
+    isolated_samples_dropped: usize,
+    name: &'static str,
+    samples_inside_axes: usize,
+    title: &'a str,
+}
+
+#[derive(Serialize)]
+struct PaperJson<'a> {
+    caption: String,
+    command: &'static str,
+    dpi: f64,
+    height_cm: f64,
+    height_px: u32,
+    panels: Vec<PaperPanelJson<'a>>,
+    version: &'static str,
+    width_cm: f64,
+    width_px: u32,
+    y_range: (f64, f64),
+}
+
 /// The paper's Figs. 2, 3, 4a and 4b side by side (the built-in configs, or `fig2.toml` ...
-/// `fig4b.toml` in `dir`; each changed by `adjust`), written to `out`. Progress counts sweep
-/// points.
+/// `fig4b.toml` in `dir`; each changed by `adjust`), written to `out` with its caption in `out`
+/// with the extension `.json`. Progress counts sweep points.
+///
+/// The panels share their axes (the same eta range and one y range over all four), carry the
+/// letters (a)-(d), and leave out isolated samples (no other sample within 2 pixels: stray
+/// transients, and the sparsest chaotic samples; their number is in the JSON and caption).
 pub fn paper_figure(
     dir: Option<&Path>,
     adjust: &dyn Fn(&mut Config),
@@ -486,13 +635,110 @@ pub fn paper_figure(
         let b = run(&engine, &cfg, None, &Silent)?;
         progress.advance(cfg.sweep.points as u64);
         let xy = plot_points(&cfg.sweep.plot, &b.runs[0].1);
-        data.push((title(&cfg), xy, cfg));
+        data.push((name, xy, b));
     }
+    // One x range and one y range for all panels, so that they can be compared by eye.
+    let x0 = data
+        .iter()
+        .map(|d| d.2.cfg.sweep.from.min(d.2.cfg.sweep.to))
+        .fold(f64::INFINITY, f64::min);
+    let x1 = data
+        .iter()
+        .map(|d| d.2.cfg.sweep.from.max(d.2.cfg.sweep.to))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let ys = data
+        .iter()
+        .flat_map(|d| d.1.iter())
+        .filter(|p| p.0 >= x0 && p.0 <= x1 && p.1.is_finite())
+        .map(|p| p.1);
+    let (lo, hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+        (a.min(y), b.max(y))
+    });
+    if lo > hi {
+        return Err(Error::Invalid("paper figure: no finite sample".into()));
+    }
+    let m = 0.03 * (hi - lo).max(1e-9);
+    let y_range = (lo - m, hi + m);
+    let titles: Vec<String> = data
+        .iter()
+        .zip(['a', 'b', 'c', 'd'])
+        .map(|((name, _, b), letter)| panel_title(letter, name, &b.cfg))
+        .collect();
+    let x_label = format!("\u{3b7} ({})", "forcing frequency");
     let panels: Vec<DensityPlot> = data
         .iter()
-        .map(|(title, xy, cfg)| panel(cfg, title, "eta", xy, (1000, 700)))
+        .zip(&titles)
+        .map(|((_, xy, b), title)| DensityPlot {
+            x_range: (x0, x1),
+            y_range: Some(y_range),
+            print_dpi: Some(PAPER_DPI),
+            drop_isolated: true,
+            ..panel(&b.cfg, title, &x_label, xy, (1000, 700))
+        })
         .collect();
+    let px = |cm: f64| (cm / 2.54 * PAPER_DPI).round() as u32;
+    let (w, h) = (px(PAPER_WIDTH_CM), px(PAPER_HEIGHT_CM));
     let mut st = Staged::new();
-    panels_png(&st.path(out), &panels, 2, 2000, 1400)?;
+    let stats = panels_png(&st.path(out), &panels, 2, w, h)?;
+    let dropped: usize = stats.iter().map(|s| s.dropped).sum();
+    let inside: usize = stats.iter().map(|s| s.inside).sum();
+    let c0 = &data[0].2.cfg;
+    let caption = format!(
+        "Bifurcation diagrams of {plot} at the stroboscopic section against eta, \
+         {points} values from {x0} to {x1} per panel. {panels}. Every value starts from \
+         y0 = {y0:?}; integrated with {how}; {tr} transient periods discarded, then {sa} \
+         samples per value, shaded by log density. All panels share the eta range and the y \
+         range. Isolated samples (no other sample within 2 pixels: stray transients not yet on \
+         the attractor, and the sparsest samples of chaotic bands) are left out: {dropped} of \
+         {inside} samples ({share:.3}%). Raster image, {w} x {h} px: {wcm} x {hcm} cm at {dpi} dpi, fonts 7-8 pt \
+         at that size.{notice} Broken branches come from different attractors reached from the \
+         same y0.",
+        panels = titles.join("; "),
+        notice = if dir.is_none() {
+            " Compare the rows: the change of R from 0.60 (top) to 0.62 (bottom) moves the \
+             windows of chaos and the periodic branches."
+        } else {
+            ""
+        },
+        plot = c0.sweep.plot,
+        points = c0.sweep.points,
+        y0 = c0.initial.y,
+        how = computed_with(c0, data[0].2.backend, &data[0].2.device),
+        tr = c0.run.transient_periods,
+        sa = c0.run.sample_periods,
+        share = 100.0 * dropped as f64 / inside.max(1) as f64,
+        wcm = PAPER_WIDTH_CM,
+        hcm = PAPER_HEIGHT_CM,
+        dpi = PAPER_DPI,
+    );
+    let j = PaperJson {
+        caption,
+        command: "figure paper",
+        dpi: PAPER_DPI,
+        width_cm: PAPER_WIDTH_CM,
+        height_cm: PAPER_HEIGHT_CM,
+        width_px: w,
+        height_px: h,
+        y_range,
+        version: env!("CARGO_PKG_VERSION"),
+        panels: data
+            .iter()
+            .zip(&titles)
+            .zip(&stats)
+            .map(|(((name, _, b), title), s)| PaperPanelJson {
+                backend: b.backend,
+                config: &b.cfg,
+                device: b.device.clone(),
+                isolated_samples_dropped: s.dropped,
+                name,
+                samples_inside_axes: s.inside,
+                title,
+            })
+            .collect(),
+    };
+    st.write(
+        &out.with_extension("json"),
+        serde_json::to_string_pretty(&j)?.as_bytes(),
+    )?;
     Ok(st.commit()?)
 }

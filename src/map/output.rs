@@ -5,7 +5,9 @@ use crate::classify::Class;
 use crate::config::Config;
 use crate::model::Param;
 use crate::output::{Staged, with_ext};
-use crate::render::{CategoryMap, ScalarMap, category_map_png, period_palette, scalar_map_png};
+use crate::render::{
+    CategoryMap, ClassKind, PERIOD_FAMILIES, ScalarMap, category_map_png, scalar_map_png,
+};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -23,20 +25,51 @@ pub fn category(c: Class) -> u16 {
     }
 }
 
+/// Category code of each kind a class map can show (periods keep their number).
+fn kind_code(k: ClassKind) -> u16 {
+    match k {
+        ClassKind::Period(n) => n as u16,
+        ClassKind::QuasiPeriodic => 100,
+        ClassKind::Chaotic => 101,
+        ClassKind::NoImpact => 102,
+        ClassKind::Unresolved => 103,
+        ClassKind::Failed => 104,
+        ClassKind::Aperiodic => 105,
+        ClassKind::Coexisting => COEXISTING,
+    }
+}
+
+/// Code of cells whose starts ended on different attractors (`--starts`).
+const COEXISTING: u16 = 106;
+
+fn kind_label(k: ClassKind) -> String {
+    match k {
+        ClassKind::Period(n) => format!("period {n}"),
+        ClassKind::QuasiPeriodic => "quasi-periodic".into(),
+        ClassKind::Chaotic => "chaotic".into(),
+        ClassKind::Aperiodic => "aperiodic (no exponent)".into(),
+        ClassKind::Unresolved => "unresolved".into(),
+        ClassKind::NoImpact => "no impact".into(),
+        ClassKind::Failed => "failed".into(),
+        ClassKind::Coexisting => "coexisting attractors".into(),
+    }
+}
+
+/// (code, label, colour) of every class, in legend order (period families first).
 fn categories() -> Vec<(u16, String, [u8; 3])> {
-    let mut v: Vec<(u16, String, [u8; 3])> = (1..=64)
-        .map(|n| (n as u16, format!("period {n}"), period_palette(n)))
-        .collect();
-    v.extend([
-        (100, "quasi-periodic".to_string(), [120, 200, 80]),
-        (101, "chaotic".to_string(), [20, 20, 20]),
-        (102, "no impact".to_string(), [225, 225, 225]),
-        (103, "unresolved".to_string(), [240, 150, 200]),
-        (104, "failed".to_string(), [230, 0, 0]),
-        (105, "aperiodic".to_string(), [90, 90, 90]),
-        (106, "coexisting attractors".to_string(), [0, 200, 220]),
-    ]);
-    v
+    ClassKind::all()
+        .into_iter()
+        .map(|k| (kind_code(k), kind_label(k), k.color()))
+        .collect()
+}
+
+/// Legend families of the class map: periods 5-8, 9-16 and 17-64.
+fn families() -> Vec<(String, u16, u16)> {
+    PERIOD_FAMILIES
+        .iter()
+        .filter(|(a, b)| a < b)
+        .map(|&(a, b)| (format!("periods {a}-{b}"), a as u16, b as u16))
+        .collect()
 }
 
 pub fn title(cfg: &Config) -> String {
@@ -113,6 +146,8 @@ pub struct CompareReport {
 struct MapJson<'a> {
     #[serde(flatten)]
     report: &'a MapReport,
+    /// What the class map shows, how it was computed, and what to notice.
+    caption: String,
     version: &'static str,
     config: &'a Config,
     class_counts: BTreeMap<String, usize>,
@@ -127,6 +162,60 @@ struct Axes {
     y: Param,
     y_values: Vec<f64>,
     layout: &'static str,
+}
+
+/// The caption of a map's JSON.
+fn caption(
+    cfg: &Config,
+    report: &MapReport,
+    counts: &BTreeMap<String, usize>,
+    coexisting: usize,
+) -> String {
+    let m = &cfg.map;
+    let r = &cfg.run;
+    let backend = report.backend.as_deref().unwrap_or("unknown");
+    let device = report
+        .device
+        .clone()
+        .or_else(|| report.devices.as_ref().map(|d| d.join(", ")))
+        .unwrap_or_default();
+    let coex = if coexisting > 0 {
+        format!(
+            " {coexisting} cells reached different attractors from their initial states \
+             (--starts) and are drawn as coexisting attractors; the other classes are those \
+             of the first start."
+        )
+    } else {
+        String::new()
+    };
+    format!(
+        "Class map of the attractor reached at each of {nx} x {ny} cell centres: {x} from \
+         {x0} to {x1} (horizontal) and {y} from {y0} to {y1} (vertical); {title}. Each cell \
+         starts from y0 = {start:?} and is integrated with {how}; {tr} transient periods, then \
+         {sa} sampled periods. Classes: a period <= 64 of the stroboscopic section (tolerance \
+         {tol}), else quasi-periodic or chaotic by the largest Lyapunov exponent (|exponent| <= \
+         {ltol} per unit time: quasi-periodic; aperiodic where no exponent was computed); no impact, unresolved and failed as in the \
+         README. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64) with \
+         lightness steps inside a family; chaotic near-black, quasi-periodic light green. The \
+         legend gives the share and the count of every class shown. Most frequent: \
+         {top}.{coex} Raster image, 1100 x 800 px.",
+        nx = m.x_points,
+        ny = m.y_points,
+        x = m.x,
+        x0 = m.x_from,
+        x1 = m.x_to,
+        y = m.y,
+        y0 = m.y_from,
+        y1 = m.y_to,
+        title = title(cfg),
+        start = cfg.initial.y,
+        how = crate::bifurcation::computed_with(cfg, backend, &device),
+        tr = r.transient_periods,
+        sa = r.sample_periods,
+        tol = r.period_tol,
+        ltol = r.lyapunov_tol,
+        top = crate::bifurcation::top_classes(counts, 5),
+    )
 }
 
 /// Writes PREFIX.png (classes), PREFIX-lyapunov.png, one PREFIX-FIELD.npy per field and
@@ -147,11 +236,14 @@ pub fn write_outputs(
         .iter()
         .map(|(c, l, rgb)| (*c, l.as_str(), *rgb))
         .collect();
+    let fams = families();
+    let fam_refs: Vec<(&str, u16, u16)> =
+        fams.iter().map(|(l, a, b)| (l.as_str(), *a, *b)).collect();
     let cells: Vec<u16> = fields
         .classes()
         .into_iter()
         .zip(&fields.attractors)
-        .map(|(c, &a)| if a > 1 { 106 } else { category(c) })
+        .map(|(c, &a)| if a > 1 { COEXISTING } else { category(c) })
         .collect();
     let (xr, yr) = ((m.x_from, m.x_to), (m.y_from, m.y_to));
     let ordered = |r: (f64, f64)| (r.0.min(r.1), r.0.max(r.1));
@@ -167,6 +259,8 @@ pub fn write_outputs(
             ny,
             cells: &cells,
             categories: &cat_refs,
+            families: &fam_refs,
+            member_label: &|c| c.to_string(),
             width: 1100,
             height: 800,
         },
@@ -258,7 +352,9 @@ pub fn write_outputs(
     npy(&mut st, "nonfinite", &|p| save(p, &shape, &f.nonfinite))?;
     npy(&mut st, "cpu_rerun", &|p| save(p, &shape, &f.cpu_rerun))?;
     npy(&mut st, "attractors", &|p| save(p, &shape, &f.attractors))?;
+    let coexisting = cells.iter().filter(|&&c| c == COEXISTING).count();
     let j = MapJson {
+        caption: caption(cfg, report, &fields.counts(), coexisting),
         report,
         version: env!("CARGO_PKG_VERSION"),
         config: cfg,
@@ -308,10 +404,11 @@ pub fn write_compare(
         })
         .collect();
     let cats = [
-        (0u16, "same class", [225u8, 225, 225]),
-        (1, "other period", [250, 160, 40]),
-        (2, "other type of motion", [200, 20, 20]),
-        (3, "failed in one", [20, 20, 20]),
+        // Okabe-Ito sky blue and vermillion: told apart with colour-vision deficiencies too.
+        (0u16, "same class", [230u8, 230, 230]),
+        (1, "other period", [0x56, 0xb4, 0xe9]),
+        (2, "other type of motion", [0xd5, 0x5e, 0x00]),
+        (3, "failed in one", [0x1a, 0x1a, 0x1a]),
     ];
     let ordered = |r: (f64, f64)| (r.0.min(r.1), r.0.max(r.1));
     let t = format!("class changes: {}", title(cfg));
@@ -329,6 +426,8 @@ pub fn write_compare(
             ny: m.y_points as usize,
             cells: &cells,
             categories: &cats,
+            families: &[],
+            member_label: &|c| c.to_string(),
             width: 1100,
             height: 800,
         },

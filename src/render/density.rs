@@ -6,8 +6,11 @@ use plotters::prelude::*;
 
 use super::{
     Area, RenderError, build_chart, check_range, check_size, draw_axes, draw_err, ensure_font,
-    extent, fmt_tick, invalid, layout, pad, paint, render_png,
+    extent, fmt_tick, invalid, layout, pad, paint, print_layout, render_png,
 };
+
+/// A sample with no other sample within this many pixels (a 5 x 5 window) is isolated.
+pub const ISOLATION_RADIUS: isize = 2;
 
 /// Colour of the densest pixels.
 const INK: RGBColor = RGBColor(8, 16, 48);
@@ -24,12 +27,31 @@ pub struct DensityPlot<'a> {
     /// Used by [`density_png`]; ignored by [`panels_png`], which splits its canvas.
     pub width: u32,
     pub height: u32,
+    /// `Some(dpi)`: font sizes in points for printing at this resolution (see [`print_layout`]);
+    /// `None`: sizes scaled with the image.
+    pub print_dpi: Option<f64>,
+    /// Leave out samples with no other sample within [`ISOLATION_RADIUS`] pixels: stray
+    /// transients not yet on the attractor, and the sparsest samples of chaotic bands, which
+    /// at print size read as dust. The number left out is returned.
+    pub drop_isolated: bool,
 }
 
-pub fn density_png(path: &Path, plot: &DensityPlot) -> Result<(), RenderError> {
+/// What a density panel drew.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DensityStats {
+    /// Samples inside the axes.
+    pub inside: usize,
+    /// Of those, isolated samples left out ([`DensityPlot::drop_isolated`]).
+    pub dropped: usize,
+}
+
+pub fn density_png(path: &Path, plot: &DensityPlot) -> Result<DensityStats, RenderError> {
+    let mut stats = DensityStats::default();
     render_png(path, plot.width, plot.height, |root| {
-        density_panel(root, plot)
-    })
+        stats = density_panel(root, plot)?;
+        Ok(())
+    })?;
+    Ok(stats)
 }
 
 /// Draws several density plots on a `cols`-wide grid (row-major order).
@@ -39,7 +61,7 @@ pub fn panels_png(
     cols: usize,
     width: u32,
     height: u32,
-) -> Result<(), RenderError> {
+) -> Result<Vec<DensityStats>, RenderError> {
     if panels.is_empty() || cols == 0 {
         return Err(invalid(
             "panels_png needs at least one panel and one column",
@@ -47,16 +69,18 @@ pub fn panels_png(
     }
     let cols = cols.min(panels.len());
     let rows = panels.len().div_ceil(cols);
+    let mut stats = Vec::new();
     render_png(path, width, height, |root| {
         for (area, plot) in root.split_evenly((rows, cols)).iter().zip(panels) {
-            density_panel(area, plot)?;
+            stats.push(density_panel(area, plot)?);
         }
         Ok(())
-    })
+    })?;
+    Ok(stats)
 }
 
 /// Draws one density plot filling `area` (white background included).
-pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<(), RenderError> {
+pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<DensityStats, RenderError> {
     ensure_font()?;
     let (w, h) = area.dim_in_pixel();
     check_size("panel", w, h)?;
@@ -69,7 +93,10 @@ pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<(), RenderEr
             .ok_or_else(|| invalid(format!("'{}': no finite points in x_range", plot.title)))??,
     };
     area.fill(&WHITE).map_err(draw_err)?;
-    let l = layout(w, h);
+    let l = match plot.print_dpi {
+        Some(dpi) => print_layout(dpi),
+        None => layout(w, h),
+    };
     let mut chart = build_chart(area, plot.title, &l, (x0, x1), (y0, y1))?;
 
     // Histogram at exactly the plotting area's pixel resolution, using the
@@ -89,6 +116,34 @@ pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<(), RenderEr
             }
         }
     }
+    let ph = hist.len() / pw.max(1);
+    let inside: u32 = hist.iter().sum();
+    let mut dropped = 0;
+    if plot.drop_isolated {
+        let at = |c: isize, r: isize| {
+            if c < 0 || r < 0 || c >= pw as isize || r >= ph as isize {
+                0
+            } else {
+                hist[r as usize * pw + c as usize]
+            }
+        };
+        let lonely: Vec<usize> = (0..hist.len())
+            .filter(|&i| hist[i] == 1)
+            .filter(|&i| {
+                let (c, r) = ((i % pw) as isize, (i / pw) as isize);
+                let r2 = ISOLATION_RADIUS;
+                let around: u32 = (-r2..=r2)
+                    .flat_map(|dr| (-r2..=r2).map(move |dc| (dc, dr)))
+                    .map(|(dc, dr)| at(c + dc, r + dr))
+                    .sum();
+                around == 1
+            })
+            .collect();
+        dropped = lonely.len();
+        for i in lonely {
+            hist[i] = 0;
+        }
+    }
     let max = f64::from(hist.iter().copied().max().unwrap_or(0));
     if max == 0.0 {
         return Err(invalid(format!(
@@ -103,7 +158,9 @@ pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<(), RenderEr
         let n = hist[r * w + c];
         // A floor keeps isolated chaotic samples visible next to dense
         // periodic branches that pile hundreds of samples into one pixel.
-        let t = 0.3 + 0.7 * f64::from(n).ln_1p() / max.ln_1p();
+        // Print needs a darker floor: light grey single pixels vanish on paper.
+        let floor = if plot.print_dpi.is_some() { 0.55 } else { 0.3 };
+        let t = floor + (1.0 - floor) * f64::from(n).ln_1p() / max.ln_1p();
         (n > 0).then(|| shade.get_color(t))
     })?;
     // Axes last so they sit on top of the density.
@@ -112,7 +169,11 @@ pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<(), RenderEr
         |v: &f64| fmt_tick(*v, y1 - y0),
     );
     let labels = (plot.x_label, plot.y_label);
-    draw_axes(&mut chart, &l, labels, (&fx, &fy), false)
+    draw_axes(&mut chart, &l, labels, (&fx, &fy), false)?;
+    Ok(DensityStats {
+        inside: inside as usize,
+        dropped,
+    })
 }
 
 #[cfg(test)]
@@ -134,6 +195,8 @@ mod tests {
             points,
             width: 600,
             height: 400,
+            print_dpi: None,
+            drop_isolated: false,
         }
     }
 

@@ -1,21 +1,218 @@
-//! Line charts with markers, e.g. work-precision diagrams.
+//! Line charts with markers (work-precision diagrams, failure fractions), as PNG or SVG.
 
 use std::path::Path;
 
+use plotters::coord::Shift;
+use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
 use plotters::prelude::*;
 
-use super::{
-    FONT, RenderError, TAB10, build_chart, check_range, draw_axes, draw_err, extent, fmt_tick,
-    invalid, layout, pad, render_png,
-};
+use super::{FONT, RenderError, check_range, draw_err, ensure_font, extent, fmt_tick, invalid};
+use super::{check_size, layout, pad, render_png};
+
+/// Okabe-Ito colours (black last; yellow left out, too pale on white): distinguishable with
+/// the common colour-vision deficiencies. Markers and dashes tell lines apart as well.
+const LINE_COLORS: [RGBColor; 8] = [
+    RGBColor(0x00, 0x72, 0xb2),
+    RGBColor(0xd5, 0x5e, 0x00),
+    RGBColor(0x00, 0x9e, 0x73),
+    RGBColor(0xcc, 0x79, 0xa7),
+    RGBColor(0xe6, 0x9f, 0x00),
+    RGBColor(0x56, 0xb4, 0xe9),
+    RGBColor(0x00, 0x00, 0x00),
+    RGBColor(0x99, 0x99, 0x99),
+];
 
 /// One curve of a [`LinePlot`].
 pub struct Series {
     pub label: String,
     pub points: Vec<(f64, f64)>,
-    /// Selects colour (Tableau 10) and marker shape, cycling.
+    /// Selects colour and marker shape, cycling.
     pub color_index: usize,
     pub dashed: bool,
+}
+
+/// How an axis maps data to position.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scale {
+    Linear,
+    /// Decades, ticks at powers of ten (values <= 0 are left out).
+    Log10,
+    /// Octaves, ticks at powers of two written as integers (e.g. steps per period).
+    Log2,
+    /// Linear in [0, `linear_below`] (so that zero has a place), logarithmic above; for
+    /// fractions that span decades and include zero.
+    SymLog {
+        linear_below: f64,
+    },
+}
+
+impl Scale {
+    fn fwd(self, v: f64) -> f64 {
+        match self {
+            Scale::Linear => v,
+            Scale::Log10 => v.log10(),
+            Scale::Log2 => v.log2(),
+            Scale::SymLog { linear_below: t } => {
+                if v.abs() <= t {
+                    v / t
+                } else {
+                    v.signum() * (1.0 + (v.abs() / t).log10())
+                }
+            }
+        }
+    }
+
+    fn inv(self, u: f64) -> f64 {
+        match self {
+            Scale::Linear => u,
+            Scale::Log10 => 10f64.powf(u),
+            Scale::Log2 => u.exp2(),
+            Scale::SymLog { linear_below: t } => {
+                if u.abs() <= 1.0 {
+                    u * t
+                } else {
+                    u.signum() * t * 10f64.powf(u.abs() - 1.0)
+                }
+            }
+        }
+    }
+
+    /// Labelled ticks (position on the axis, label) and unlabelled minor positions, over the
+    /// axis range `(u0, u1)` in axis coordinates.
+    fn ticks(self, (u0, u1): (f64, f64)) -> (Vec<(f64, String)>, Vec<f64>) {
+        let in_range = |u: f64| u >= u0 - 1e-9 && u <= u1 + 1e-9;
+        match self {
+            Scale::Linear => {
+                let step = nice_step((u1 - u0) / 8.0);
+                let first = (u0 / step).ceil() as i64;
+                let last = (u1 / step).floor() as i64;
+                let major = (first..=last)
+                    .map(|k| k as f64 * step)
+                    .map(|u| (u, fmt_tick(u, u1 - u0)))
+                    .collect();
+                (major, vec![])
+            }
+            Scale::Log10 => {
+                let (k0, k1) = (u0.floor() as i32, u1.ceil() as i32);
+                let decades: Vec<i32> = (k0..=k1).filter(|&k| in_range(f64::from(k))).collect();
+                // Less than two decades shown: label 2 and 5 as well, so the scale can be read.
+                let mults: &[f64] = if decades.len() < 2 {
+                    &[1.0, 2.0, 5.0]
+                } else {
+                    &[1.0]
+                };
+                let mut major = Vec::new();
+                let mut minor = Vec::new();
+                for k in k0..=k1 {
+                    for m in 1..10 {
+                        let v = f64::from(m) * 10f64.powi(k);
+                        let u = v.log10();
+                        if !in_range(u) {
+                            continue;
+                        }
+                        if mults.contains(&f64::from(m)) {
+                            major.push((u, fmt_pow10(m, k)));
+                        } else {
+                            minor.push(u);
+                        }
+                    }
+                }
+                (major, minor)
+            }
+            Scale::Log2 => {
+                let (k0, k1) = (u0.ceil() as i32, u1.floor() as i32);
+                let every = ((k1 - k0) / 12 + 1).max(1);
+                let major = (k0..=k1)
+                    .filter(|k| (k - k0) % every == 0)
+                    .map(|k| {
+                        let v = f64::from(k).exp2();
+                        (f64::from(k), fmt_tick(v, 0.0))
+                    })
+                    .collect();
+                (major, vec![])
+            }
+            Scale::SymLog { linear_below: t } => {
+                let mut major = Vec::new();
+                let mut minor = Vec::new();
+                for u in [-1.0, 0.0, 1.0] {
+                    if in_range(u) {
+                        major.push((u, fmt_tick(self.inv(u), 0.0)));
+                    }
+                }
+                // Above the linear part: 1-2-5 steps of each decade labelled, the rest minor.
+                let kmax = u1.abs().max(u0.abs()).ceil() as i32;
+                for k in 0..kmax {
+                    for m in 1..10 {
+                        let v = t * f64::from(m) * 10f64.powi(k);
+                        for v in [v, -v] {
+                            let u = self.fwd(v);
+                            if u.abs() <= 1.0 + 1e-9 || !in_range(u) {
+                                continue;
+                            }
+                            if [1, 2, 5].contains(&m) {
+                                major.push((u, fmt_tick(v, 0.0)));
+                            } else {
+                                minor.push(u);
+                            }
+                        }
+                    }
+                }
+                major.sort_by(|a, b| a.0.total_cmp(&b.0));
+                (major, minor)
+            }
+        }
+    }
+}
+
+/// An axis (in axis coordinates) with exactly the given tick positions: plotters' own choice
+/// of ticks would put them at round axis coordinates, e.g. 10^1.5 = "3.2e1" on a log axis.
+struct TickAxis {
+    range: (f64, f64),
+    major: Vec<f64>,
+    minor: Vec<f64>,
+}
+
+impl Ranged for TickAxis {
+    type FormatOption = DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, v: &f64, limit: (i32, i32)) -> i32 {
+        let t = (v - self.range.0) / (self.range.1 - self.range.0);
+        limit.0 + (f64::from(limit.1 - limit.0) * t + 1e-3).floor() as i32
+    }
+
+    fn key_points<H: KeyPointHint>(&self, hint: H) -> Vec<f64> {
+        if hint.weight().allow_light_points() {
+            self.minor.clone()
+        } else {
+            self.major.clone()
+        }
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.range.0..self.range.1
+    }
+}
+
+/// 1, 2 or 5 times a power of ten, at least `raw`.
+fn nice_step(raw: f64) -> f64 {
+    let p = 10f64.powf(raw.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * p)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * p)
+}
+
+/// `m * 10^k` as a tick label: plain decimals near 1, "2e-7" style otherwise.
+fn fmt_pow10(m: i32, k: i32) -> String {
+    if (-3..=3).contains(&k) {
+        fmt_tick(f64::from(m) * 10f64.powi(k), 0.0)
+    } else if m == 1 {
+        format!("1e{k}")
+    } else {
+        format!("{m}e{k}")
+    }
 }
 
 /// Line chart with markers, e.g. work-precision (error vs. seconds).
@@ -23,23 +220,11 @@ pub struct LinePlot<'a> {
     pub title: &'a str,
     pub x_label: &'a str,
     pub y_label: &'a str,
-    pub log_x: bool,
-    pub log_y: bool,
+    pub x_scale: Scale,
+    pub y_scale: Scale,
     pub series: &'a [Series],
     pub width: u32,
     pub height: u32,
-}
-
-/// Tick label on a log axis whose coordinate is `e = log10(value)`.
-fn fmt_log_tick(e: f64) -> String {
-    let k = e.round();
-    if (e - k).abs() > 1e-6 {
-        format!("{:.1e}", 10f64.powf(e))
-    } else if (-3.0..=3.0).contains(&k) {
-        fmt_tick(10f64.powf(k), 0.0)
-    } else {
-        format!("1e{k}")
-    }
 }
 
 /// Runs `$body` with `$m` bound to a marker constructor of the chosen
@@ -67,84 +252,175 @@ macro_rules! with_marker {
     }};
 }
 
-/// Log axes are drawn as linear axes over log10 of the data, with tick
-/// labels mapped back; plotters' own log axis drops ticks below 2.2e-16,
-/// which is exactly where converged errors of work-precision charts live.
+/// The chart as PNG.
 pub fn line_plot_png(path: &Path, plot: &LinePlot) -> Result<(), RenderError> {
-    let tx = |v: f64| if plot.log_x { v.log10() } else { v };
-    let ty = |v: f64| if plot.log_y { v.log10() } else { v };
+    let prepared = prepare(plot)?;
+    render_png(path, plot.width, plot.height, |root| {
+        draw_line_plot(root, plot, &prepared)
+    })
+}
+
+/// The same chart as SVG (vector: lines and text stay sharp at any print size).
+pub fn line_plot_svg(path: &Path, plot: &LinePlot) -> Result<(), RenderError> {
+    let prepared = prepare(plot)?;
+    check_size("image", plot.width, plot.height)?;
+    ensure_font()?;
+    let root = SVGBackend::new(path, (plot.width, plot.height)).into_drawing_area();
+    draw_line_plot(&root, plot, &prepared)?;
+    root.present().map_err(|e| RenderError::Io {
+        path: path.display().to_string(),
+        msg: e.to_string(),
+    })
+}
+
+/// Points in axis coordinates and the axis ranges.
+struct Prepared {
+    usable: Vec<Vec<(f64, f64)>>,
+    x: (f64, f64),
+    y: (f64, f64),
+}
+
+fn prepare(plot: &LinePlot) -> Result<Prepared, RenderError> {
+    let (sx, sy) = (plot.x_scale, plot.y_scale);
     // Non-finite values, and non-positive ones on log axes, cannot be placed.
     let usable: Vec<Vec<(f64, f64)>> = plot
         .series
         .iter()
         .map(|s| {
-            let ok = |p: &(f64, f64)| p.0.is_finite() && p.1.is_finite();
             s.points
                 .iter()
-                .map(|&(x, y)| (tx(x), ty(y)))
-                .filter(ok)
+                .map(|&(x, y)| (sx.fwd(x), sy.fwd(y)))
+                .filter(|p| p.0.is_finite() && p.1.is_finite())
                 .collect()
         })
         .collect();
     let all = || usable.iter().flatten();
-    // Margins are a share of the log10 span on log axes, as wanted.
-    let xr = extent(all().map(|p| p.0)).map(|r| pad(r, 0.05));
+    // Margins are a share of the axis span (of log10 or log2 on log axes).
+    let xr = extent(all().map(|p| p.0)).map(|r| pad(r, 0.04));
     let yr = extent(all().map(|p| p.1)).map(|r| pad(r, 0.05));
-    let ((x0, x1), (y0, y1)) = xr
+    let (x, y) = xr
         .zip(yr)
         .ok_or_else(|| invalid(format!("'{}': no plottable points", plot.title)))?;
-    let ((x0, x1), (y0, y1)) = (check_range("x", (x0, x1))?, check_range("y", (y0, y1))?);
-    let fmt = |log: bool, span: f64| {
-        move |v: &f64| {
-            if log {
-                fmt_log_tick(*v)
-            } else {
-                fmt_tick(*v, span)
-            }
-        }
+    Ok(Prepared {
+        x: check_range("x", x)?,
+        y: check_range("y", y)?,
+        usable,
+    })
+}
+
+fn draw_line_plot<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    plot: &LinePlot,
+    p: &Prepared,
+) -> Result<(), RenderError> {
+    root.fill(&WHITE).map_err(draw_err)?;
+    let l = layout(plot.width, plot.height);
+    let (xt, xminor) = plot.x_scale.ticks(p.x);
+    let (yt, yminor) = plot.y_scale.ticks(p.y);
+    let label_of = |ticks: &[(f64, String)], v: f64| {
+        ticks
+            .iter()
+            .find(|t| (t.0 - v).abs() < 1e-9)
+            .map_or(String::new(), |t| t.1.clone())
     };
-    let (fx, fy) = (fmt(plot.log_x, x1 - x0), fmt(plot.log_y, y1 - y0));
-    render_png(path, plot.width, plot.height, |root| {
-        root.fill(&WHITE).map_err(draw_err)?;
-        let l = layout(plot.width, plot.height);
-        let mut chart = build_chart(root, plot.title, &l, (x0, x1), (y0, y1))?;
-        let labels = (plot.x_label, plot.y_label);
-        draw_axes(&mut chart, &l, labels, (&fx, &fy), true)?;
-        let ms = (l.tick * 0.3).max(3.0) as i32;
-        for (s, pts) in plot.series.iter().zip(&usable) {
-            let style = TAB10[s.color_index % TAB10.len()].stroke_width(2);
-            // Shape also changes once the colours wrap around.
-            let shape = s.color_index + s.color_index / TAB10.len();
-            let anno = if s.dashed {
-                chart.draw_series(DashedLineSeries::new(pts.iter().copied(), 8, 5, style))
-            } else {
-                chart.draw_series(LineSeries::new(pts.iter().copied(), style))
-            }
-            .map_err(draw_err)?;
-            if !s.label.is_empty() {
-                anno.label(s.label.as_str());
-                with_marker!(shape, ms, style, |m| anno.legend(move |(lx, ly)| {
-                    EmptyElement::at((lx, ly))
-                        + PathElement::new(vec![(0, 0), (22, 0)], style)
-                        + m((11, 0))
-                }));
-            }
-            with_marker!(shape, ms, style, |m| chart
-                .draw_series(pts.iter().map(|&p| EmptyElement::at(p) + m((0, 0))))
-                .map_err(draw_err)?);
+
+    // The legend goes beside the plot, never over the data.
+    let ms = (l.tick * 0.3).max(3.0) as i32;
+    let legend_font = (FONT, l.tick).into_font();
+    let legend_style = TextStyle::from(legend_font.clone());
+    let text_w = plot
+        .series
+        .iter()
+        .filter(|s| !s.label.is_empty())
+        .map(|s| {
+            root.estimate_text_size(&s.label, &legend_style)
+                .map_or(0, |d| d.0)
+        })
+        .max();
+    let sample_w = (l.tick * 2.2) as i32;
+    let legend_w = text_w.map_or(0, |w| w + sample_w as u32 + (l.tick * 1.5) as u32);
+    let legend_w = legend_w.min(plot.width / 2);
+    let (left, right) = root.split_horizontally(plot.width - legend_w);
+
+    let mut chart = ChartBuilder::on(&left)
+        .caption(plot.title, (FONT, l.title))
+        .margin(l.margin)
+        .margin_right(l.margin * 2)
+        .x_label_area_size(l.x_area)
+        .y_label_area_size(l.y_area)
+        .build_cartesian_2d(
+            TickAxis {
+                range: p.x,
+                major: xt.iter().map(|t| t.0).collect(),
+                minor: xminor,
+            },
+            TickAxis {
+                range: p.y,
+                major: yt.iter().map(|t| t.0).collect(),
+                minor: yminor,
+            },
+        )
+        .map_err(draw_err)?;
+    let (fx, fy) = (|v: &f64| label_of(&xt, *v), |v: &f64| label_of(&yt, *v));
+    chart
+        .configure_mesh()
+        .light_line_style(RGBColor(238, 238, 238))
+        .bold_line_style(RGBColor(205, 205, 205))
+        .x_desc(plot.x_label)
+        .y_desc(plot.y_label)
+        .label_style((FONT, l.tick))
+        .axis_desc_style((FONT, l.label))
+        .x_label_formatter(&fx)
+        .y_label_formatter(&fy)
+        .draw()
+        .map_err(draw_err)?;
+    let mut legend = Vec::new();
+    for (s, pts) in plot.series.iter().zip(&p.usable) {
+        let style = LINE_COLORS[s.color_index % LINE_COLORS.len()].stroke_width(2);
+        // Shape also changes once the colours wrap around.
+        let shape = s.color_index + s.color_index / LINE_COLORS.len();
+        if s.dashed {
+            chart.draw_series(DashedLineSeries::new(pts.iter().copied(), 8, 5, style))
+        } else {
+            chart.draw_series(LineSeries::new(pts.iter().copied(), style))
         }
-        if plot.series.iter().any(|s| !s.label.is_empty()) {
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font((FONT, l.tick))
-                .draw()
+        .map_err(draw_err)?;
+        with_marker!(shape, ms, style, |m| chart
+            .draw_series(pts.iter().map(|&p| EmptyElement::at(p) + m((0, 0))))
+            .map_err(draw_err)?);
+        if !s.label.is_empty() {
+            legend.push((s, style, shape));
+        }
+    }
+
+    // Legend rows from the top of the plotting area.
+    let top = chart.plotting_area().get_pixel_range().1.start;
+    let row_h = (l.tick * 1.6) as i32;
+    for (k, (s, style, shape)) in legend.iter().enumerate() {
+        let y = top + k as i32 * row_h + row_h / 2;
+        let (x0, x1) = (4, 4 + sample_w);
+        let line = vec![(x0, y), (x1, y)];
+        if s.dashed {
+            right
+                .draw(&PathElement::new(vec![(x0, y), (x0 + 8, y)], *style))
+                .map_err(draw_err)?;
+            right
+                .draw(&PathElement::new(vec![(x1 - 8, y), (x1, y)], *style))
+                .map_err(draw_err)?;
+        } else {
+            right
+                .draw(&PathElement::new(line, *style))
                 .map_err(draw_err)?;
         }
-        Ok(())
-    })
+        with_marker!(*shape, ms, *style, |m| right
+            .draw(&m(((x0 + x1) / 2, y)))
+            .map_err(draw_err)?);
+        let pos = (x1 + (l.tick * 0.6) as i32, y - (l.tick * 0.5) as i32);
+        right
+            .draw(&Text::new(s.label.as_str(), pos, legend_font.clone()))
+            .map_err(draw_err)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -174,8 +450,8 @@ mod tests {
             title: "work-precision",
             x_label: "seconds",
             y_label: "error",
-            log_x: true,
-            log_y: true,
+            x_scale: Scale::Log10,
+            y_scale: Scale::Log10,
             series: &series,
             width: 800,
             height: 600,
@@ -186,8 +462,8 @@ mod tests {
         line_plot_png(
             &path,
             &LinePlot {
-                log_x: false,
-                log_y: false,
+                x_scale: Scale::Linear,
+                y_scale: Scale::SymLog { linear_below: 1e-3 },
                 ..plot
             },
         )
@@ -216,8 +492,8 @@ mod tests {
             title: "",
             x_label: "",
             y_label: "",
-            log_x: true,
-            log_y: true,
+            x_scale: Scale::Log2,
+            y_scale: Scale::Log10,
             series: &series,
             width: 150,
             height: 150,
@@ -226,8 +502,26 @@ mod tests {
     }
 
     #[test]
-    fn log_ticks() {
-        assert_eq!(fmt_log_tick(-12.0), "1e-12");
-        assert_eq!(fmt_log_tick(-2.0), "0.01");
+    fn ticks() {
+        let labels =
+            |s: Scale, r| -> Vec<String> { s.ticks(r).0.into_iter().map(|t| t.1).collect() };
+        assert_eq!(
+            labels(Scale::Log2, (3.7, 12.3)),
+            [
+                "16", "32", "64", "128", "256", "512", "1024", "2048", "4096"
+            ]
+        );
+        assert_eq!(
+            labels(Scale::Log10, (-12.5, -9.5)),
+            ["1e-12", "1e-11", "1e-10"]
+        );
+        assert_eq!(labels(Scale::Log10, (-2.1, -1.9)), ["0.01"]);
+        let sym = Scale::SymLog { linear_below: 1.0 };
+        assert_eq!(
+            labels(sym, (-0.1, sym.fwd(70.0))),
+            ["0", "1", "2", "5", "10", "20", "50"]
+        );
+        assert!((sym.inv(sym.fwd(37.0)) - 37.0).abs() < 1e-12);
+        assert_eq!(sym.fwd(0.5), 0.5);
     }
 }

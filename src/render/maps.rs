@@ -6,8 +6,8 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::{
-    Area, FONT, Layout, RenderError, TAB10, build_chart, check_grid, check_range, check_size,
-    draw_axes, draw_err, extent, fmt_tick, invalid, layout, paint, render_png,
+    Area, FONT, Layout, RenderError, build_chart, check_grid, check_range, check_size, draw_axes,
+    draw_err, extent, fmt_tick, invalid, layout, paint, render_png,
 };
 
 const MISSING_GREY: RGBColor = RGBColor(190, 190, 190);
@@ -20,21 +20,6 @@ const RD_BU: [RGBColor; 5] = [
     RGBColor(0xf4, 0xa5, 0x82),
     RGBColor(0xb2, 0x18, 0x2b),
 ];
-
-/// Distinct colours for orbit periods: Tableau colours (minus grey and olive)
-/// for the common low periods, then golden-ratio hue steps so that
-/// neighbouring periods never look alike. Categorical, hence not a colour map.
-pub fn period_palette(n: u32) -> [u8; 3] {
-    const FIXED: [usize; 8] = [0, 1, 2, 3, 4, 5, 6, 9];
-    if (1..=8).contains(&n) {
-        let c = TAB10[FIXED[n as usize - 1]];
-        return [c.0, c.1, c.2];
-    }
-    let hue = (f64::from(n) * 0.618_034).fract();
-    let light = if n.is_multiple_of(2) { 0.45 } else { 0.6 };
-    let c = HSLColor(hue, 0.65, light).to_rgba();
-    [c.0, c.1, c.2]
-}
 
 /// Draws a map chart whose plotting area shows `color(ix, iy)` of the grid
 /// cell under each pixel centre. Returns the plotting area's vertical pixel
@@ -78,10 +63,56 @@ pub struct CategoryMap<'a> {
     pub ny: usize,
     /// Row-major, index `iy * nx + ix`; `iy = 0` is the bottom row (`y_range.0`).
     pub cells: &'a [u16],
-    /// (code, label, rgb). Codes missing here are drawn grey as "other".
+    /// (code, label, rgb), in legend order. Codes missing here are drawn grey as "other".
     pub categories: &'a [(u16, &'a str, [u8; 3])],
+    /// Legend families: (label, first code, last code). When the legend does not fit, a
+    /// family's present members share one row with the family's count and percentage, followed
+    /// by one small labelled swatch per member, so every colour shown stays explained.
+    pub families: &'a [(&'a str, u16, u16)],
+    /// Short name of each family member in a shared row (e.g. "12" for "period 12").
+    pub member_label: &'a dyn Fn(u16) -> String,
     pub width: u32,
     pub height: u32,
+}
+
+/// One legend row group.
+enum LegendEntry {
+    Item {
+        label: String,
+        color: RGBColor,
+        n: usize,
+    },
+    /// A family sharing rows: its label, total count and its members (short label, colour).
+    Family {
+        label: String,
+        n: usize,
+        members: Vec<(String, RGBColor)>,
+    },
+}
+
+/// "12.3%", "0.42%", or "<0.01%": always a share, never rounded to zero.
+fn percent(n: usize, total: usize) -> String {
+    let p = 100.0 * n as f64 / total as f64;
+    if p >= 1.0 {
+        format!("{p:.1}%")
+    } else if p >= 0.01 {
+        format!("{p:.2}%")
+    } else {
+        "<0.01%".into()
+    }
+}
+
+/// Thousands separated by commas, for cell counts.
+fn grouped(n: usize) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (i, ch) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(ch);
+    }
+    out
 }
 
 pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderError> {
@@ -92,64 +123,167 @@ pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderErro
     for &code in map.cells {
         counts[index(code).unwrap_or(map.categories.len())] += 1;
     }
-    let total = map.cells.len() as f64;
-    let mut entries: Vec<(String, RGBColor, usize)> = map
-        .categories
-        .iter()
-        .zip(&counts)
-        .filter(|(_, n)| **n > 0)
-        .map(|(c, &n)| (c.1.to_string(), RGBColor(c.2[0], c.2[1], c.2[2]), n))
-        .collect();
-    if let Some(&n) = counts.last().filter(|n| **n > 0) {
-        entries.push(("other".into(), MISSING_GREY, n));
-    }
+    let total = map.cells.len();
+    let rgb = |c: [u8; 3]| RGBColor(c[0], c[1], c[2]);
     render_png(path, map.width, map.height, |root| {
         root.fill(&WHITE).map_err(draw_err)?;
         let l = layout(map.width, map.height);
-        let legend_w = (map.width / 5).clamp(150, 340);
+        let legend_w = (map.width * 3 / 11).clamp(150, 420);
         let (left, right) = root.split_horizontally(map.width.saturating_sub(legend_w));
         let color = |ix: usize, iy: usize| {
             let code = map.cells[iy * map.nx + ix];
-            index(code).map_or(MISSING_GREY, |k| {
-                let c = map.categories[k].2;
-                RGBColor(c[0], c[1], c[2])
-            })
+            index(code).map_or(MISSING_GREY, |k| rgb(map.categories[k].2))
         };
         let labels = (map.x_label, map.y_label);
         let ranges = (map.x_range, map.y_range);
         let dims = (map.nx, map.ny);
         let yr = draw_grid_map(&left, map.title, labels, ranges, dims, &l, color)?;
 
-        // Legend: one row per category present; if they do not all fit, keep
-        // the most frequent ones and summarise the rest in a final row.
-        let row_h = (l.tick * 1.6) as i32;
-        let top = yr.start;
-        let fit = ((yr.end - top) / row_h).max(1) as usize;
-        if entries.len() > fit {
-            entries.sort_by_key(|e| std::cmp::Reverse(e.2));
-            let rest: usize = entries.drain(fit - 1..).map(|e| e.2).sum();
-            entries.push(("remaining".into(), WHITE, rest));
-        }
-        let font = (FONT, l.tick).into_font();
-        let sw = (l.tick * 0.9) as i32;
-        for (k, (label, col, n)) in entries.iter().enumerate() {
-            let y = top + k as i32 * row_h;
-            let swatch = [(4, y), (4 + sw, y + sw)];
-            right
-                .draw(&Rectangle::new(swatch, col.filled()))
-                .map_err(draw_err)?;
-            right
-                .draw(&Rectangle::new(swatch, BLACK.stroke_width(1)))
-                .map_err(draw_err)?;
-            let pct = 100.0 * *n as f64 / total;
-            let text = if pct < 0.1 {
-                format!("{label} ({n} cells)")
-            } else {
-                format!("{label} ({pct:.1}%)")
+        // Legend: every category present, with its share and count, in the given order.
+        let font_px = l.tick;
+        let row_h = font_px * 1.45;
+        let avail = f64::from(yr.end - yr.start) - row_h;
+        let sw = |f: f64| (f * 0.9) as i32;
+        // Member swatch plus a label of up to two digits, per shared-row cell.
+        let cell_w = |f: f64| f64::from(sw(f)) + f * 1.6;
+        let per_line = |f: f64| ((f64::from(legend_w) - 8.0) / cell_w(f)).max(1.0) as usize;
+        let present: Vec<usize> = (0..map.categories.len())
+            .filter(|&k| counts[k] > 0)
+            .collect();
+        let family_of = |code: u16| {
+            map.families
+                .iter()
+                .position(|f| (f.1..=f.2).contains(&code))
+        };
+        let mut collapsed = vec![false; map.families.len()];
+        let rows = |collapsed: &[bool], f: f64| -> usize {
+            let mut r = usize::from(counts[map.categories.len()] > 0);
+            for (fi, fam) in map.families.iter().enumerate() {
+                let m = present
+                    .iter()
+                    .filter(|&&k| (fam.1..=fam.2).contains(&map.categories[k].0))
+                    .count();
+                if m > 0 && collapsed[fi] {
+                    r += 1 + m.div_ceil(per_line(f));
+                } else {
+                    r += m;
+                }
+            }
+            r + present
+                .iter()
+                .filter(|&&k| family_of(map.categories[k].0).is_none())
+                .count()
+        };
+        // Collapse the families with the most members first until the legend fits.
+        while rows(&collapsed, font_px) as f64 * row_h > avail {
+            let members = |fi: usize| {
+                let f = map.families[fi];
+                present
+                    .iter()
+                    .filter(|&&k| (f.1..=f.2).contains(&map.categories[k].0))
+                    .count()
             };
+            match (0..map.families.len())
+                .filter(|&fi| !collapsed[fi] && members(fi) > 1)
+                .max_by_key(|&fi| members(fi))
+            {
+                Some(fi) => collapsed[fi] = true,
+                None => break,
+            }
+        }
+        // Still too long (only with very short images): smaller type rather than lost rows.
+        let n_rows = rows(&collapsed, font_px).max(1) as f64;
+        let scale = (avail / (n_rows * row_h)).min(1.0);
+        let (font_px, row_h) = (font_px * scale, row_h * scale);
+
+        let mut entries = Vec::new();
+        let mut done_family = vec![false; map.families.len()];
+        for &k in &present {
+            let (code, label, c) = map.categories[k];
+            match family_of(code).filter(|&fi| collapsed[fi]) {
+                Some(fi) if !done_family[fi] => {
+                    done_family[fi] = true;
+                    let f = map.families[fi];
+                    let mem: Vec<usize> = present
+                        .iter()
+                        .copied()
+                        .filter(|&j| (f.1..=f.2).contains(&map.categories[j].0))
+                        .collect();
+                    entries.push(LegendEntry::Family {
+                        label: f.0.to_string(),
+                        n: mem.iter().map(|&j| counts[j]).sum(),
+                        members: mem
+                            .iter()
+                            .map(|&j| {
+                                let m = map.categories[j];
+                                ((map.member_label)(m.0), rgb(m.2))
+                            })
+                            .collect(),
+                    });
+                }
+                Some(_) => {}
+                None => entries.push(LegendEntry::Item {
+                    label: label.to_string(),
+                    color: rgb(c),
+                    n: counts[k],
+                }),
+            }
+        }
+        if counts[map.categories.len()] > 0 {
+            entries.push(LegendEntry::Item {
+                label: "other".into(),
+                color: MISSING_GREY,
+                n: counts[map.categories.len()],
+            });
+        }
+
+        let font = (FONT, font_px).into_font();
+        let small = (FONT, font_px * 0.85).into_font();
+        let s = sw(font_px);
+        let swatch = |x: i32, y: i32, col: RGBColor| -> Result<(), RenderError> {
+            let r = [(x, y), (x + s, y + s)];
             right
-                .draw(&Text::new(text, (10 + sw, y), font.clone()))
+                .draw(&Rectangle::new(r, col.filled()))
                 .map_err(draw_err)?;
+            right
+                .draw(&Rectangle::new(r, BLACK.stroke_width(1)))
+                .map_err(draw_err)
+        };
+        let text = |t: String, x: i32, y: f64, f: &FontDesc| {
+            right
+                .draw(&Text::new(t, (x, y as i32), f.clone()))
+                .map_err(draw_err)
+        };
+        let mut y = f64::from(yr.start);
+        text(
+            format!("share of {} cells (count)", grouped(total)),
+            4,
+            y,
+            &small,
+        )?;
+        y += row_h;
+        for e in &entries {
+            match e {
+                LegendEntry::Item { label, color, n } => {
+                    swatch(4, y as i32, *color)?;
+                    let t = format!("{label}: {} ({})", percent(*n, total), grouped(*n));
+                    text(t, 10 + s, y, &font)?;
+                    y += row_h;
+                }
+                LegendEntry::Family { label, n, members } => {
+                    let t = format!("{label}: {} ({})", percent(*n, total), grouped(*n));
+                    text(t, 4, y, &font)?;
+                    y += row_h;
+                    for line in members.chunks(per_line(font_px)) {
+                        for (i, (name, col)) in line.iter().enumerate() {
+                            let x = 4 + (i as f64 * cell_w(font_px)) as i32;
+                            swatch(x, y as i32, *col)?;
+                            text(name.clone(), x + s + 3, y + 0.1 * font_px, &small)?;
+                        }
+                        y += row_h;
+                    }
+                }
+            }
         }
         Ok(())
     })
@@ -256,14 +390,16 @@ mod tests {
             ny,
             cells: &cells,
             categories: &cats,
+            families: &[],
+            member_label: &|c| c.to_string(),
             width: 800,
             height: 600,
         };
         let path = tmp("category.png");
         category_map_png(&path, &map).expect("render");
         let img = load(&path, 800, 600);
-        assert_eq!(img.get_pixel(200, 300).0, [200, 0, 0]);
-        assert_eq!(img.get_pixel(560, 300).0, [0, 0, 200]);
+        assert_eq!(img.get_pixel(150, 300).0, [200, 0, 0]);
+        assert_eq!(img.get_pixel(480, 300).0, [0, 0, 200]);
         let short = CategoryMap {
             cells: &cells[1..],
             ..map
@@ -337,16 +473,5 @@ mod tests {
         // Too narrow once the colour bar is taken off: an error, not a panic.
         assert!(scalar_map_png(&path, &map).is_err());
         scalar_map_png(&path, &ScalarMap { width: 400, ..map }).expect("400x150 map");
-    }
-
-    #[test]
-    fn palette_is_distinct() {
-        let first: Vec<_> = (1..=8).map(period_palette).collect();
-        for (i, a) in first.iter().enumerate() {
-            assert!(first[i + 1..].iter().all(|b| a != b));
-        }
-        for n in 0..=64 {
-            assert_ne!(period_palette(n), period_palette(n + 1));
-        }
     }
 }
