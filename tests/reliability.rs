@@ -29,6 +29,16 @@ fn map(cfg: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+fn merge(parts: &[PathBuf], out: &Path) -> std::process::Output {
+    rattle()
+        .arg("merge")
+        .args(parts)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -86,13 +96,7 @@ fn merge_refuses_parts_of_different_runs() {
             d.join(format!("m.part-{i}-of-3.json"))
         })
         .collect();
-    let o = rattle()
-        .arg("merge")
-        .args(&parts)
-        .arg("--out")
-        .arg(d.join("merged"))
-        .output()
-        .unwrap();
+    let o = merge(&parts, &d.join("merged"));
     assert!(!o.status.success());
     assert!(stderr(&o).contains("m.part-2-of-3.json"), "{}", stderr(&o));
     assert!(stderr(&o).contains("starts"), "{}", stderr(&o));
@@ -104,13 +108,7 @@ fn merge_refuses_parts_of_different_runs() {
         &["--set", "method.steps_per_period=128", "--shard", "2/3"],
     );
     assert!(o.status.success());
-    let o = rattle()
-        .arg("merge")
-        .args(&parts)
-        .arg("--out")
-        .arg(d.join("merged"))
-        .output()
-        .unwrap();
+    let o = merge(&parts, &d.join("merged"));
     assert!(!o.status.success());
     assert!(stderr(&o).contains("config"), "{}", stderr(&o));
 }
@@ -146,13 +144,10 @@ fn impossible_part_contents_are_refused_with_the_file_name() {
         let mut j = original.clone();
         edit(&mut j);
         std::fs::write(&part, serde_json::to_string(&j).unwrap()).unwrap();
-        let o = rattle()
-            .arg("merge")
-            .args((0..3).map(|i| d.join(format!("m.part-{i}-of-3.json"))))
-            .arg("--out")
-            .arg(d.join("merged"))
-            .output()
-            .unwrap();
+        let parts: Vec<PathBuf> = (0..3)
+            .map(|i| d.join(format!("m.part-{i}-of-3.json")))
+            .collect();
+        let o = merge(&parts, &d.join("merged"));
         assert!(!o.status.success(), "{what}: accepted");
         assert!(
             stderr(&o).contains("m.part-1-of-3.json"),

@@ -51,8 +51,8 @@ impl Timer {
 }
 
 impl Gpu {
-    /// Runs every period of the job on a batch. Returns the periods per dispatch the loop
-    /// ended with (for the message when the driver cut loops short).
+    /// Runs every period of the job on a batch (points the driver cut short are flagged in
+    /// the batch's slots, not reported here).
     pub(super) fn integrate<F>(
         &self,
         shared: &Shared,
@@ -61,7 +61,7 @@ impl Gpu {
         mut timer: Option<&mut Timer>,
         timings: &mut Timings,
         progress: &dyn Progress,
-    ) -> Result<u32, GpuError> {
+    ) -> Result<(), GpuError> {
         let mut ctl = batch.control;
         let m = ctl.n_points;
         let nsteps = ctl.steps;
@@ -118,6 +118,6 @@ impl Gpu {
             let target = DISPATCH_SECONDS / (secs / periods as f64).max(1e-9);
             chunk = (target as u32).clamp(1, chunk.saturating_mul(8)).min(cap);
         }
-        Ok(chunk)
+        Ok(())
     }
 }

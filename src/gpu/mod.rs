@@ -317,7 +317,7 @@ impl Gpu {
             timings.setup_s += t_batch.elapsed().as_secs_f64();
 
             let t_int = Instant::now();
-            let chunk = self.integrate(
+            self.integrate(
                 &shared,
                 &batch,
                 spec.periods(),
@@ -330,7 +330,6 @@ impl Gpu {
             // One readback per batch.
             let t_read = Instant::now();
             let read = batch.read_back(self, job, &plan)?;
-            let _ = chunk;
             truncated.extend(read.truncated());
             read.decode(job, &mut results, &mut classes);
             timings.readback_s += t_read.elapsed().as_secs_f64();
