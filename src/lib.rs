@@ -23,5 +23,6 @@ pub mod real;
 pub mod reference;
 pub mod render;
 pub mod spec;
+pub mod tangent;
 
 pub use error::{Error, Result};

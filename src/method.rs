@@ -316,6 +316,38 @@ pub fn twin_offset<F: Real>() -> F {
     F::EPSILON.sqrt()
 }
 
+/// Observer of the accepted RK4 sub-steps and events of [`Integrator::step_observed`]: the
+/// tangent dynamics ([`crate::tangent`]) follow the state through the same stages and events.
+/// `()` observes nothing and compiles away, so the plain integrator pays nothing for it.
+pub trait StepObserver<F: Real> {
+    /// Whether the integrator must keep stage points and call the observer.
+    const ACTIVE: bool;
+    /// An accepted RK4 sub-step of length `dt` in `mode`, with its four stage points.
+    fn substep(&mut self, p: &Params<F>, stages: &[[F; 4]; 4], mode: Mode, dt: F);
+    /// An event, after the integrator applied it.
+    fn event(&mut self, it: &Integrator<F>, e: &Event<F>);
+}
+
+/// An event as the integrator applied it: kind `ev` (an `EV_*` code) at phase (k, theta), the
+/// state `before` in `mode_before` just before the jump, and the state after it.
+#[derive(Clone, Copy, Debug)]
+pub struct Event<F> {
+    pub ev: u32,
+    pub k: u32,
+    pub theta: F,
+    pub before: [F; 4],
+    pub mode_before: Mode,
+    pub after: PointState<F>,
+}
+
+impl<F: Real> StepObserver<F> for () {
+    const ACTIVE: bool = false;
+    #[inline(always)]
+    fn substep(&mut self, _: &Params<F>, _: &[[F; 4]; 4], _: Mode, _: F) {}
+    #[inline(always)]
+    fn event(&mut self, _: &Integrator<F>, _: &Event<F>) {}
+}
+
 /// The CPU integrator for one parameter point.
 pub struct Integrator<F> {
     pub p: Params<F>,
@@ -380,6 +412,34 @@ impl<F: Real> Integrator<F> {
     /// at the start.
     #[inline(always)]
     pub fn rk4(&self, y: &[F; 4], mode: Mode, k: u32, theta0: F, dtheta: F, k1: &[F; 4]) -> [F; 4] {
+        self.rk4_stages(
+            y,
+            mode,
+            k,
+            theta0,
+            dtheta,
+            k1,
+            &mut [[F::zero(); 4]; 4],
+            false,
+        )
+    }
+
+    /// [`Integrator::rk4`], keeping its four stage points in `stages` when `keep` (the tangent
+    /// dynamics evaluate the Jacobian there). The arithmetic is the same either way; a constant
+    /// `false` compiles the stores away.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn rk4_stages(
+        &self,
+        y: &[F; 4],
+        mode: Mode,
+        k: u32,
+        theta0: F,
+        dtheta: F,
+        k1: &[F; 4],
+        stages: &mut [[F; 4]; 4],
+        keep: bool,
+    ) -> [F; 4] {
         let p = &self.p;
         let dt = dtheta * self.h;
         let half = F::of(0.5) * dt;
@@ -389,13 +449,23 @@ impl<F: Real> Integrator<F> {
         for i in 0..4 {
             t[i] = y[i] + half * k1[i];
         }
+        if keep {
+            stages[0] = *y;
+            stages[1] = t;
+        }
         let k2 = field(p, &t, mode, c2);
         for i in 0..4 {
             t[i] = y[i] + half * k2[i];
         }
+        if keep {
+            stages[2] = t;
+        }
         let k3 = field(p, &t, mode, c2);
         for i in 0..4 {
             t[i] = y[i] + dt * k3[i];
+        }
+        if keep {
+            stages[3] = t;
         }
         let k4 = field(p, &t, mode, c4);
         let sixth = dt / F::of(6.0);
@@ -562,11 +632,34 @@ impl<F: Real> Integrator<F> {
     /// current mode and is updated to the field at the end (first-same-as-last).
     #[inline(always)]
     pub fn step(&self, st: &mut PointState<F>, k: u32, f0: &mut [F; 4]) {
+        self.step_observed(st, k, f0, &mut ());
+    }
+
+    /// [`Integrator::step`], reporting every accepted RK4 sub-step and every event to `obs`
+    /// (the tangent dynamics follow the state through them).
+    #[inline(always)]
+    pub fn step_observed<O: StepObserver<F>>(
+        &self,
+        st: &mut PointState<F>,
+        k: u32,
+        f0: &mut [F; 4],
+        obs: &mut O,
+    ) {
         let mut theta0 = F::zero();
         let mut events = 0u32;
+        let mut stages = [[F::zero(); 4]; 4];
         loop {
             let dtheta = F::one() - theta0;
-            let y1 = self.rk4(&st.y, st.mode, k, theta0, dtheta, f0);
+            let y1 = self.rk4_stages(
+                &st.y,
+                st.mode,
+                k,
+                theta0,
+                dtheta,
+                f0,
+                &mut stages,
+                O::ACTIVE,
+            );
             let (c1, _) = self.forcing(k, F::one());
             let f1 = field(&self.p, &y1, st.mode, c1);
             let (te, ev) = self.locate(&st.y, &y1, f0, &f1, st.mode, k, theta0, dtheta);
@@ -574,19 +667,37 @@ impl<F: Real> Integrator<F> {
                 if ev != EV_NONE {
                     st.diag.overflows += 1;
                 }
+                if O::ACTIVE {
+                    obs.substep(&self.p, &stages, st.mode, dtheta * self.h);
+                }
                 st.y = y1;
                 *f0 = f1;
                 break;
             }
             // Redo the step exactly up to the event, apply it, continue with the rest.
             let de = te * dtheta;
-            st.y = self.rk4(&st.y, st.mode, k, theta0, de, f0);
+            st.y = self.rk4_stages(&st.y, st.mode, k, theta0, de, f0, &mut stages, O::ACTIVE);
             theta0 = if te >= F::one() {
                 F::one()
             } else {
                 theta0 + de
             };
+            let (before, mode_before) = (st.y, st.mode);
+            if O::ACTIVE {
+                obs.substep(&self.p, &stages, st.mode, de * self.h);
+            }
             self.apply_event(st, ev, k, theta0);
+            if O::ACTIVE {
+                let e = Event {
+                    ev,
+                    k,
+                    theta: theta0,
+                    before,
+                    mode_before,
+                    after: *st,
+                };
+                obs.event(self, &e);
+            }
             events += 1;
             let (c, _) = self.forcing(k, theta0);
             *f0 = field(&self.p, &st.y, st.mode, c);
@@ -607,10 +718,15 @@ impl<F: Real> Integrator<F> {
 
     /// One forcing period: N grid steps from phase 0 to phase 0.
     pub fn period(&self, st: &mut PointState<F>) {
+        self.period_observed(st, &mut ());
+    }
+
+    /// [`Integrator::period`] with an observer of its sub-steps and events.
+    pub fn period_observed<O: StepObserver<F>>(&self, st: &mut PointState<F>, obs: &mut O) {
         let (c0, _) = self.forcing(0, F::zero());
         let mut f0 = field(&self.p, &st.y, st.mode, c0);
         for k in 0..self.n {
-            self.step(st, k, &mut f0);
+            self.step_observed(st, k, &mut f0, obs);
             if st.diag.nonfinite {
                 return;
             }

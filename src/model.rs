@@ -310,6 +310,18 @@ pub fn friction<F: Real>(p: &Params<F>, w: F) -> F {
     (p.fs - p.fk) / (F::one() + p.l1 * w).max(F::of(0.5)) + p.fk + p.l2 * w * w
 }
 
+/// d[`friction`]/dw: zero where the divisor is clamped.
+#[inline(always)]
+pub fn friction_slope<F: Real>(p: &Params<F>, w: F) -> F {
+    let q = F::one() + p.l1 * w;
+    let decay = if q > F::of(0.5) {
+        -(p.fs - p.fk) * p.l1 / (q * q)
+    } else {
+        F::zero()
+    };
+    decay + F::of(2.0) * p.l2 * w
+}
+
 pub fn field<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode, c: F) -> [F; 4] {
     match mode {
         Mode::SlipPos | Mode::SlipNeg => {
@@ -328,6 +340,31 @@ pub fn field<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode, c: F) -> [F; 4] {
             // Masses move together: same acceleration for both, so v stays exactly 0.
             let a = (c - p.b1 * y[1] - y[0]) / (F::one() + p.mu);
             [y[1], a, y[3], a]
+        }
+    }
+}
+
+/// Jacobian of [`field`] with respect to the state (row i: d y_i' / d y_j), in a fixed mode.
+/// The forcing is additive, so it does not enter. In slip the friction force s*T(s*v) has
+/// slope T'(w) in v (the two signs cancel); together the masses share one acceleration.
+#[inline(always)]
+pub fn jacobian<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode) -> [[F; 4]; 4] {
+    let (o, z) = (F::one(), F::zero());
+    match mode {
+        Mode::SlipPos | Mode::SlipNeg => {
+            let s = if mode == Mode::SlipPos { o } else { -o };
+            let e = p.b1 * p.delta + friction_slope(p, s * (y[1] - y[3]));
+            [
+                [z, o, z, z],
+                [-o, -p.b1 - e, z, e],
+                [z, z, z, o],
+                [z, e / p.mu, z, -e / p.mu],
+            ]
+        }
+        _ => {
+            let q = o / (o + p.mu);
+            let row = [-q, -p.b1 * q, z, z];
+            [[z, o, z, z], row, [z, z, z, o], row]
         }
     }
 }

@@ -1,0 +1,467 @@
+//! Tangent dynamics: the derivative of the integrator's flow with respect to the state, carried
+//! through the same RK4 stages and the same events as the state itself.
+//!
+//! Inside a mode the tangent vectors follow the variational equation `x' = J(y) x`, integrated
+//! with the RK4 stages of the state step (so the result is the exact derivative of the RK4 map).
+//! At an event the **saltation matrix** (Müller 1995; Leine & Nijmeijer 2004) maps a tangent
+//! vector across the discontinuity, including the shift of the event time:
+//!
+//! ```text
+//! S = G + (f+ - G f-) n^T / (n . f- + dh/dt)
+//! ```
+//!
+//! with `h(y, t) = 0` the event surface, `n` its gradient in the state, `f-`/`f+` the fields
+//! before and after, and `G` the Jacobian of the jump. Impacts have `h = r -+ z` and the
+//! restitution jump (`det S = R^2`); an impact whose rebound is below the Zeno speed and the
+//! reversal into stick have the co-moving projection as jump (the new mode keeps v = 0, and the
+//! perturbed trajectory also ends on that surface: S removes the perturbation of v, and at a
+//! stop the perturbation of z); a release from stick or lock has `h = Fs -+ Tn(y, t)` and no jump.
+//!
+//! On top of that: monodromy matrices of n periods ([`flow`]), Newton refinement of cycles with
+//! their Floquet multipliers ([`refine`]) and the Lyapunov spectrum ([`spectrum`]).
+
+use crate::method::{
+    EV_IMPACT_NEG, EV_IMPACT_POS, EV_RELEASE_NEG, EV_RELEASE_POS, EV_REVERSAL, Event, Integrator,
+    PointState, StepObserver,
+};
+use crate::model::{Mode, Params, co_move, field, impact, initial_mode, jacobian};
+use crate::real::Real;
+use nalgebra::{Matrix4, Vector4};
+use serde::Serialize;
+
+#[inline(always)]
+fn dot<F: Real>(a: &[F; 4], b: &[F; 4]) -> F {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
+}
+
+#[inline(always)]
+fn mul<F: Real>(j: &[[F; 4]; 4], x: &[F; 4]) -> [F; 4] {
+    [dot(&j[0], x), dot(&j[1], x), dot(&j[2], x), dot(&j[3], x)]
+}
+
+/// The jump of the state at an event; each is linear in the velocities, so its Jacobian acts on
+/// a tangent vector as the jump itself does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Jump {
+    /// Mode switch only (release from stick or lock).
+    Identity,
+    /// Restitution impact ([`impact`]).
+    Impact,
+    /// Both velocities set to the common one ([`co_move`]): reversal into rest, or an impact
+    /// that ends below the Zeno speed (the momentum-preserving impact composed with co-moving
+    /// is co-moving).
+    CoMove,
+}
+
+/// Saltation matrix of one event, in factored form `S x = G x + u (n . x) / d`.
+#[derive(Clone, Copy, Debug)]
+pub struct Saltation<F> {
+    pub jump: Jump,
+    /// Gradient of the event function in the state.
+    pub n: [F; 4],
+    /// `f+ - G f-`.
+    pub u: [F; 4],
+    /// `n . f- + dh/dt`: the rate at which the trajectory reaches the surface.
+    pub d: F,
+}
+
+impl<F: Real> Saltation<F> {
+    /// The saltation of an event the integrator applied.
+    pub fn at(it: &Integrator<F>, e: &Event<F>) -> Saltation<F> {
+        let p = &it.p;
+        let (ev, before, mode_before, after) = (e.ev, &e.before, e.mode_before, &e.after);
+        let (o, z) = (F::one(), F::zero());
+        let (c, sn) = it.forcing(e.k, e.theta);
+        let settled = after.y[1] == after.y[3];
+        // Needed force Tn = kf (c - b1 y2 - y1): gradient -kf (1, b1, 0, 0), time rate -kf eta sin.
+        let kf = p.mu / (o + p.mu);
+        let (jump, n, ht) = match ev {
+            EV_IMPACT_POS | EV_IMPACT_NEG => {
+                let s = if ev == EV_IMPACT_POS { o } else { -o };
+                let jump = if settled { Jump::CoMove } else { Jump::Impact };
+                // h = r - s z, z = y3 - y1.
+                (jump, [s, z, -s, z], z)
+            }
+            EV_REVERSAL => {
+                let s = if mode_before == Mode::SlipPos { o } else { -o };
+                (Jump::CoMove, [z, s, z, -s], z)
+            }
+            EV_RELEASE_POS => (Jump::Identity, [kf, kf * p.b1, z, z], kf * p.eta * sn),
+            _ => {
+                debug_assert_eq!(ev, EV_RELEASE_NEG);
+                (Jump::Identity, [-kf, -kf * p.b1, z, z], -kf * p.eta * sn)
+            }
+        };
+        let fm = field(p, before, mode_before, c);
+        let fp = field(p, &after.y, after.mode, c);
+        let mut gfm = fm;
+        jump_apply(p, jump, &mut gfm);
+        let u = [
+            fp[0] - gfm[0],
+            fp[1] - gfm[1],
+            fp[2] - gfm[2],
+            fp[3] - gfm[3],
+        ];
+        Saltation {
+            jump,
+            n,
+            u,
+            d: dot(&n, &fm) + ht,
+        }
+    }
+
+    /// Maps a tangent vector across the event.
+    #[inline(always)]
+    pub fn apply(&self, p: &Params<F>, x: &mut [F; 4]) {
+        let a = dot(&self.n, x) / self.d;
+        jump_apply(p, self.jump, x);
+        for (xi, ui) in x.iter_mut().zip(&self.u) {
+            *xi += *ui * a;
+        }
+    }
+
+    /// The matrix S (in f64), column j = S e_j.
+    pub fn matrix(&self, p: &Params<F>) -> Matrix4<f64> {
+        let mut m = Matrix4::zeros();
+        for j in 0..4 {
+            let mut e = [F::zero(); 4];
+            e[j] = F::one();
+            self.apply(p, &mut e);
+            for i in 0..4 {
+                m[(i, j)] = e[i].to_f64();
+            }
+        }
+        m
+    }
+}
+
+#[inline(always)]
+fn jump_apply<F: Real>(p: &Params<F>, jump: Jump, x: &mut [F; 4]) {
+    match jump {
+        Jump::Identity => {}
+        Jump::Impact => impact(p, x),
+        Jump::CoMove => co_move(p, x),
+    }
+}
+
+/// `m` tangent vectors carried along a trajectory (the columns of the flow's derivative when
+/// `m` = 4 and they start as the identity).
+#[derive(Clone, Copy, Debug)]
+pub struct Tangent<F> {
+    pub v: [[F; 4]; 4],
+    pub m: usize,
+    /// log of the change of 4-volume: the integral of trace J plus log |det S| at the events
+    /// (Liouville), accumulated independently of the vectors.
+    pub log_volume: f64,
+    /// Events whose saltation was applied.
+    pub events: u64,
+}
+
+impl<F: Real> Tangent<F> {
+    /// The first `m` unit vectors.
+    pub fn identity(m: usize) -> Tangent<F> {
+        let mut v = [[F::zero(); 4]; 4];
+        for (i, vi) in v.iter_mut().enumerate() {
+            vi[i] = F::one();
+        }
+        Tangent {
+            v,
+            m: m.clamp(1, 4),
+            log_volume: 0.0,
+            events: 0,
+        }
+    }
+
+    /// The matrix whose columns are the vectors (the flow's derivative when `m` = 4).
+    pub fn matrix(&self) -> Matrix4<f64> {
+        Matrix4::from_fn(|i, j| {
+            if j < self.m {
+                self.v[j][i].to_f64()
+            } else {
+                0.0
+            }
+        })
+    }
+
+    pub fn is_finite(&self) -> bool {
+        self.v[..self.m].iter().flatten().all(|x| x.is_finite())
+    }
+}
+
+impl<F: Real> StepObserver<F> for Tangent<F> {
+    const ACTIVE: bool = true;
+
+    /// RK4 of the variational equation on the state's stage points: the derivative of the
+    /// state's RK4 step.
+    #[inline(always)]
+    fn substep(&mut self, p: &Params<F>, stages: &[[F; 4]; 4], mode: Mode, dt: F) {
+        let j = [
+            jacobian(p, &stages[0], mode),
+            jacobian(p, &stages[1], mode),
+            jacobian(p, &stages[2], mode),
+            jacobian(p, &stages[3], mode),
+        ];
+        let half = F::of(0.5) * dt;
+        let sixth = dt / F::of(6.0);
+        let two = F::of(2.0);
+        for x in self.v[..self.m].iter_mut() {
+            let at = |a: F, k: &[F; 4]| {
+                [
+                    x[0] + a * k[0],
+                    x[1] + a * k[1],
+                    x[2] + a * k[2],
+                    x[3] + a * k[3],
+                ]
+            };
+            let k1 = mul(&j[0], x);
+            let k2 = mul(&j[1], &at(half, &k1));
+            let k3 = mul(&j[2], &at(half, &k2));
+            let k4 = mul(&j[3], &at(dt, &k3));
+            for i in 0..4 {
+                x[i] += sixth * (k1[i] + two * (k2[i] + k3[i]) + k4[i]);
+            }
+        }
+        let tr = |a: &[[F; 4]; 4]| (a[0][0] + a[1][1] + a[2][2] + a[3][3]).to_f64();
+        self.log_volume += sixth.to_f64() * (tr(&j[0]) + 2.0 * (tr(&j[1]) + tr(&j[2])) + tr(&j[3]));
+    }
+
+    fn event(&mut self, it: &Integrator<F>, e: &Event<F>) {
+        let s = Saltation::at(it, e);
+        for x in self.v[..self.m].iter_mut() {
+            s.apply(&it.p, x);
+        }
+        self.log_volume += s.matrix(&it.p).determinant().abs().ln();
+        self.events += 1;
+    }
+}
+
+/// Integrates `periods` forcing periods from `st` with the full tangent (identity at the
+/// start): the state at the end and the derivative of the `periods`-period stroboscopic map
+/// (the monodromy matrix of a cycle of that period).
+pub fn flow<F: Real>(
+    it: &Integrator<F>,
+    st: &PointState<F>,
+    periods: u32,
+) -> (PointState<F>, Tangent<F>) {
+    let mut s = *st;
+    let mut t = Tangent::identity(4);
+    for _ in 0..periods {
+        it.period_observed(&mut s, &mut t);
+        if s.diag.nonfinite {
+            break;
+        }
+    }
+    (s, t)
+}
+
+/// Eigenvalues of a 4x4 matrix as [re, im], modulus descending.
+pub fn eigenvalues(m: &Matrix4<f64>) -> Vec<[f64; 2]> {
+    let mut ev: Vec<[f64; 2]> = m
+        .complex_eigenvalues()
+        .iter()
+        .map(|c| [c.re, c.im])
+        .collect();
+    ev.sort_by(|a, b| modulus(b).total_cmp(&modulus(a)));
+    ev
+}
+
+pub fn modulus(z: &[f64; 2]) -> f64 {
+    z[0].hypot(z[1])
+}
+
+/// Newton iterations at most (quadratic convergence needs 3-5 from a settled orbit).
+pub const NEWTON_ITERS: u32 = 12;
+/// Convergence: max |P^n(x) - x| below this times max(1, |x|).
+pub const NEWTON_TOL: f64 = 1e-9;
+
+/// A cycle of the stroboscopic map refined by Newton's method.
+#[derive(Clone, Debug, Serialize)]
+pub struct Cycle {
+    pub period: u32,
+    /// The refined section point (phase 0 of the forcing) and its mode.
+    pub point: [f64; 4],
+    pub mode: Mode,
+    /// max |P^n(x) - x| at `point`.
+    pub residual: f64,
+    pub iterations: u32,
+    pub converged: bool,
+    /// Floquet multipliers (eigenvalues of the monodromy matrix), [re, im], modulus
+    /// descending; empty unless converged.
+    pub multipliers: Vec<[f64; 2]>,
+}
+
+impl Cycle {
+    /// Largest multiplier modulus (NaN unless converged).
+    pub fn leading_modulus(&self) -> f64 {
+        self.multipliers.first().map_or(f64::NAN, modulus)
+    }
+
+    /// Converged, with every multiplier strictly inside the unit circle: an attracting cycle.
+    pub fn is_stable(&self) -> bool {
+        self.converged && self.leading_modulus() < 1.0
+    }
+}
+
+/// Refines a cycle of period `n` of the stroboscopic map from `start` by Newton's method,
+/// `x <- x - (M - I)^-1 (P^n(x) - x)` with the monodromy matrix `M` from the tangent dynamics,
+/// and returns it with its multipliers. The mode is kept along the iteration (a slip whose
+/// velocity changes sign, or a rest mode, is re-derived from the state).
+pub fn refine(it: &Integrator<f64>, start: &PointState<f64>, n: u32) -> Cycle {
+    let mut st = *start;
+    st.diag = Default::default();
+    let mut out = Cycle {
+        period: n,
+        point: st.y,
+        mode: st.mode,
+        residual: f64::NAN,
+        iterations: 0,
+        converged: false,
+        multipliers: Vec::new(),
+    };
+    for iter in 0..NEWTON_ITERS {
+        let (end, tan) = flow(it, &st, n);
+        out.iterations = iter + 1;
+        if end.diag.nonfinite || !tan.is_finite() {
+            break;
+        }
+        let r = Vector4::from_fn(|i, _| end.y[i] - st.y[i]);
+        out.point = st.y;
+        out.mode = st.mode;
+        out.residual = r.amax();
+        let scale = st.y.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        let m = tan.matrix();
+        if out.residual <= NEWTON_TOL * scale {
+            // A fixed point of P^n may be a cycle of a divisor of n: report the least period.
+            if let Some(d) = (1..n).find(|d| n.is_multiple_of(*d) && returns(it, &st, *d, scale)) {
+                return refine(it, &st, d);
+            }
+            out.converged = true;
+            out.multipliers = eigenvalues(&m);
+            break;
+        }
+        let Some(dx) = (m - Matrix4::identity()).lu().solve(&(-r)) else {
+            break;
+        };
+        if !dx.iter().all(|v| v.is_finite()) {
+            break;
+        }
+        for i in 0..4 {
+            st.y[i] += dx[i];
+        }
+        st.mode = mode_after_update(it, &st);
+        if let Mode::Stick | Mode::LockPos | Mode::LockNeg = st.mode {
+            co_move(&it.p, &mut st.y);
+        }
+    }
+    out
+}
+
+/// Whether `d` periods from `st` return to it within the Newton tolerance.
+fn returns(it: &Integrator<f64>, st: &PointState<f64>, d: u32, scale: f64) -> bool {
+    let mut s = *st;
+    for _ in 0..d {
+        it.period(&mut s);
+    }
+    (0..4).all(|i| (s.y[i] - st.y[i]).abs() <= 1e3 * NEWTON_TOL * scale)
+}
+
+/// Mode of a Newton iterate: the old one unless a slip changed direction.
+fn mode_after_update(it: &Integrator<f64>, st: &PointState<f64>) -> Mode {
+    let v = st.y[1] - st.y[3];
+    match st.mode {
+        Mode::SlipPos if v > 0.0 => Mode::SlipPos,
+        Mode::SlipNeg if v < 0.0 => Mode::SlipNeg,
+        Mode::SlipPos | Mode::SlipNeg => initial_mode(&it.p, &st.y, it.forcing(0, 0.0).0),
+        m => m,
+    }
+}
+
+/// Lyapunov exponents from a tangent run.
+#[derive(Clone, Debug, Serialize)]
+pub struct Spectrum {
+    /// Exponents per unit time, largest first (`m` of them).
+    pub exponents: Vec<f64>,
+    /// Time average of the log-volume change (Liouville); equals the sum of all four exponents.
+    pub volume_rate: f64,
+}
+
+/// Below this norm a tangent vector is taken as collapsed (a stick or lock removes up to two
+/// directions exactly); it is replaced by a fresh orthogonal direction and counted at the floor.
+fn collapse_floor<F: Real>() -> F {
+    F::EPSILON * F::EPSILON
+}
+
+/// Lyapunov exponents of `m` tangent vectors over `periods` periods from `st` (which is
+/// advanced), re-orthonormalised by modified Gram-Schmidt at every section (Benettin et al.);
+/// the logarithms of the norms are summed in f64.
+pub fn spectrum<F: Real>(
+    it: &Integrator<F>,
+    st: &mut PointState<F>,
+    periods: u32,
+    m: usize,
+) -> Spectrum {
+    let mut t = Tangent::<F>::identity(m);
+    let mut sums = vec![0.0f64; t.m];
+    let mut done = 0u32;
+    for _ in 0..periods {
+        it.period_observed(st, &mut t);
+        if st.diag.nonfinite || !t.is_finite() {
+            return Spectrum {
+                exponents: vec![f64::NAN; t.m],
+                volume_rate: f64::NAN,
+            };
+        }
+        orthonormalize(&mut t, &mut sums);
+        done += 1;
+    }
+    let time = done as f64 * 2.0 * std::f64::consts::PI / it.p.eta.to_f64();
+    Spectrum {
+        exponents: sums.iter().map(|s| s / time).collect(),
+        volume_rate: t.log_volume / time,
+    }
+}
+
+/// Modified Gram-Schmidt on the tangent vectors; adds log of each norm to `sums`.
+pub fn orthonormalize<F: Real>(t: &mut Tangent<F>, sums: &mut [f64]) {
+    let floor = collapse_floor::<F>();
+    #[allow(clippy::needless_range_loop)] // split_at_mut needs the index
+    for c in 0..t.m {
+        let (done, rest) = t.v.split_at_mut(c);
+        let x = &mut rest[0];
+        for b in done.iter() {
+            let a = dot(b, x);
+            for i in 0..4 {
+                x[i] = x[i] - a * b[i];
+            }
+        }
+        let mut norm = dot(x, x).sqrt();
+        if norm <= floor {
+            // A collapsed direction: continue from a unit vector orthogonal to the others.
+            let mut best = [F::zero(); 4];
+            let mut best_norm = F::zero();
+            for e in 0..4 {
+                let mut y = [F::zero(); 4];
+                y[e] = F::one();
+                for b in done.iter() {
+                    let a = dot(b, &y);
+                    for i in 0..4 {
+                        y[i] = y[i] - a * b[i];
+                    }
+                }
+                let ny = dot(&y, &y).sqrt();
+                if ny > best_norm {
+                    best = y;
+                    best_norm = ny;
+                }
+            }
+            *x = best.map(|v| v / best_norm);
+            sums[c] += floor.to_f64().ln();
+            continue;
+        }
+        norm = norm.max(floor);
+        for v in x.iter_mut() {
+            *v = *v / norm;
+        }
+        sums[c] += norm.to_f64().ln();
+    }
+}
