@@ -10,8 +10,10 @@ use crate::gpu::{GpuError, Timings};
 use crate::method::{Diagnostics, RunResult};
 use crate::output::{OutputError, Staged, with_ext};
 use crate::progress::{Progress, Silent};
-use crate::render::{DensityPlot, density_png, panels_png};
+use crate::render::{DensityPlot, Mark, density_png, panels_png};
 use crate::spec::{Points, RunSpec};
+use crate::stability::{BifurcationPoint, Branch, Kind, bifurcation_points, confirm_all};
+use crate::tangent::Cycle;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -24,6 +26,8 @@ pub struct SweepPoint {
     pub value: f64,
     pub class: Class,
     pub result: RunResult,
+    /// The Newton-refined cycle behind the class (see [`crate::stability::confirm`]).
+    pub cycle: Option<Cycle>,
 }
 
 impl SweepPoint {
@@ -32,17 +36,52 @@ impl SweepPoint {
     }
 }
 
-/// Classifies the results of a sweep.
+/// Classifies the results of a sweep: the detector proposes, the multipliers decide.
 pub fn finish(cfg: &Config, results: Vec<RunResult>) -> Vec<SweepPoint> {
-    cfg.sweep_values()
+    let values = cfg.sweep_values();
+    let base = cfg.params();
+    let at = |i: usize| {
+        let mut p = base;
+        cfg.sweep.param.set(&mut p, values[i]);
+        p
+    };
+    let proposals: Vec<Class> = results
+        .iter()
+        .map(|r| {
+            r.class(cfg.run.period_tol)
+                .with_lyapunov(r.lyapunov, cfg.run.lyapunov_tol)
+        })
+        .collect();
+    let verdicts = confirm_all(
+        at,
+        &cfg.settings(),
+        &results,
+        &proposals,
+        cfg.run.lyapunov_tol,
+    );
+    values
         .into_iter()
         .zip(results)
-        .map(|(value, result)| SweepPoint {
+        .zip(verdicts)
+        .map(|((value, result), v)| SweepPoint {
             value,
-            class: result.class(cfg.run.period_tol),
+            class: v.class,
             result,
+            cycle: v.cycle,
         })
         .collect()
+}
+
+/// Bifurcation points of a chain (stability changes of its cycles).
+pub fn find_bifurcations(cfg: &Config, points: &[SweepPoint]) -> Vec<BifurcationPoint> {
+    let branch: Vec<Branch> = points
+        .iter()
+        .map(|pt| Branch {
+            value: pt.value,
+            cycle: pt.cycle.as_ref().filter(|_| pt.class.period().is_some()),
+        })
+        .collect();
+    bifurcation_points(&cfg.params(), cfg.sweep.param, &cfg.settings(), &branch)
 }
 
 /// The plotted quantity of a state.
@@ -131,6 +170,8 @@ pub struct Bifurcation {
     pub continuation: Option<Continuation>,
     /// (direction, points in ascending parameter order).
     pub runs: Vec<(Option<Direction>, Vec<SweepPoint>)>,
+    /// Bifurcation points of each chain, in the order of `runs`.
+    pub bifurcations: Vec<Vec<BifurcationPoint>>,
     pub backend: &'static str,
     pub device: String,
     /// Backend timings (not for continuation, which runs many small jobs).
@@ -172,10 +213,17 @@ pub fn run(
             (dirs.into_iter().map(Some).zip(r).collect(), None)
         }
     };
+    let runs: Vec<(Option<Direction>, Vec<SweepPoint>)> =
+        runs.into_iter().map(|(d, r)| (d, finish(cfg, r))).collect();
+    let bifurcations = runs
+        .iter()
+        .map(|(_, pts)| find_bifurcations(cfg, pts))
+        .collect();
     Ok(Bifurcation {
         cfg: cfg.clone(),
         continuation,
-        runs: runs.into_iter().map(|(d, r)| (d, finish(cfg, r))).collect(),
+        runs,
+        bifurcations,
         backend: engine.name(),
         device: engine.device(),
         timings,
@@ -353,6 +401,7 @@ fn panel<'a>(
     title: &'a str,
     x_label: &'a str,
     points: &'a [(f64, f64)],
+    marks: &'a [Mark],
     (width, height): (u32, u32),
 ) -> DensityPlot<'a> {
     DensityPlot {
@@ -369,7 +418,24 @@ fn panel<'a>(
         height,
         print_dpi: None,
         drop_isolated: false,
+        marks,
     }
+}
+
+/// Marks of the bifurcation points of a chain (kinds in the order of `render::MARK_KINDS`).
+fn marks(points: &[BifurcationPoint]) -> Vec<Mark> {
+    points
+        .iter()
+        .map(|b| Mark {
+            x: b.value,
+            kind: match b.kind {
+                Kind::PeriodDoubling => 0,
+                Kind::Fold => 1,
+                Kind::NeimarkSacker => 2,
+                Kind::NonSmooth => 3,
+            },
+        })
+        .collect()
 }
 
 /// (parameter, plotted value) of every sample of a chain.
@@ -392,6 +458,9 @@ struct PointJson {
     class: String,
     diagnostics: Diagnostics,
     impacts_per_period: f64,
+    /// Floquet multipliers of the Newton-refined cycle ([re, im], modulus descending); null
+    /// where Newton did not converge or was not tried.
+    multipliers: Option<Vec<[f64; 2]>>,
     period: Option<u32>,
     value: f64,
 }
@@ -410,6 +479,9 @@ struct TimingsJson {
 #[derive(Serialize)]
 struct BifurcationJson<'a, P: Serialize> {
     backend: &'static str,
+    /// Stability changes of the cycles, per chain (one list without continuation; up, down
+    /// with it).
+    bifurcations: &'a [Vec<BifurcationPoint>],
     /// What the figure shows, how it was computed, and what to notice.
     caption: String,
     class_counts: BTreeMap<String, usize>,
@@ -435,12 +507,19 @@ struct Chain<'a>(&'a [SweepPoint]);
 
 impl Serialize for Chain<'_> {
     fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        s.collect_seq(self.0.iter().map(|pt| PointJson {
-            class: pt.class.name(),
-            diagnostics: pt.result.diag,
-            impacts_per_period: pt.impacts_per_period(),
-            period: pt.class.period(),
-            value: pt.value,
+        s.collect_seq(self.0.iter().map(|pt| {
+            PointJson {
+                class: pt.class.name(),
+                diagnostics: pt.result.diag,
+                impacts_per_period: pt.impacts_per_period(),
+                multipliers: pt
+                    .cycle
+                    .as_ref()
+                    .filter(|c| c.converged)
+                    .map(|c| c.multipliers.clone()),
+                period: pt.class.period(),
+                value: pt.value,
+            }
         }))
     }
 }
@@ -495,9 +574,11 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
             (title, plot_points(var, points))
         })
         .collect();
+    let chain_marks: Vec<Vec<Mark>> = b.bifurcations.iter().map(|bs| marks(bs)).collect();
     let panels: Vec<DensityPlot> = data
         .iter()
-        .map(|(title, xy)| panel(cfg, title, &x_label, xy, (1200, 800)))
+        .zip(&chain_marks)
+        .map(|((title, xy), m)| panel(cfg, title, &x_label, xy, m, (1200, 800)))
         .collect();
     let png_path = staged.path(&with_ext(out, "png"));
     let panels_n = panels.len();
@@ -518,6 +599,7 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         version: env!("CARGO_PKG_VERSION"),
         command: "bifurcation",
         backend: b.backend,
+        bifurcations: &b.bifurcations,
         caption: caption(
             b,
             &counts,
@@ -665,15 +747,20 @@ pub fn paper_figure(
         .map(|((name, _, b), letter)| panel_title(letter, name, &b.cfg))
         .collect();
     let x_label = format!("\u{3b7} ({})", "forcing frequency");
+    let paper_marks: Vec<Vec<Mark>> = data
+        .iter()
+        .map(|(_, _, b)| marks(&b.bifurcations[0]))
+        .collect();
     let panels: Vec<DensityPlot> = data
         .iter()
         .zip(&titles)
-        .map(|((_, xy, b), title)| DensityPlot {
+        .zip(&paper_marks)
+        .map(|(((_, xy, b), title), m)| DensityPlot {
             x_range: (x0, x1),
             y_range: Some(y_range),
             print_dpi: Some(PAPER_DPI),
             drop_isolated: true,
-            ..panel(&b.cfg, title, &x_label, xy, (1000, 700))
+            ..panel(&b.cfg, title, &x_label, xy, m, (1000, 700))
         })
         .collect();
     let px = |cm: f64| (cm / 2.54 * PAPER_DPI).round() as u32;

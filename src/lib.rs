@@ -23,6 +23,7 @@ pub mod real;
 pub mod reference;
 pub mod render;
 pub mod spec;
+pub mod stability;
 pub mod tangent;
 
 pub use error::{Error, Result};

@@ -4,10 +4,12 @@ use crate::classify::Class;
 use crate::config::Config;
 use crate::engine::Engine;
 use crate::error::Result;
-use crate::method::{Diagnostics, RunResult};
+use crate::method::{Diagnostics, Integrator, PointState, RunResult};
 use crate::model::{Mode, Params};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
+use crate::stability::confirm;
+use crate::tangent::{Cycle, modulus, spectrum};
 use serde::Serialize;
 use std::fmt;
 use std::time::Instant;
@@ -19,6 +21,15 @@ pub struct PointReport {
     pub period: Option<u32>,
     pub impacts_per_period: f64,
     pub lyapunov: f64,
+    /// All four Lyapunov exponents per unit time (tangent dynamics, CPU f64, over the sampled
+    /// periods from the final state), largest first; a stick or lock removes directions
+    /// exactly, and the exponents of removed directions then only say "very negative".
+    pub lyapunov_spectrum: Vec<f64>,
+    /// Floquet multipliers of the Newton-refined cycle ([re, im], modulus descending); null
+    /// where no cycle converged.
+    pub multipliers: Option<Vec<[f64; 2]>>,
+    /// The refined cycle (section point, mode, residual); null where none was tried.
+    pub cycle: Option<Cycle>,
     pub diagnostics: Diagnostics,
     pub samples: Vec<[f64; 4]>,
     pub final_mode: Mode,
@@ -35,12 +46,40 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     let t = Instant::now();
     let (mut rs, _) = engine.run(&spec, &Points::single(), progress)?;
     let r: RunResult = rs.pop().expect("one point, one result");
-    let class: Class = r.class(cfg.run.period_tol);
+    let proposal = r
+        .class(cfg.run.period_tol)
+        .with_lyapunov(r.lyapunov, spec.lyapunov_tol);
+    let verdict = confirm(
+        &spec.params,
+        &spec.settings,
+        &r,
+        proposal,
+        spec.lyapunov_tol,
+    );
+    let class: Class = verdict.class;
+    let lyapunov_spectrum = if r.diag.nonfinite {
+        vec![f64::NAN; 4]
+    } else {
+        let it = Integrator::<f64>::new(&spec.params, &spec.settings);
+        let mut st = PointState {
+            y: r.final_y,
+            mode: r.final_mode,
+            diag: Default::default(),
+        };
+        spectrum(&it, &mut st, spec.samples, 4).exponents
+    };
     Ok(PointReport {
         class: class.name(),
         period: class.period(),
         impacts_per_period: r.impacts_per_period(),
         lyapunov: r.lyapunov,
+        lyapunov_spectrum,
+        multipliers: verdict
+            .cycle
+            .as_ref()
+            .filter(|c| c.converged)
+            .map(|c| c.multipliers.clone()),
+        cycle: verdict.cycle,
         diagnostics: r.diag,
         final_mode: r.final_mode,
         params: spec.params,
@@ -63,6 +102,38 @@ impl fmt::Display for PointReport {
         )?;
         writeln!(f, "impacts per period {:.4}", self.impacts_per_period)?;
         writeln!(f, "lyapunov exponent  {:.5} (per unit time)", self.lyapunov)?;
+        let spec: Vec<String> = self
+            .lyapunov_spectrum
+            .iter()
+            .map(|l| format!("{l:.5}"))
+            .collect();
+        writeln!(
+            f,
+            "lyapunov spectrum  {} (tangent dynamics)",
+            spec.join(" ")
+        )?;
+        if let Some(c) = &self.cycle {
+            let m: Vec<String> = c
+                .multipliers
+                .iter()
+                .map(|z| format!("{:.6}{:+.6}i (|{:.6}|)", z[0], z[1], modulus(z)))
+                .collect();
+            writeln!(
+                f,
+                "cycle              period {} {} (Newton: {} iterations, residual {:.1e})",
+                c.period,
+                match (c.converged, c.is_stable()) {
+                    (true, true) => "stable",
+                    (true, false) => "unstable",
+                    _ => "not converged",
+                },
+                c.iterations,
+                c.residual
+            )?;
+            if !m.is_empty() {
+                writeln!(f, "multipliers        {}", m.join(", "))?;
+            }
+        }
         writeln!(
             f,
             "diagnostics        impacts {} sticks {} locks {} overflows {} nonfinite {}",

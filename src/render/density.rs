@@ -34,7 +34,27 @@ pub struct DensityPlot<'a> {
     /// transients not yet on the attractor, and the sparsest samples of chaotic bands, which
     /// at print size read as dust. The number left out is returned.
     pub drop_isolated: bool,
+    /// Bifurcation points: a triangle on the x axis at each, coloured by kind (an index into
+    /// [`MARK_KINDS`]), with a legend of the kinds present.
+    pub marks: &'a [Mark],
 }
+
+/// A bifurcation point on a diagram.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mark {
+    pub x: f64,
+    /// Index into [`MARK_KINDS`].
+    pub kind: usize,
+}
+
+/// Names and colours of the marked kinds (Okabe-Ito hues, distinguishable in colour-blind
+/// vision and against the grey density).
+pub const MARK_KINDS: [(&str, RGBColor); 4] = [
+    ("period doubling", RGBColor(213, 94, 0)),
+    ("fold", RGBColor(0, 158, 115)),
+    ("Neimark-Sacker", RGBColor(0, 114, 178)),
+    ("non-smooth", RGBColor(204, 121, 167)),
+];
 
 /// What a density panel drew.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -163,6 +183,7 @@ pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<DensityStats
         let t = floor + (1.0 - floor) * f64::from(n).ln_1p() / max.ln_1p();
         (n > 0).then(|| shade.get_color(t))
     })?;
+    draw_marks(&mut chart, plot, &l, y0)?;
     // Axes last so they sit on top of the density.
     let (fx, fy) = (
         |v: &f64| fmt_tick(*v, x1 - x0),
@@ -174,6 +195,47 @@ pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<DensityStats
         inside: inside as usize,
         dropped,
     })
+}
+
+/// Triangles on the x axis at the bifurcation points, with a legend of the kinds shown.
+fn draw_marks<'a, 'b: 'a>(
+    chart: &mut super::Chart<'a, 'b>,
+    plot: &DensityPlot,
+    l: &super::Layout,
+    y0: f64,
+) -> Result<(), RenderError> {
+    let size = (l.tick * 0.45).max(4.0) as i32;
+    for (k, (name, color)) in MARK_KINDS.iter().enumerate() {
+        let xs: Vec<f64> = plot
+            .marks
+            .iter()
+            .filter(|m| m.kind == k)
+            .map(|m| m.x)
+            .collect();
+        if xs.is_empty() {
+            continue;
+        }
+        let style = color.filled();
+        chart
+            .draw_series(
+                xs.iter()
+                    .map(|&x| TriangleMarker::new((x, y0), size, style)),
+            )
+            .map_err(draw_err)?
+            .label(*name)
+            .legend(move |(x, y)| TriangleMarker::new((x, y), size, style));
+    }
+    if !plot.marks.is_empty() {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font((super::FONT, l.tick))
+            .draw()
+            .map_err(draw_err)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -197,6 +259,7 @@ mod tests {
             height: 400,
             print_dpi: None,
             drop_isolated: false,
+            marks: &[],
         }
     }
 

@@ -13,7 +13,9 @@ mod lines;
 mod maps;
 mod palette;
 
-pub use density::{DensityPlot, DensityStats, density_panel, density_png, panels_png};
+pub use density::{
+    DensityPlot, DensityStats, MARK_KINDS, Mark, density_panel, density_png, panels_png,
+};
 pub use lines::{LinePlot, Scale, Series, line_plot_png, line_plot_svg};
 pub use maps::{CategoryMap, ScalarMap, category_map_png, scalar_map_png};
 pub use palette::{ClassKind, MAX_PERIOD, PERIOD_FAMILIES, period_color};

@@ -1,0 +1,249 @@
+//! What rattle concludes from the tangent dynamics: a period proposed by the detector is a
+//! `period-n` only if Newton's method converges to the cycle and every Floquet multiplier lies
+//! inside the unit circle; and where a branch of cycles loses stability along a sweep, the
+//! bifurcation point, its kind and its multipliers.
+//!
+//! The refinement runs on the CPU in f64 whatever backend and precision integrated the point:
+//! it judges the backend's answer with the reference arithmetic (an f32 round-off cycle near an
+//! unstable orbit converges to that orbit, whose multipliers reject it).
+
+use crate::classify::Class;
+use crate::method::{Integrator, PointState, RunResult, Settings};
+use crate::model::{Param, Params};
+use crate::tangent::{Cycle, modulus, refine};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Longest period tried for a point the detector left without one.
+pub const MAX_TRIAL_PERIOD: usize = 16;
+
+/// A point's class after the multipliers had their say, and the cycle behind it.
+#[derive(Clone, Debug)]
+pub struct Verdict {
+    pub class: Class,
+    /// The refined cycle: stable for `period-n`; an unstable cycle the detector proposed (or
+    /// the trailing window suggested) otherwise; `None` where no cycle was tried.
+    pub cycle: Option<Cycle>,
+}
+
+/// Confirms or rejects the detector's `proposal` for the run `r` of parameters `p`.
+///
+/// - `period-n`: Newton from the final state; stable => `period-m` (m the least period),
+///   otherwise the point is aperiodic and its exponent (if any) decides the class.
+/// - aperiodic, quasi-periodic or unresolved (not chaotic by its exponent): the trailing window
+///   of samples proposes the lag n that repeats best, and a stable cycle found by Newton from
+///   the final state makes the point `period-n` (a slow transient or an early miss).
+pub fn confirm(
+    p: &Params<f64>,
+    settings: &Settings,
+    r: &RunResult,
+    proposal: Class,
+    lyapunov_tol: f64,
+) -> Verdict {
+    let keep = Verdict {
+        class: proposal,
+        cycle: None,
+    };
+    let tried = match proposal {
+        Class::Failed | Class::NoImpact | Class::Chaotic => return keep,
+        Class::Periodic(n) => n,
+        _ => match trailing_lag(&r.samples) {
+            Some(n) => n,
+            None => return keep,
+        },
+    };
+    let it = Integrator::<f64>::new(p, settings);
+    let start = PointState {
+        y: r.final_y,
+        mode: r.final_mode,
+        diag: Default::default(),
+    };
+    let c = refine(&it, &start, tried);
+    let class = if c.is_stable() {
+        Class::Periodic(c.period)
+    } else if let Class::Periodic(_) = proposal {
+        Class::Aperiodic.with_lyapunov(r.lyapunov, lyapunov_tol)
+    } else {
+        proposal
+    };
+    Verdict {
+        class,
+        cycle: Some(c),
+    }
+}
+
+/// The lag n <= [`MAX_TRIAL_PERIOD`] over which the last samples repeat best (smallest largest
+/// difference |x_k - x_(k-n)| over a trailing window of 32 samples); `None` with too few
+/// samples.
+pub fn trailing_lag(samples: &[[f64; 4]]) -> Option<u32> {
+    let len = samples.len();
+    let window = 32;
+    (1..=MAX_TRIAL_PERIOD)
+        .filter(|n| len >= window + n)
+        .map(|n| {
+            let d = (len - window..len)
+                .flat_map(|k| (0..4).map(move |i| (k, i)))
+                .map(|(k, i)| (samples[k][i] - samples[k - n][i]).abs())
+                .fold(0.0f64, f64::max);
+            (n, d)
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(n, _)| n as u32)
+}
+
+/// [`confirm`] for every point of a run, in parallel.
+pub fn confirm_all(
+    params: impl Fn(usize) -> Params<f64> + Sync,
+    settings: &Settings,
+    results: &[RunResult],
+    proposals: &[Class],
+    lyapunov_tol: f64,
+) -> Vec<Verdict> {
+    results
+        .par_iter()
+        .zip(proposals)
+        .enumerate()
+        .map(|(i, (r, c))| confirm(&params(i), settings, r, *c, lyapunov_tol))
+        .collect()
+}
+
+/// Kind of a bifurcation point along a sweep.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// A real multiplier leaves the unit circle through -1.
+    PeriodDoubling,
+    /// A real multiplier leaves through +1 (saddle-node or symmetry-breaking).
+    Fold,
+    /// A complex pair leaves the unit circle (Neimark-Sacker, onset of a torus).
+    NeimarkSacker,
+    /// The cycle stops existing or changes its impact sequence with every multiplier well
+    /// inside the circle: a grazing or border-collision bifurcation of the non-smooth system.
+    NonSmooth,
+}
+
+/// A located bifurcation point.
+#[derive(Clone, Debug, Serialize)]
+pub struct BifurcationPoint {
+    pub kind: Kind,
+    /// Parameter value (midpoint of the final bisection interval).
+    pub value: f64,
+    /// Half-width of that interval.
+    pub uncertainty: f64,
+    /// Period of the branch that loses stability.
+    pub period: u32,
+    /// Multipliers of the last stable cycle of the branch ([re, im], modulus descending).
+    pub multipliers: Vec<[f64; 2]>,
+}
+
+/// Bisection steps locating a stability change (the interval shrinks 2^-30 times).
+const BISECTIONS: u32 = 30;
+/// A leading multiplier this close to the unit circle names the kind of the loss; farther
+/// inside, the branch ended without a multiplier crossing (non-smooth).
+const CRITICAL: f64 = 0.05;
+
+/// One point of a sweep as [`bifurcation_points`] reads it.
+pub struct Branch<'a> {
+    pub value: f64,
+    pub cycle: Option<&'a Cycle>,
+}
+
+/// Locates where stable cycles of a sweep stop being stable: for each pair of neighbouring
+/// sweep values where one has a stable cycle and the other does not have the same one, the
+/// cycle is continued by Newton from the stable side and the change of stability bisected on
+/// the CPU in f64. The kind comes from the critical multiplier of the last stable cycle.
+pub fn bifurcation_points(
+    base: &Params<f64>,
+    param: Param,
+    settings: &Settings,
+    points: &[Branch],
+) -> Vec<BifurcationPoint> {
+    fn stable<'a>(b: &Branch<'a>) -> Option<&'a Cycle> {
+        b.cycle.filter(|c| c.is_stable())
+    }
+    let same = |a: &Cycle, b: &Cycle| {
+        a.period == b.period && (0..4).all(|i| (a.point[i] - b.point[i]).abs() < 0.05)
+    };
+    let pairs: Vec<(usize, bool)> = points
+        .windows(2)
+        .enumerate()
+        .filter_map(|(i, w)| match (stable(&w[0]), stable(&w[1])) {
+            (Some(a), Some(b)) if same(a, b) => None,
+            (Some(_), _) => Some((i, true)),
+            (None, Some(_)) => Some((i, false)),
+            (None, None) => None,
+        })
+        .collect();
+    let mut found: Vec<(usize, BifurcationPoint)> = pairs
+        .par_iter()
+        .filter_map(|&(i, up)| {
+            let (from, to) = if up {
+                (&points[i], &points[i + 1])
+            } else {
+                (&points[i + 1], &points[i])
+            };
+            locate(base, param, settings, from, to.value).map(|b| (i, b))
+        })
+        .collect();
+    // A pair seen from both sides (e.g. period-1 stable below, period-2 stable above) is one
+    // bifurcation: keep the first found per interval.
+    found.sort_by_key(|(i, _)| *i);
+    found.dedup_by_key(|(i, _)| *i);
+    found.into_iter().map(|(_, b)| b).collect()
+}
+
+/// Continues the stable cycle of `from` towards `to` and bisects where it stops being stable.
+fn locate(
+    base: &Params<f64>,
+    param: Param,
+    settings: &Settings,
+    from: &Branch,
+    to: f64,
+) -> Option<BifurcationPoint> {
+    let start = from.cycle?;
+    let at = |v: f64, c: &Cycle| {
+        let mut p = *base;
+        param.set(&mut p, v);
+        let it = Integrator::<f64>::new(&p, settings);
+        let st = PointState {
+            y: c.point,
+            mode: c.mode,
+            diag: Default::default(),
+        };
+        refine(&it, &st, c.period)
+    };
+    let (mut good, mut bad) = (from.value, to);
+    let mut last = start.clone();
+    let end = at(bad, &last);
+    if end.is_stable() && end.period == start.period {
+        // Still stable at the neighbour (a different attractor was reached from rest there).
+        return None;
+    }
+    for _ in 0..BISECTIONS {
+        let mid = 0.5 * (good + bad);
+        let c = at(mid, &last);
+        if c.is_stable() && c.period == start.period {
+            good = mid;
+            last = c;
+        } else {
+            bad = mid;
+        }
+    }
+    let lead = last.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
+    let kind = if 1.0 - modulus(&lead) > CRITICAL {
+        Kind::NonSmooth
+    } else if lead[1].abs() > 1e-6 {
+        Kind::NeimarkSacker
+    } else if lead[0] < 0.0 {
+        Kind::PeriodDoubling
+    } else {
+        Kind::Fold
+    };
+    Some(BifurcationPoint {
+        kind,
+        value: 0.5 * (good + bad),
+        uncertainty: 0.5 * (good - bad).abs(),
+        period: start.period,
+        multipliers: last.multipliers,
+    })
+}
