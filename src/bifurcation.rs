@@ -380,8 +380,10 @@ fn caption(b: &Bifurcation, counts: &BTreeMap<String, usize>, (w, h): (u32, u32)
         "Bifurcation diagram: {plot} at the stroboscopic section (once per forcing period) \
          against {param} from {from} to {to}, {points} values. {start} Integrated with {how}; \
          {tr} transient periods discarded, then {sa} section samples per value, drawn as pixels \
-         shaded by log density (raster, {w} x {h} px: {cm:.1} cm wide at 150 dpi). Most \
-         frequent classes: {top}. {notice}",
+         shaded by log density (raster, {w} x {h} px: {cm:.1} cm wide at 150 dpi). Classes: \
+         a period is kept only where Newton's method converges to a cycle whose Floquet \
+         multipliers all lie inside the unit circle. Most frequent classes: {top}. {marks}\
+         {notice}",
         plot = s.plot,
         param = s.param,
         from = s.from,
@@ -392,6 +394,30 @@ fn caption(b: &Bifurcation, counts: &BTreeMap<String, usize>, (w, h): (u32, u32)
         sa = c.run.sample_periods,
         cm = f64::from(w) / 150.0 * 2.54,
         top = top_classes(counts, 4),
+        marks = marks_sentence(&b.bifurcations),
+    )
+}
+
+/// What the triangles on the x axis are, with the count of each kind.
+fn marks_sentence(bifurcations: &[Vec<BifurcationPoint>]) -> String {
+    let mut n = BTreeMap::<&str, usize>::new();
+    for b in bifurcations.iter().flatten() {
+        *n.entry(match b.kind {
+            Kind::PeriodDoubling => "period doubling",
+            Kind::Fold => "fold",
+            Kind::NeimarkSacker => "Neimark-Sacker",
+            Kind::NonSmooth => "non-smooth",
+        })
+        .or_default() += 1;
+    }
+    if n.is_empty() {
+        return String::new();
+    }
+    let list: Vec<String> = n.iter().map(|(k, v)| format!("{v} {k}")).collect();
+    format!(
+        "Triangles on the axis mark where a stable cycle loses stability, located by \
+         continuation and bisection of its multipliers ({}; values in the JSON). ",
+        list.join(", ")
     )
 }
 
@@ -779,8 +805,15 @@ pub fn paper_figure(
          the attractor, and the sparsest samples of chaotic bands) are left out: {dropped} of \
          {inside} samples ({share:.3}%). Raster image, {w} x {h} px: {wcm} x {hcm} cm at {dpi} dpi, fonts 7-8 pt \
          at that size.{notice} Broken branches come from different attractors reached from the \
-         same y0.",
+         same y0. {marks}",
         panels = titles.join("; "),
+        marks = marks_sentence(
+            &data
+                .iter()
+                .map(|(_, _, b)| b.bifurcations[0].clone())
+                .collect::<Vec<_>>()
+        )
+        .trim_end(),
         notice = if dir.is_none() {
             " Compare the rows: the change of R from 0.60 (top) to 0.62 (bottom) moves the \
              windows of chaos and the periodic branches."

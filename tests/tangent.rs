@@ -295,3 +295,53 @@ fn newton_rejects_an_unstable_cycle_the_detector_accepts() {
     let again = refine(&it, &on, c.period);
     assert!(again.converged && !again.is_stable());
 }
+
+/// Bifurcation points of a sweep of `configs/fig2.toml` over [from, to].
+fn fig2_bifurcations(from: f64, to: f64, points: u32) -> Vec<rattle::stability::BifurcationPoint> {
+    let cfg = rattle::config::Config::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/fig2.toml"),
+        &[
+            format!("sweep.from={from}"),
+            format!("sweep.to={to}"),
+            format!("sweep.points={points}"),
+            "method.precision=\"f64\"".into(),
+        ],
+    )
+    .unwrap();
+    let b = rattle::bifurcation::run(
+        &rattle::engine::Engine::Cpu,
+        &cfg,
+        None,
+        &rattle::progress::Silent,
+    )
+    .unwrap();
+    b.bifurcations[0].clone()
+}
+
+#[test]
+fn fig2_neimark_sacker_and_period_doubling_are_located() {
+    use rattle::stability::Kind;
+    // The period-1 branch loses stability to a complex pair at eta = 1.71577 (the full
+    // Fig. 2 sweep in f64 finds the same value); a coarse sweep around it must find it too.
+    let ns = fig2_bifurcations(1.70, 1.73, 31);
+    let hit: Vec<_> = ns
+        .iter()
+        .filter(|b| b.kind == Kind::NeimarkSacker && b.period == 1)
+        .collect();
+    assert_eq!(hit.len(), 1, "{ns:?}");
+    assert!((hit[0].value - 1.71577).abs() < 1e-5, "{:?}", hit[0]);
+    let m = hit[0].multipliers[0];
+    assert!(
+        m[1].abs() > 0.3 && (modulus(&m) - 1.0).abs() < 1e-3,
+        "{m:?}"
+    );
+    // The period-2 branch doubles at eta = 1.1883.
+    let pd = fig2_bifurcations(1.18, 1.19, 11);
+    let hit: Vec<_> = pd
+        .iter()
+        .filter(|b| b.kind == Kind::PeriodDoubling && b.period == 2)
+        .collect();
+    assert_eq!(hit.len(), 1, "{pd:?}");
+    assert!((hit[0].value - 1.188304).abs() < 1e-5, "{:?}", hit[0]);
+    assert!((hit[0].multipliers[0][0] + 1.0).abs() < 1e-3);
+}

@@ -228,7 +228,7 @@ fn draw_marks<'a, 'b: 'a>(
     if !plot.marks.is_empty() {
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
+            .position(SeriesLabelPosition::UpperRight)
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .label_font((super::FONT, l.tick))
