@@ -7,6 +7,8 @@ use crate::gpu::{Gpu, GpuError, Job, Timings};
 use crate::method::{Diagnostics, RunResult};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
+use crate::stability::confirm;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// An opened backend.
@@ -22,17 +24,42 @@ pub struct Summary {
     pub impacts_per_period: f64,
     /// Largest Lyapunov exponent per unit time (NaN when not available).
     pub lyapunov: f64,
+    /// Largest Floquet multiplier modulus of the confirmed (stable) cycle; NaN where the class
+    /// is not periodic.
+    pub multiplier: f64,
     pub diag: Diagnostics,
     pub final_y: [f64; 4],
 }
 
 impl Summary {
-    /// `class` comes from the period detector; the exponent refines it.
-    fn new(class: Class, r: &RunResult, samples: usize, spec: &RunSpec) -> Summary {
+    /// `class` comes from the period detector, refined by the exponent; the multipliers of
+    /// the Newton-refined cycle decide ([`crate::stability::confirm`]). The summary keeps no
+    /// samples, so a point without a period gets its Newton trial at period 1.
+    pub fn new(
+        class: Class,
+        r: &RunResult,
+        samples: usize,
+        spec: &RunSpec,
+        params: &crate::model::Params<f64>,
+    ) -> Summary {
+        let proposal = class.with_lyapunov(r.lyapunov, spec.lyapunov_tol);
+        let v = confirm(
+            params,
+            &spec.settings,
+            r,
+            false,
+            proposal,
+            spec.lyapunov_tol,
+        );
+        let multiplier = match (v.class, &v.cycle) {
+            (Class::Periodic(_), Some(c)) => c.leading_modulus(),
+            _ => f64::NAN,
+        };
         Summary {
-            class: class.with_lyapunov(r.lyapunov, spec.lyapunov_tol),
+            class: v.class,
             impacts_per_period: r.sample_impacts as f64 / samples.max(1) as f64,
             lyapunov: r.lyapunov,
+            multiplier,
             diag: r.diag,
             final_y: r.final_y,
         }
@@ -131,12 +158,14 @@ impl Engine {
                 rerun_on_cpu(spec, points, &mut out);
                 let s = out
                     .results
-                    .iter_mut()
+                    .par_iter_mut()
                     .zip(&out.classes)
-                    .map(|(r, c)| {
+                    .enumerate()
+                    .map(|(i, (r, c))| {
                         r.enforce_failure_rule();
                         let c = if r.diag.nonfinite { Class::Failed } else { *c };
-                        Summary::new(c, r, spec.samples as usize, spec)
+                        let p = points.params(&spec.params, i);
+                        Summary::new(c, r, spec.samples as usize, spec, &p)
                     })
                     .collect();
                 Ok((s, out.timings))
@@ -148,11 +177,15 @@ impl Engine {
                 for start in (0..n).step_by(CPU_BLOCK) {
                     let block = points.slice(start, (start + CPU_BLOCK).min(n));
                     let (rs, _) = self.run(spec, &block, progress)?;
-                    out.extend(
-                        rs.iter().map(|r| {
-                            Summary::new(r.class(spec.period_tol), r, r.samples.len(), spec)
-                        }),
-                    );
+                    let sums: Vec<Summary> = rs
+                        .par_iter()
+                        .enumerate()
+                        .map(|(i, r)| {
+                            let p = block.params(&spec.params, i);
+                            Summary::new(r.class(spec.period_tol), r, r.samples.len(), spec, &p)
+                        })
+                        .collect();
+                    out.extend(sums);
                 }
                 let timings = Timings {
                     integration_s: t.elapsed().as_secs_f64(),

@@ -53,6 +53,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         &spec.params,
         &spec.settings,
         &r,
+        true,
         proposal,
         spec.lyapunov_tol,
     );

@@ -31,12 +31,15 @@ pub struct Verdict {
 /// - `period-n`: Newton from the final state; stable => `period-m` (m the least period),
 ///   otherwise the point is aperiodic and its exponent (if any) decides the class.
 /// - aperiodic, quasi-periodic or unresolved (not chaotic by its exponent): the trailing window
-///   of samples proposes the lag n that repeats best, and a stable cycle found by Newton from
-///   the final state makes the point `period-n` (a slow transient or an early miss).
+///   of samples proposes the lag n that repeats best (n = 1 without enough samples, or when
+///   `use_samples` is false: maps decide without samples so that every backend decides alike),
+///   and a stable cycle found by Newton from the final state makes the point `period-n` (a
+///   slow transient or an early miss).
 pub fn confirm(
     p: &Params<f64>,
     settings: &Settings,
     r: &RunResult,
+    use_samples: bool,
     proposal: Class,
     lyapunov_tol: f64,
 ) -> Verdict {
@@ -47,11 +50,12 @@ pub fn confirm(
     let tried = match proposal {
         Class::Failed | Class::NoImpact | Class::Chaotic => return keep,
         Class::Periodic(n) => n,
-        _ => match trailing_lag(&r.samples) {
-            Some(n) => n,
-            None => return keep,
-        },
+        _ if use_samples => trailing_lag(&r.samples).unwrap_or(1),
+        _ => 1,
     };
+    if r.diag.nonfinite || !r.final_y.iter().all(|v| v.is_finite()) {
+        return keep;
+    }
     let it = Integrator::<f64>::new(p, settings);
     let start = PointState {
         y: r.final_y,
@@ -103,7 +107,7 @@ pub fn confirm_all(
         .par_iter()
         .zip(proposals)
         .enumerate()
-        .map(|(i, (r, c))| confirm(&params(i), settings, r, *c, lyapunov_tol))
+        .map(|(i, (r, c))| confirm(&params(i), settings, r, true, *c, lyapunov_tol))
         .collect()
 }
 

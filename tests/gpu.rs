@@ -294,11 +294,21 @@ fn small_map_classes_agree_with_cpu() {
             g.run(&job, &Silent).unwrap()
         };
         drop(g);
+        // The GPU's proposals judged by the same rule as the map's (exponent, then Newton and
+        // multipliers on the CPU).
+        let spec = RunSpec::new(&cfg).with_lyapunov();
+        let values = rattle::map::cell_values(&cfg, 0..cells);
+        let vary = [Param::R, Param::Lambda];
+        let points = Points::along(&vary, &values);
         let gpu_classes: Vec<Class> = out
             .classes
             .iter()
             .zip(&out.results)
-            .map(|(c, r)| c.with_lyapunov(r.lyapunov, 0.01))
+            .enumerate()
+            .map(|(i, (c, r))| {
+                let p = points.params(&spec.params, i);
+                rattle::engine::Summary::new(*c, r, spec.samples as usize, &spec, &p).class
+            })
             .collect();
         let agree = cpu
             .iter()

@@ -128,6 +128,8 @@ pub struct Fields {
     pub impacts_per_period: Vec<f64>,
     /// NaN (null in JSON) where no estimate exists.
     pub lyapunov: Vec<Option<f64>>,
+    /// Largest Floquet multiplier modulus of the cell's stable cycle; null where not periodic.
+    pub multiplier: Vec<Option<f64>>,
     pub impacts: Vec<u64>,
     pub sticks: Vec<u64>,
     pub locks: Vec<u64>,
@@ -162,6 +164,10 @@ impl Fields {
                 .iter()
                 .map(|c| c.lyapunov.is_finite().then_some(c.lyapunov))
                 .collect(),
+            multiplier: s
+                .iter()
+                .map(|c| c.multiplier.is_finite().then_some(c.multiplier))
+                .collect(),
             impacts: s.iter().map(|c| c.diag.impacts).collect(),
             sticks: s.iter().map(|c| c.diag.sticks).collect(),
             locks: s.iter().map(|c| c.diag.locks).collect(),
@@ -184,6 +190,7 @@ impl Fields {
         self.period.extend(o.period);
         self.impacts_per_period.extend(o.impacts_per_period);
         self.lyapunov.extend(o.lyapunov);
+        self.multiplier.extend(o.multiplier);
         self.impacts.extend(o.impacts);
         self.sticks.extend(o.sticks);
         self.locks.extend(o.locks);

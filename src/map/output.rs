@@ -193,9 +193,11 @@ fn caption(
          {x0} to {x1} (horizontal) and {y} from {y0} to {y1} (vertical); {title}. Each cell \
          starts from y0 = {start:?} and is integrated with {how}; {tr} transient periods, then \
          {sa} sampled periods. Classes: a period <= 64 of the stroboscopic section (tolerance \
-         {tol}), else quasi-periodic or chaotic by the largest Lyapunov exponent (|exponent| <= \
-         {ltol} per unit time: quasi-periodic; aperiodic where no exponent was computed); no impact, unresolved and failed as in the \
-         README. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64) with \
+         {tol}), kept only where Newton's method converges to a cycle whose Floquet multipliers \
+         all lie inside the unit circle (a contracting point without a period is tried at \
+         period 1); else quasi-periodic or chaotic by the largest Lyapunov exponent \
+         (|exponent| <= {ltol} per unit time: quasi-periodic; aperiodic where no exponent was \
+         computed); no impact, unresolved and failed as in the README. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64) with \
          lightness steps inside a family; chaotic near-black, quasi-periodic light green. The \
          legend gives the share and the count of every class shown. Most frequent: \
          {top}.{coex} Raster image, 1100 x 800 px.",
@@ -218,8 +220,8 @@ fn caption(
     )
 }
 
-/// Writes PREFIX.png (classes), PREFIX-lyapunov.png, one PREFIX-FIELD.npy per field and
-/// PREFIX.json; all or nothing.
+/// Writes PREFIX.png (classes), PREFIX-lyapunov.png, PREFIX-multiplier.png (stability margin
+/// of the periodic cells), one PREFIX-FIELD.npy per field and PREFIX.json; all or nothing.
 pub fn write_outputs(
     prefix: &Path,
     cfg: &Config,
@@ -265,53 +267,85 @@ pub fn write_outputs(
             height: 800,
         },
     )?;
-    let lyap: Vec<f64> = fields
-        .lyapunov
-        .iter()
-        .map(|v| v.unwrap_or(f64::NAN))
-        .collect();
-    let lyap_raw = &lyap;
-    if lyap.iter().any(|v| v.is_finite()) {
-        let mut p = prefix.as_os_str().to_owned();
-        p.push("-lyapunov");
-        let lt = format!("largest Lyapunov exponent over {} and {}", m.x, m.y);
-        // Colour limits at the 99th percentile of |exponent|, so that a few outliers (cells
-        // whose twin trajectory crossed an event at the section) do not wash out the map.
-        let mut mag: Vec<f64> = lyap
-            .iter()
-            .filter(|v| v.is_finite())
-            .map(|v| v.abs())
-            .collect();
-        mag.sort_by(f64::total_cmp);
-        let lim = mag[(mag.len() - 1) * 99 / 100].max(1e-6);
-        let shown: Vec<f64> = lyap.iter().map(|v| v.clamp(-lim, lim)).collect();
-        let lyap = &shown;
+    // One scalar image per field: drawn when some cell has a value; otherwise an image of an
+    // earlier run must not stay beside this data.
+    let scalar = |st: &mut Staged,
+                  name: &str,
+                  title: String,
+                  values: &[f64],
+                  colorbar_label: &str,
+                  center: Option<f64>|
+     -> Result<(), MapError> {
+        let path = with_ext(&crate::output::with_suffix(prefix, name), "png");
+        if !values.iter().any(|v| v.is_finite()) {
+            eprintln!(
+                "warning: no cell has a value of {name}; {} is not drawn",
+                path.display()
+            );
+            st.remove_stale(&path);
+            return Ok(());
+        }
         scalar_map_png(
-            &st.path(&with_ext(Path::new(&p), "png")),
+            &st.path(&path),
             &ScalarMap {
-                title: &lt,
+                title: &title,
                 x_label: &xl,
                 y_label: &yl,
                 x_range: ordered(xr),
                 y_range: ordered(yr),
                 nx,
                 ny,
-                values: lyap,
-                colorbar_label: "exponent per unit time (clipped at 99th percentile)",
-                center: Some(0.0),
+                values,
+                colorbar_label,
+                center,
                 width: 1100,
                 height: 800,
             },
         )?;
-    } else {
-        // No exponent to draw: an image of an earlier run must not stay beside this data.
-        let old = with_ext(&crate::output::with_suffix(prefix, "lyapunov"), "png");
-        eprintln!(
-            "warning: no cell has a Lyapunov exponent; {} is not drawn",
-            old.display()
-        );
-        st.remove_stale(&old);
-    }
+        Ok(())
+    };
+    let lyap: Vec<f64> = fields
+        .lyapunov
+        .iter()
+        .map(|v| v.unwrap_or(f64::NAN))
+        .collect();
+    let lyap_raw = &lyap;
+    // Colour limits at the 99th percentile of |exponent|, so that a few outliers (cells whose
+    // estimate has not converged) do not wash out the map.
+    let mut mag: Vec<f64> = lyap
+        .iter()
+        .filter(|v| v.is_finite())
+        .map(|v| v.abs())
+        .collect();
+    mag.sort_by(f64::total_cmp);
+    let lim = mag
+        .get(mag.len().saturating_sub(1) * 99 / 100)
+        .map_or(1e-6, |v| v.max(1e-6));
+    let shown: Vec<f64> = lyap.iter().map(|v| v.clamp(-lim, lim)).collect();
+    scalar(
+        &mut st,
+        "lyapunov",
+        format!("largest Lyapunov exponent over {} and {}", m.x, m.y),
+        &shown,
+        "exponent per unit time (clipped at 99th percentile)",
+        Some(0.0),
+    )?;
+    let mult: Vec<f64> = fields
+        .multiplier
+        .iter()
+        .map(|v| v.unwrap_or(f64::NAN))
+        .collect();
+    scalar(
+        &mut st,
+        "multiplier",
+        format!(
+            "stability margin: largest Floquet multiplier modulus over {} and {}",
+            m.x, m.y
+        ),
+        &mult,
+        "|mu_1| of the stable cycle (1: loss of stability; grey: not periodic)",
+        None,
+    )?;
     let shape = [ny as u64, nx as u64];
     let npy = |st: &mut Staged, name: &str, write: &dyn Fn(&Path) -> std::io::Result<()>| {
         let mut p = prefix.as_os_str().to_owned();
@@ -345,6 +379,7 @@ pub fn write_outputs(
         save(p, &shape, &f.impacts_per_period)
     })?;
     npy(&mut st, "lyapunov", &|p| save(p, &shape, lyap_raw))?;
+    npy(&mut st, "multiplier", &|p| save(p, &shape, &mult))?;
     npy(&mut st, "impacts", &|p| save(p, &shape, &f.impacts))?;
     npy(&mut st, "sticks", &|p| save(p, &shape, &f.sticks))?;
     npy(&mut st, "locks", &|p| save(p, &shape, &f.locks))?;

@@ -90,6 +90,7 @@ impl Part {
             f.period.len(),
             f.impacts_per_period.len(),
             f.lyapunov.len(),
+            f.multiplier.len(),
             f.impacts.len(),
             f.sticks.len(),
             f.locks.len(),
@@ -125,6 +126,13 @@ impl Part {
                 Some(format!("impacts per period {}", f.impacts_per_period[c]))
             } else if f.lyapunov[c].is_some_and(|v| !v.is_finite()) {
                 Some("non-finite exponent".into())
+            } else if f.multiplier[c].is_some_and(|m| !(0.0..1.0).contains(&m))
+                || f.multiplier[c].is_some() != (class > 0)
+            {
+                Some(format!(
+                    "multiplier {:?} with class {class}",
+                    f.multiplier[c]
+                ))
             } else {
                 None
             };

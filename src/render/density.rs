@@ -183,7 +183,33 @@ pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<DensityStats
         let t = floor + (1.0 - floor) * f64::from(n).ln_1p() / max.ln_1p();
         (n > 0).then(|| shade.get_color(t))
     })?;
-    draw_marks(&mut chart, plot, &l, y0)?;
+    // The legend goes in the upper corner with fewer samples under it (the lower corners hold
+    // the triangles).
+    let kinds = MARK_KINDS
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| plot.marks.iter().any(|m| m.kind == *k))
+        .count();
+    let (bw, bh) = (
+        (pw / 4).max(1),
+        ((kinds as f64 * 1.3 * l.tick + 12.0) as usize).min(ph),
+    );
+    let under = |c0: usize, r0: usize| -> u64 {
+        (r0..(r0 + bh).min(ph))
+            .flat_map(|r| (c0..(c0 + bw).min(pw)).map(move |c| (r, c)))
+            .map(|(r, c)| u64::from(hist[r * pw + c]))
+            .sum()
+    };
+    let corners = [
+        (SeriesLabelPosition::UpperRight, under(pw - bw, 0)),
+        (SeriesLabelPosition::UpperLeft, under(0, 0)),
+    ];
+    let corner = corners
+        .into_iter()
+        .min_by_key(|c| c.1)
+        .map(|c| c.0)
+        .unwrap_or(SeriesLabelPosition::UpperRight);
+    draw_marks(&mut chart, plot, &l, y0, corner)?;
     // Axes last so they sit on top of the density.
     let (fx, fy) = (
         |v: &f64| fmt_tick(*v, x1 - x0),
@@ -203,6 +229,7 @@ fn draw_marks<'a, 'b: 'a>(
     plot: &DensityPlot,
     l: &super::Layout,
     y0: f64,
+    corner: SeriesLabelPosition,
 ) -> Result<(), RenderError> {
     let size = (l.tick * 0.45).max(4.0) as i32;
     for (k, (name, color)) in MARK_KINDS.iter().enumerate() {
@@ -228,7 +255,7 @@ fn draw_marks<'a, 'b: 'a>(
     if !plot.marks.is_empty() {
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(corner)
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .label_font((super::FONT, l.tick))
