@@ -28,6 +28,9 @@ pub struct SweepPoint {
     pub result: RunResult,
     /// The Newton-refined cycle behind the class (see [`crate::stability::confirm`]).
     pub cycle: Option<Cycle>,
+    /// Forcing periods integrated (fewer than transient + samples where the point left the
+    /// run early, see [`crate::adaptive`]).
+    pub periods: u32,
 }
 
 impl SweepPoint {
@@ -68,6 +71,7 @@ pub fn finish(cfg: &Config, results: Vec<RunResult>) -> Vec<SweepPoint> {
             class: v.class,
             result,
             cycle: v.cycle,
+            periods: cfg.run.transient_periods + cfg.run.sample_periods,
         })
         .collect()
 }
@@ -200,21 +204,43 @@ pub fn run(
     crate::memory::check_bifurcation(cfg, chains)?;
     let t0 = Instant::now();
     let values = cfg.sweep_values();
-    let (runs, timings): (Vec<(Option<Direction>, Vec<RunResult>)>, _) = match continuation {
+    let spec = RunSpec::new(cfg);
+    let (runs, timings): (Vec<(Option<Direction>, Vec<SweepPoint>)>, _) = match continuation {
+        None if cfg.run.early_stop => {
+            let vary = [cfg.sweep.param];
+            let a = crate::adaptive::run(engine, &spec, &Points::along(&vary, &values), progress)?;
+            let points = values
+                .iter()
+                .zip(a.results)
+                .zip(a.verdicts)
+                .zip(a.periods)
+                .map(|(((&value, result), v), periods)| SweepPoint {
+                    value,
+                    class: v.class,
+                    result,
+                    cycle: v.cycle,
+                    periods,
+                })
+                .collect();
+            (vec![(None, points)], Some(a.timings))
+        }
         None => {
             let vary = [cfg.sweep.param];
-            let (r, t) =
-                engine.run(&RunSpec::new(cfg), &Points::along(&vary, &values), progress)?;
-            (vec![(None, r)], Some(t))
+            let (r, t) = engine.run(&spec, &Points::along(&vary, &values), progress)?;
+            (vec![(None, finish(cfg, r))], Some(t))
         }
         Some(c) => {
             let dirs = c.directions();
             let r = continuation_chains(engine, cfg, &dirs, progress)?;
-            (dirs.into_iter().map(Some).zip(r).collect(), None)
+            (
+                dirs.into_iter()
+                    .map(Some)
+                    .zip(r.into_iter().map(|r| finish(cfg, r)))
+                    .collect(),
+                None,
+            )
         }
     };
-    let runs: Vec<(Option<Direction>, Vec<SweepPoint>)> =
-        runs.into_iter().map(|(d, r)| (d, finish(cfg, r))).collect();
     let bifurcations = runs
         .iter()
         .map(|(_, pts)| find_bifurcations(cfg, pts))
@@ -233,11 +259,14 @@ pub fn run(
 }
 
 impl Bifurcation {
-    /// RK4 steps of the whole diagram (every chain).
+    /// RK4 steps of the whole diagram (every chain), as integrated.
     pub fn rk4_steps(&self) -> f64 {
-        (self.runs.len() * self.cfg.sweep.points as usize) as f64
-            * (self.cfg.run.transient_periods + self.cfg.run.sample_periods) as f64
-            * self.cfg.method.steps_per_period as f64
+        let periods: u64 = self
+            .runs
+            .iter()
+            .flat_map(|(_, pts)| pts.iter().map(|p| u64::from(p.periods)))
+            .sum();
+        periods as f64 * self.cfg.method.steps_per_period as f64
     }
 
     /// What ran, how long, and the hysteresis count: lines for the terminal.
@@ -251,11 +280,13 @@ impl Bifurcation {
                 c.sweep.points
             );
         }
+        let n = c.sweep.points as usize * self.runs.len();
         s + &format!(
-            "bifurcation: {} points x {} periods x {} steps on {} ({}, {}) in {:.2} s \
-             ({:.3e} RK4 steps/s)\n",
-            c.sweep.points as usize * self.runs.len(),
+            "bifurcation: {} points x {} periods (mean {:.0} integrated) x {} steps on {} ({}, \
+             {}) in {:.2} s ({:.3e} RK4 steps/s)\n",
+            n,
             c.run.transient_periods + c.run.sample_periods,
+            self.rk4_steps() / c.method.steps_per_period as f64 / n.max(1) as f64,
             c.method.steps_per_period,
             self.backend,
             self.device,
@@ -488,6 +519,8 @@ struct PointJson {
     /// where Newton did not converge or was not tried.
     multipliers: Option<Vec<[f64; 2]>>,
     period: Option<u32>,
+    /// Forcing periods integrated (early termination ends decided points sooner).
+    periods: u32,
     value: f64,
 }
 
@@ -544,6 +577,7 @@ impl Serialize for Chain<'_> {
                     .filter(|c| c.converged)
                     .map(|c| c.multipliers.clone()),
                 period: pt.class.period(),
+                periods: pt.periods,
                 value: pt.value,
             }
         }))

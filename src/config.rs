@@ -170,6 +170,9 @@ pub struct RunConfig {
     pub lyapunov: bool,
     /// |exponent| below this (per unit time) counts as zero: quasi-periodic.
     pub lyapunov_tol: f64,
+    /// Let points leave the run once their cycle is confirmed (`crate::adaptive`); false
+    /// integrates every point for all its periods (brute force).
+    pub early_stop: bool,
 }
 
 impl Default for RunConfig {
@@ -180,6 +183,7 @@ impl Default for RunConfig {
             period_tol: 1e-4,
             lyapunov: false,
             lyapunov_tol: 0.01,
+            early_stop: true,
         }
     }
 }

@@ -29,6 +29,8 @@ pub struct Summary {
     pub multiplier: f64,
     pub diag: Diagnostics,
     pub final_y: [f64; 4],
+    /// Forcing periods integrated.
+    pub periods: u32,
 }
 
 impl Summary {
@@ -62,6 +64,7 @@ impl Summary {
             multiplier,
             diag: r.diag,
             final_y: r.final_y,
+            periods: spec.periods(),
         }
     }
 }

@@ -4,6 +4,7 @@
 //! `shaders/integrate.wgsl`), [`classify`], [`sweep`], [`config`], [`render`], [`output`].
 
 pub mod accuracy;
+pub mod adaptive;
 pub mod bench;
 pub mod bifurcation;
 pub mod classify;

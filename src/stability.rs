@@ -51,6 +51,8 @@ pub fn confirm(
         Class::Failed | Class::NoImpact | Class::Chaotic => return keep,
         Class::Periodic(n) => n,
         _ if use_samples => trailing_lag(&r.samples).unwrap_or(1),
+        // Without samples and without an exponent nothing suggests a cycle nearby.
+        Class::Aperiodic => return keep,
         _ => 1,
     };
     if r.diag.nonfinite || !r.final_y.iter().all(|v| v.is_finite()) {

@@ -327,7 +327,12 @@ pub fn refine(it: &Integrator<f64>, start: &PointState<f64>, n: u32) -> Cycle {
         let r = Vector4::from_fn(|i, _| end.y[i] - st.y[i]);
         out.point = st.y;
         out.mode = st.mode;
+        let previous = out.residual;
         out.residual = r.amax();
+        // Newton near a cycle shrinks the residual; a growing one means no cycle nearby.
+        if out.residual > 1e3 * previous {
+            break;
+        }
         let scale = st.y.iter().fold(1.0f64, |a, v| a.max(v.abs()));
         let m = tan.matrix();
         if out.residual <= NEWTON_TOL * scale {

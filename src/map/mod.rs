@@ -103,7 +103,11 @@ pub fn compute(
     let y0s: Vec<[f64; 4]> = (0..values.len() / 2).map(|i| y0[i % k]).collect();
     let vary = [cfg.map.x, cfg.map.y];
     let points = Points::along(&vary, &values).with_states(&y0s);
-    let (s, t) = engine.run_summaries(&spec, &points, progress)?;
+    let (s, t) = if cfg.run.early_stop {
+        crate::adaptive::run_summaries(engine, &spec, &points, progress)?
+    } else {
+        engine.run_summaries(&spec, &points, progress)?
+    };
     let out = s
         .chunks(k)
         .map(|g| {
@@ -140,6 +144,8 @@ pub struct Fields {
     /// Distinct attractors reached from the `--starts` initial states (1 without).
     #[serde(default)]
     pub attractors: Vec<u8>,
+    /// Forcing periods integrated (early termination: fewer where the cycle was confirmed).
+    pub periods: Vec<u32>,
 }
 
 impl Fields {
@@ -174,6 +180,7 @@ impl Fields {
             overflows: s.iter().map(|c| c.diag.overflows).collect(),
             nonfinite: s.iter().map(|c| c.diag.nonfinite as u8).collect(),
             cpu_rerun: s.iter().map(|c| c.diag.cpu_rerun as u8).collect(),
+            periods: s.iter().map(|c| c.periods).collect(),
         }
     }
 
@@ -198,6 +205,7 @@ impl Fields {
         self.nonfinite.extend(o.nonfinite);
         self.cpu_rerun.extend(o.cpu_rerun);
         self.attractors.extend(o.attractors);
+        self.periods.extend(o.periods);
     }
 
     pub fn classes(&self) -> Vec<Class> {

@@ -387,6 +387,7 @@ pub fn write_outputs(
     npy(&mut st, "nonfinite", &|p| save(p, &shape, &f.nonfinite))?;
     npy(&mut st, "cpu_rerun", &|p| save(p, &shape, &f.cpu_rerun))?;
     npy(&mut st, "attractors", &|p| save(p, &shape, &f.attractors))?;
+    npy(&mut st, "periods", &|p| save(p, &shape, &f.periods))?;
     let coexisting = cells.iter().filter(|&&c| c == COEXISTING).count();
     let j = MapJson {
         caption: caption(cfg, report, &fields.counts(), coexisting),

@@ -98,6 +98,7 @@ impl Part {
             f.nonfinite.len(),
             f.cpu_rerun.len(),
             f.attractors.len(),
+            f.periods.len(),
         ];
         if lens.iter().any(|&l| l != len) {
             return Err(PartError(format!(
@@ -107,6 +108,7 @@ impl Part {
         if !(1..=64).contains(&self.starts) {
             return Err(PartError(format!("starts {} outside [1, 64]", self.starts)));
         }
+        let total = self.config.run.transient_periods + self.config.run.sample_periods;
         for c in 0..len {
             let class = f.class[c];
             let bad = if !(-5..=64).contains(&class) {
@@ -124,6 +126,8 @@ impl Part {
                 ))
             } else if !(f.impacts_per_period[c] >= 0.0 && f.impacts_per_period[c].is_finite()) {
                 Some(format!("impacts per period {}", f.impacts_per_period[c]))
+            } else if !(1..=total).contains(&f.periods[c]) {
+                Some(format!("{} periods of at most {total}", f.periods[c]))
             } else if f.lyapunov[c].is_some_and(|v| !v.is_finite()) {
                 Some("non-finite exponent".into())
             } else if f.multiplier[c].is_some_and(|m| !(0.0..1.0).contains(&m))
@@ -421,9 +425,22 @@ pub fn run(
     }
     let (cfg, fields, parts) = merge(parts)?;
     let secs: f64 = parts.iter().map(|p| p.timings.integration_s).sum();
-    let steps = cells as f64
-        * (cfg.run.transient_periods + 2 * cfg.run.sample_periods) as f64
-        * cfg.method.steps_per_period as f64;
+    // Periods integrated (the first start of each cell), plus the exponent's second
+    // integration over the sampled periods of cells that ran to the end.
+    let full = cfg.run.transient_periods + cfg.run.sample_periods;
+    let periods: u64 = fields
+        .periods
+        .iter()
+        .map(|&p| {
+            u64::from(p)
+                + if p == full {
+                    u64::from(cfg.run.sample_periods)
+                } else {
+                    0
+                }
+        })
+        .sum();
+    let steps = periods as f64 * cfg.method.steps_per_period as f64;
     let mut report = MapReport {
         command: "map",
         backend: Some(engine.name().into()),

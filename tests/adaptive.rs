@@ -1,0 +1,99 @@
+//! Early termination (`rattle::adaptive`): decided points leave the run, the classes stay
+//! those of the brute-force run.
+
+use rattle::bifurcation;
+use rattle::classify::Class;
+use rattle::config::Config;
+use rattle::engine::Engine;
+use rattle::progress::Silent;
+use std::path::Path;
+
+fn fig2(sets: &[&str]) -> Config {
+    let mut s: Vec<String> = vec!["sweep.points=120".into(), "method.precision=\"f64\"".into()];
+    s.extend(sets.iter().map(|x| x.to_string()));
+    Config::load(
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/fig2.toml")),
+        &s,
+    )
+    .unwrap()
+}
+
+#[test]
+fn early_stop_keeps_the_classes_of_the_brute_force_diagram() {
+    let brute = bifurcation::run(
+        &Engine::Cpu,
+        &fig2(&["run.early_stop=false"]),
+        None,
+        &Silent,
+    )
+    .unwrap();
+    let early = bifurcation::run(&Engine::Cpu, &fig2(&[]), None, &Silent).unwrap();
+    let (b, e) = (&brute.runs[0].1, &early.runs[0].1);
+    let agree = b.iter().zip(e).filter(|(x, y)| x.class == y.class).count();
+    let total = 700;
+    let mean = e.iter().map(|p| p.periods as f64).sum::<f64>() / e.len() as f64;
+    eprintln!(
+        "classes equal at {agree}/{}, mean periods {mean:.0} of {total}, integration {:.2} s vs \
+         {:.2} s",
+        b.len(),
+        early.integration_s,
+        brute.integration_s
+    );
+    assert!(agree as f64 >= 0.98 * b.len() as f64);
+    assert!(b.iter().all(|p| p.periods == total));
+    assert!(mean < 0.7 * total as f64, "{mean}");
+    for p in e {
+        assert!(p.periods <= total);
+        match p.class {
+            // A decided cycle keeps its n section points; a point that ran to the end keeps
+            // all its samples.
+            Class::Periodic(n) if p.periods < total => {
+                assert_eq!(p.result.samples.len(), n as usize);
+                assert!(p.cycle.as_ref().is_some_and(|c| c.is_stable()));
+            }
+            _ if p.periods < total => assert_eq!(p.class, Class::NoImpact),
+            _ => assert_eq!(p.result.samples.len(), 200),
+        }
+    }
+    // The decided points were computed on fewer periods, the others on the same ones.
+    assert!(e.iter().any(|p| p.periods < total));
+    assert!(early.rk4_steps() < 0.7 * brute.rk4_steps());
+}
+
+#[test]
+fn early_stop_map_agrees_with_the_brute_force_map() {
+    let text = "[model]\neta = 1.26\n[method]\nsteps_per_period = 64\n[run]\n\
+        transient_periods = 300\nsample_periods = 60\n[map]\nx = \"R\"\nx_from = 0.5\n\
+        x_to = 0.7\nx_points = 12\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 10\n";
+    let run = |es: bool| {
+        let cfg = Config::from_toml(text, &[format!("run.early_stop={es}")]).unwrap();
+        let cells = rattle::map::cell_count(&cfg);
+        rattle::map::compute(&Engine::Cpu, &cfg, 0..cells, 1, &Silent)
+            .unwrap()
+            .0
+    };
+    let (b, e) = (run(false), run(true));
+    let agree = b
+        .iter()
+        .zip(&e)
+        .filter(|(x, y)| x.0.class == y.0.class)
+        .count();
+    let short = e.iter().filter(|c| c.0.periods < 360).count();
+    eprintln!(
+        "map: classes equal at {agree}/{}, {short} cells ended early",
+        b.len()
+    );
+    assert!(agree as f64 >= 0.97 * b.len() as f64);
+    assert!(short >= b.len() / 5);
+    for (x, y) in b.iter().zip(&e) {
+        assert_eq!(x.0.periods, 360);
+        if y.0.periods < 360 {
+            assert!(matches!(y.0.class, Class::Periodic(_)), "{:?}", y.0);
+            assert!(y.0.multiplier < 1.0);
+            // It carries the exact Floquet exponent of its cycle.
+            let n = y.0.class.period().unwrap() as f64;
+            let exact = y.0.multiplier.ln() * 1.26 / (2.0 * std::f64::consts::PI * n);
+            assert!((y.0.lyapunov - exact).abs() < 1e-12 && exact < 0.0);
+        }
+    }
+}
