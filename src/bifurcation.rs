@@ -413,7 +413,8 @@ fn caption(b: &Bifurcation, counts: &BTreeMap<String, usize>, (w, h): (u32, u32)
          {tr} transient periods discarded, then {sa} section samples per value, drawn as pixels \
          shaded by log density (raster, {w} x {h} px: {cm:.1} cm wide at 150 dpi). Classes: \
          a period is kept only where Newton's method converges to a cycle whose Floquet \
-         multipliers all lie inside the unit circle. Most frequent classes: {top}. {marks}\
+         multipliers all lie inside the unit circle. {early}Most frequent classes: {top}. \
+         {marks}\
          {notice}",
         plot = s.plot,
         param = s.param,
@@ -426,6 +427,24 @@ fn caption(b: &Bifurcation, counts: &BTreeMap<String, usize>, (w, h): (u32, u32)
         cm = f64::from(w) / 150.0 * 2.54,
         top = top_classes(counts, 4),
         marks = marks_sentence(&b.bifurcations),
+        early = early_sentence(b),
+    )
+}
+
+/// How many points left the run early (empty for a brute-force run).
+fn early_sentence(b: &Bifurcation) -> String {
+    let full = b.cfg.run.transient_periods + b.cfg.run.sample_periods;
+    let pts: Vec<&SweepPoint> = b.runs.iter().flat_map(|(_, p)| p).collect();
+    let early = pts.iter().filter(|p| p.periods < full).count();
+    if early == 0 {
+        return String::new();
+    }
+    format!(
+        "{early} of {} values left the run once their cycle was confirmed (early termination: \
+         {:.0} periods per value on average instead of {full}) and show their cycle's section \
+         points. ",
+        pts.len(),
+        pts.iter().map(|p| f64::from(p.periods)).sum::<f64>() / pts.len() as f64
     )
 }
 
