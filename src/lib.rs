@@ -4,6 +4,7 @@
 //! `shaders/integrate.wgsl`), [`classify`], [`sweep`], [`config`], [`render`], [`output`].
 
 pub mod accuracy;
+pub mod basin;
 pub mod bench;
 pub mod bifurcation;
 pub mod classify;
