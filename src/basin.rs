@@ -127,17 +127,16 @@ pub struct Attractor {
 }
 
 impl Attractor {
-    /// Legend label: "A1: period-1, |mu| 0.86", "A2: period-1, |mu| 0.86, mirror of A1" or
-    /// "A3: chaotic, 2 impacts/period".
+    /// Legend label: "A1: period-1, |mu| 0.86", "A2: period-1, mirror of A1" (a mirror image
+    /// has its partner's multipliers) or "A3: chaotic, 2 impacts/period".
     pub fn label(&self) -> String {
-        let mirror = match self.mirror {
-            Some(m) if m < self.id => format!(", mirror of A{m}"),
-            _ => String::new(),
-        };
-        match self.leading_modulus {
-            Some(m) => format!("A{}: {}, |mu| {m:.2}{mirror}", self.id, self.class),
-            None if self.class == "no_impact" => format!("A{}: no impact", self.id),
-            None => format!(
+        match (self.leading_modulus, self.mirror) {
+            (Some(_), Some(m)) if m < self.id => {
+                format!("A{}: {}, mirror of A{m}", self.id, self.class)
+            }
+            (Some(m), _) => format!("A{}: {}, |mu| {m:.2}", self.id, self.class),
+            (None, _) if self.class == "no_impact" => format!("A{}: no impact", self.id),
+            (None, _) => format!(
                 "A{}: {}, {:.0} impacts/period",
                 self.id, self.class, self.impacts_per_period
             ),
