@@ -248,7 +248,7 @@ fn section_points(it: &Integrator<f64>, c: &Cycle) -> Vec<[f64; 4]> {
 /// the grid has no step at half the period.
 fn mirror_point(it: &Integrator<f64>, c: &Cycle) -> Option<[f64; 4]> {
     let n = it.steps_per_period();
-    if n % 2 != 0 {
+    if !n.is_multiple_of(2) {
         return None;
     }
     let mut st = PointState {

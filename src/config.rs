@@ -710,19 +710,7 @@ impl Config {
                 &format!("a parameter other than map.x = \"{}\"", m.x),
             ));
         }
-        for (key, n) in [("map.x_points", m.x_points), ("map.y_points", m.y_points)] {
-            if !(1..=65536).contains(&n) {
-                return Err(ConfigError::range(key, n, "[1, 65536]"));
-            }
-        }
-        let cells = m.x_points as u64 * m.y_points as u64;
-        if cells > MAX_MAP_CELLS {
-            return Err(ConfigError::range(
-                "map.x_points x map.y_points",
-                format!("{} x {} = {cells} cells", m.x_points, m.y_points),
-                &format!("at most {MAX_MAP_CELLS} cells"),
-            ));
-        }
+        check_grid("map", (m.x_points, m.y_points), 65536, MAX_MAP_CELLS)?;
         for (key, name, v) in [
             ("map.x_from", m.x, m.x_from),
             ("map.x_to", m.x, m.x_to),
@@ -789,22 +777,7 @@ impl Config {
                 &format!("a coordinate other than basin.x = \"{}\"", b.x.name()),
             ));
         }
-        for (key, n) in [
-            ("basin.x_points", b.x_points),
-            ("basin.y_points", b.y_points),
-        ] {
-            if !(1..=16384).contains(&n) {
-                return Err(ConfigError::range(key, n, "[1, 16384]"));
-            }
-        }
-        let cells = b.x_points as u64 * b.y_points as u64;
-        if cells > MAX_BASIN_CELLS {
-            return Err(ConfigError::range(
-                "basin.x_points x basin.y_points",
-                format!("{} x {} = {cells} cells", b.x_points, b.y_points),
-                &format!("at most {MAX_BASIN_CELLS} cells"),
-            ));
-        }
+        check_grid("basin", (b.x_points, b.y_points), 16384, MAX_BASIN_CELLS)?;
         let (x0, x1, y0, y1) = self.basin_ranges();
         let r = self.model.r;
         for (key, c, v) in [
@@ -840,6 +813,34 @@ impl Config {
             ("basin.y_to", y1),
         ])
     }
+}
+
+/// Checks `SECTION.x_points` and `SECTION.y_points` (each in [1, max_points]) and their
+/// product (at most `max_cells`).
+fn check_grid(
+    section: &str,
+    (nx, ny): (u32, u32),
+    max_points: u32,
+    max_cells: u64,
+) -> Result<(), ConfigError> {
+    for (axis, n) in [("x", nx), ("y", ny)] {
+        if !(1..=max_points).contains(&n) {
+            return Err(ConfigError::range(
+                &format!("{section}.{axis}_points"),
+                n,
+                &format!("[1, {max_points}]"),
+            ));
+        }
+    }
+    let cells = nx as u64 * ny as u64;
+    if cells > max_cells {
+        return Err(ConfigError::range(
+            &format!("{section}.x_points x {section}.y_points"),
+            format!("{nx} x {ny} = {cells} cells"),
+            &format!("at most {max_cells} cells"),
+        ));
+    }
+    Ok(())
 }
 
 const MODEL_KEYS: &[&str] = &[

@@ -81,7 +81,7 @@ fn coexisting_cycles_are_separate_attractors_and_rest_reaches_period_1() {
     let counted: u64 = atts.iter().map(|a| a["cells"].as_u64().unwrap()).sum();
     assert_eq!(counted + j["failed_cells"].as_u64().unwrap(), 225);
     for a in atts {
-        let n = ids.iter().filter(|&&i| Value::from(i) == a["id"]).count() as u64;
+        let n = ids.iter().filter(|&&i| a["id"] == i).count() as u64;
         assert_eq!(n, a["cells"].as_u64().unwrap());
     }
     // A second run writes the same ids, byte for byte.
@@ -113,29 +113,29 @@ fn bad_basin_configs_name_the_key_and_write_nothing() {
     ];
     let d = scratch("basin-bad");
     let cfg = d.join("bad.toml");
-    for (text, key) in cases {
-        std::fs::write(&cfg, format!("[basin]\n{text}\n")).unwrap();
-        let o = rattle()
-            .args(["basin", "--backend", "cpu", "--config"])
-            .arg(&cfg)
+    // `memory`: the available bytes the run is told (RATTLE_MEMORY_LIMIT), if any.
+    let run = |cfg: &Path, memory: Option<&str>| {
+        let mut c = rattle();
+        if let Some(m) = memory {
+            c.env("RATTLE_MEMORY_LIMIT", m);
+        }
+        c.args(["basin", "--backend", "cpu", "--config"])
+            .arg(cfg)
             .arg("--out")
             .arg(d.join("b"))
             .output()
-            .unwrap();
+            .unwrap()
+    };
+    for (text, key) in cases {
+        std::fs::write(&cfg, format!("[basin]\n{text}\n")).unwrap();
+        let o = run(&cfg, None);
         let e = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{text}: {e}");
         assert!(e.contains(key), "{text}: `{e}` must name {key}");
         assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1, "{text}: wrote");
     }
     // A grid beyond the memory available is refused before computing.
-    let o = rattle()
-        .env("RATTLE_MEMORY_LIMIT", "1000000")
-        .args(["basin", "--backend", "cpu", "--config"])
-        .arg(config("basin.toml"))
-        .arg("--out")
-        .arg(d.join("b"))
-        .output()
-        .unwrap();
+    let o = run(&config("basin.toml"), Some("1000000"));
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(e.contains("basin.x_points x basin.y_points"), "{e}");
