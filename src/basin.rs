@@ -444,7 +444,7 @@ pub fn caption(cfg: &Config, b: &Basin) -> String {
         .attractors
         .iter()
         .take(6)
-        .map(|a| format!("{} {:.1}%", a.label(), 100.0 * a.fraction))
+        .map(|a| format!("{} ({:.1}%)", a.label(), 100.0 * a.fraction))
         .collect();
     let more = b.attractors.len().saturating_sub(6);
     let more = if more > 0 {
@@ -467,11 +467,13 @@ pub fn caption(cfg: &Config, b: &Basin) -> String {
          cell is integrated with {how}; {tr} transient periods, then {sa} sampled periods. A \
          cell whose period is confirmed by Newton's method (CPU, f64, every Floquet multiplier \
          inside the unit circle) is on the attractor whose refined cycle has the same period \
-         and a section point within {tol} (relative) of its own cycle point; cells without a \
+         and a section point within {tol:e} (relative) of its own cycle point; cells without a \
          stable cycle are grouped by class and impacts per period rounded to an integer (one \
          id per signature: coarser than the cycle rule). {n} attractors: {found}{more}. The \
          cell nearest rest ({xn} = {rx:.4}, {yn} = {ry:.4}) reaches {rest_id}.{failed} Legend: \
-         share and count of the cells of each attractor, |mu| the largest multiplier modulus. \
+         share and count of the cells of each attractor, |mu| the largest multiplier modulus; \
+         \"mirror of Ak\": the image of Ak under the symmetry (y, t) -> (-y, t + P/2) of the \
+         model (same multipliers). \
          Raster image, {WIDTH} x {HEIGHT} px.",
         title = crate::map::model_title(cfg, &[]),
         nx = g.x_values.len(),
