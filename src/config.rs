@@ -247,6 +247,97 @@ impl Default for MapConfig {
     }
 }
 
+/// A coordinate of the initial state that a basin grid varies. The others are zero: m1 at
+/// rest at y1 = 0, m2 in the middle of the clearance, no relative velocity.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StateCoord {
+    /// m2's position in the clearance, z = y3 - y1 (within [-r, r]).
+    Z0,
+    /// Relative (slip) velocity v = y2 - y4.
+    V0,
+    /// m1's position.
+    Y1,
+    /// m1's velocity.
+    Y2,
+}
+
+impl StateCoord {
+    pub fn name(self) -> &'static str {
+        match self {
+            StateCoord::Z0 => "z0",
+            StateCoord::V0 => "v0",
+            StateCoord::Y1 => "y1",
+            StateCoord::Y2 => "y2",
+        }
+    }
+
+    /// Axis label of plots.
+    pub fn label(self) -> &'static str {
+        match self {
+            StateCoord::Z0 => "z0 = y3 - y1 (initial position of m2 in the clearance)",
+            StateCoord::V0 => "v0 = y2 - y4 (initial relative velocity)",
+            StateCoord::Y1 => "y1 (initial position of m1)",
+            StateCoord::Y2 => "y2 (initial velocity of m1)",
+        }
+    }
+
+    /// The state (y1, y2, y3, y4) with this coordinate at `a` and `other` at `b`, the rest 0.
+    pub fn state(self, a: f64, other: StateCoord, b: f64) -> [f64; 4] {
+        let (mut y1, mut y2, mut z, mut v) = (0.0, 0.0, 0.0, 0.0);
+        for (c, x) in [(self, a), (other, b)] {
+            match c {
+                StateCoord::Z0 => z = x,
+                StateCoord::V0 => v = x,
+                StateCoord::Y1 => y1 = x,
+                StateCoord::Y2 => y2 = x,
+            }
+        }
+        [y1, y2, y1 + z, y2 - v]
+    }
+}
+
+/// A grid of initial states at one parameter point (basins of attraction).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct BasinConfig {
+    pub x: StateCoord,
+    /// Range of x; unset: [-r, r] for z0, [-1, 1] otherwise (same for y).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub x_from: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub x_to: Option<f64>,
+    pub x_points: u32,
+    pub y: StateCoord,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub y_from: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub y_to: Option<f64>,
+    pub y_points: u32,
+    /// Two refined cycles are one attractor when a section point of one lies within
+    /// `tol * max(1, |point|)` of a section point of the other, in every coordinate.
+    pub tol: f64,
+    /// Figure title; empty => generated.
+    pub title: String,
+}
+
+impl Default for BasinConfig {
+    fn default() -> Self {
+        BasinConfig {
+            x: StateCoord::Z0,
+            x_from: None,
+            x_to: None,
+            x_points: 101,
+            y: StateCoord::V0,
+            y_from: None,
+            y_to: None,
+            y_points: 101,
+            tol: 1e-6,
+            title: String::new(),
+        }
+    }
+}
+
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Config {
@@ -256,6 +347,7 @@ pub struct Config {
     pub run: RunConfig,
     pub sweep: SweepConfig,
     pub map: MapConfig,
+    pub basin: BasinConfig,
     /// `[model]` keys given in the file or overrides (for notes on keys that do not apply).
     #[serde(skip)]
     pub given_model_keys: Vec<String>,
@@ -273,6 +365,9 @@ pub struct Overrides {
 
 /// Largest map (cells), bounded by host memory for the per-cell results.
 pub const MAX_MAP_CELLS: u64 = 1 << 26;
+
+/// Largest basin grid (cells): one attractor id per cell is held, and one PNG cell each.
+pub const MAX_BASIN_CELLS: u64 = 1 << 24;
 
 /// Largest sample array a sweep may hold in memory (points x samples x 4 x f64).
 pub const MAX_SAMPLE_BYTES: u64 = 4 << 30;
@@ -619,19 +714,7 @@ impl Config {
                 &format!("a parameter other than map.x = \"{}\"", m.x),
             ));
         }
-        for (key, n) in [("map.x_points", m.x_points), ("map.y_points", m.y_points)] {
-            if !(1..=65536).contains(&n) {
-                return Err(ConfigError::range(key, n, "[1, 65536]"));
-            }
-        }
-        let cells = m.x_points as u64 * m.y_points as u64;
-        if cells > MAX_MAP_CELLS {
-            return Err(ConfigError::range(
-                "map.x_points x map.y_points",
-                format!("{} x {} = {cells} cells", m.x_points, m.y_points),
-                &format!("at most {MAX_MAP_CELLS} cells"),
-            ));
-        }
+        check_grid("map", (m.x_points, m.y_points), 65536, MAX_MAP_CELLS)?;
         for (key, name, v) in [
             ("map.x_from", m.x, m.x_from),
             ("map.x_to", m.x, m.x_to),
@@ -665,6 +748,103 @@ impl Config {
             .map(|i| from + (to - from) * (i as f64 + 0.5) / n as f64)
             .collect()
     }
+}
+
+impl Config {
+    /// The basin axes' ranges, defaults resolved: (x_from, x_to, y_from, y_to).
+    pub fn basin_ranges(&self) -> (f64, f64, f64, f64) {
+        let b = &self.basin;
+        let r = self.model.r;
+        let default = |c: StateCoord| match c {
+            StateCoord::Z0 => (-r, r),
+            _ => (-1.0, 1.0),
+        };
+        let (x0, x1) = default(b.x);
+        let (y0, y1) = default(b.y);
+        (
+            b.x_from.unwrap_or(x0),
+            b.x_to.unwrap_or(x1),
+            b.y_from.unwrap_or(y0),
+            b.y_to.unwrap_or(y1),
+        )
+    }
+
+    /// Checks the `[basin]` section: two different coordinates, finite ranges of non-zero
+    /// width (z0 within the clearance), a grid of at most [`MAX_BASIN_CELLS`] cells and a
+    /// matching tolerance in (0, 0.1].
+    pub fn validate_basin(&self) -> Result<(), ConfigError> {
+        let b = &self.basin;
+        if b.x == b.y {
+            return Err(ConfigError::range(
+                "basin.y",
+                format!("\"{}\"", b.y.name()),
+                &format!("a coordinate other than basin.x = \"{}\"", b.x.name()),
+            ));
+        }
+        check_grid("basin", (b.x_points, b.y_points), 16384, MAX_BASIN_CELLS)?;
+        let (x0, x1, y0, y1) = self.basin_ranges();
+        let r = self.model.r;
+        for (key, c, v) in [
+            ("basin.x_from", b.x, x0),
+            ("basin.x_to", b.x, x1),
+            ("basin.y_from", b.y, y0),
+            ("basin.y_to", b.y, y1),
+        ] {
+            let (ok, range) = match c {
+                StateCoord::Z0 => (v.abs() <= r, format!("[-r, r] = [{}, {r}] for z0", -r)),
+                _ => (v.abs() <= 1e3, format!("[-1000, 1000] for {}", c.name())),
+            };
+            if !(v.is_finite() && ok) {
+                return Err(ConfigError::range(key, v, &range));
+            }
+        }
+        for (key, a, z) in [("basin.x_to", x0, x1), ("basin.y_to", y0, y1)] {
+            if a == z {
+                return Err(ConfigError::range(
+                    key,
+                    z,
+                    "a value other than the range's start (a range of non-zero width)",
+                ));
+            }
+        }
+        if !(b.tol.is_finite() && b.tol > 0.0 && b.tol <= 0.1) {
+            return Err(ConfigError::range("basin.tol", b.tol, "(0, 0.1]"));
+        }
+        self.check_precision([
+            ("basin.x_from", x0),
+            ("basin.x_to", x1),
+            ("basin.y_from", y0),
+            ("basin.y_to", y1),
+        ])
+    }
+}
+
+/// Checks `SECTION.x_points` and `SECTION.y_points` (each in [1, max_points]) and their
+/// product (at most `max_cells`).
+fn check_grid(
+    section: &str,
+    (nx, ny): (u32, u32),
+    max_points: u32,
+    max_cells: u64,
+) -> Result<(), ConfigError> {
+    for (axis, n) in [("x", nx), ("y", ny)] {
+        if !(1..=max_points).contains(&n) {
+            return Err(ConfigError::range(
+                &format!("{section}.{axis}_points"),
+                n,
+                &format!("[1, {max_points}]"),
+            ));
+        }
+    }
+    let cells = nx as u64 * ny as u64;
+    if cells > max_cells {
+        return Err(ConfigError::range(
+            &format!("{section}.x_points x {section}.y_points"),
+            format!("{nx} x {ny} = {cells} cells"),
+            &format!("at most {max_cells} cells"),
+        ));
+    }
+    Ok(())
 }
 
 const MODEL_KEYS: &[&str] = &[

@@ -5,6 +5,7 @@
 
 pub mod accuracy;
 pub mod adaptive;
+pub mod basin;
 pub mod bench;
 pub mod bifurcation;
 pub mod classify;

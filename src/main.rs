@@ -72,6 +72,15 @@ enum Cmd {
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
         starts: u32,
     },
+    /// Basins of attraction at one parameter point: a grid of initial states, one colour per
+    /// attractor (identified by its Newton-refined cycle).
+    Basin {
+        #[command(flatten)]
+        common: Common,
+        /// Output prefix: PREFIX.png, PREFIX.npy (attractor id per cell), PREFIX.json.
+        #[arg(long, default_value = "basin")]
+        out: PathBuf,
+    },
     /// Merge the partial outputs of a sharded map into the files a single run writes.
     Merge {
         /// PREFIX.part-I-of-N.json files.
@@ -212,6 +221,13 @@ impl Common {
         Ok(cfg)
     }
 
+    /// With `[basin]` checked too.
+    fn load_basin(&self) -> Result<Config> {
+        let cfg = self.load_from(&self.config)?;
+        cfg.validate_basin()?;
+        Ok(cfg)
+    }
+
     /// With `[sweep]` checked too, for the commands that sweep.
     fn load_sweep(&self) -> Result<Config> {
         let cfg = self.load_from(&self.config)?;
@@ -289,6 +305,16 @@ fn run(cli: Cli) -> Result<()> {
                 compare: other.as_ref(),
             };
             map_cmd(&cfg, &out, &opts, adapters)?
+        }
+        Cmd::Basin { common, out } => {
+            let cfg = common.load_basin()?;
+            check_prefix(&out, &["png", "npy", "json"])?;
+            let engine = Engine::open(cfg.method.backend)?;
+            let pb = progress_bar(rattle::basin::work(&engine, &cfg), "basin");
+            let b = rattle::basin::compute(&engine, &cfg, &|n| pb.inc(n))?;
+            pb.finish_and_clear();
+            eprint!("{}", b.summary());
+            rattle::basin::write_outputs(&out, &cfg, &b)?
         }
         Cmd::Merge { parts, out } => {
             check_prefix(&out, &["png", "json"])?;

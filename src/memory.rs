@@ -91,3 +91,41 @@ pub fn check_map(cfg: &Config, cells: usize, starts: usize) -> Result<(), Config
     }
     Ok(())
 }
+
+/// Bytes a basin grid holds per cell: its attractor id, its category code for the image and
+/// the NPY writer's copy. The chunk in flight (samples of a bounded number of cells) is
+/// counted apart, by [`basin_chunk_bytes`].
+pub const BASIN_BYTES_PER_CELL: u64 = 16;
+
+/// Bytes of one chunk of a basin run: per cell its samples (f64 states and the backend's
+/// staging copy), result and verdict.
+pub fn basin_chunk_bytes(chunk: usize, samples: u32) -> u64 {
+    chunk as u64 * (samples as u64 * 64 + 1024)
+}
+
+/// Refuses a basin grid whose estimate exceeds the usable memory.
+pub fn check_basin(cfg: &Config, chunk: usize) -> Result<(), ConfigError> {
+    let b = &cfg.basin;
+    let cells = b.x_points as f64 * b.y_points as f64;
+    let need = BASIN_BYTES_PER_CELL as f64 * cells
+        + basin_chunk_bytes(chunk, cfg.run.sample_periods) as f64;
+    let have = available() as f64 * USABLE;
+    if need > have {
+        return Err(ConfigError::Range {
+            key: "basin.x_points x basin.y_points".into(),
+            value: format!(
+                "{} x {} with {} samples per cell (about {} in memory)",
+                b.x_points,
+                b.y_points,
+                cfg.run.sample_periods,
+                gib(need)
+            ),
+            range: format!(
+                "at most {} of the {} available",
+                gib(have),
+                gib(have / USABLE)
+            ),
+        });
+    }
+    Ok(())
+}

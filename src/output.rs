@@ -33,6 +33,23 @@ fn other(path: &Path, message: impl Into<String>) -> OutputError {
     }
 }
 
+/// Writes an NPY array of `shape` (row-major) to `path`.
+pub fn save_npy<T: npyz::AutoSerialize + Copy>(
+    path: &Path,
+    shape: &[u64],
+    data: &[T],
+) -> std::io::Result<()> {
+    use npyz::WriterBuilder;
+    let f = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut w = npyz::WriteOptions::new()
+        .default_dtype()
+        .shape(shape)
+        .writer(f)
+        .begin_nd()?;
+    w.extend(data.iter().copied())?;
+    w.finish()
+}
+
 /// A set of output files committed together.
 #[derive(Default)]
 pub struct Staged {

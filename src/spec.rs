@@ -79,6 +79,15 @@ impl<'a> Points<'a> {
         }
     }
 
+    /// One point per initial state, all at the base parameters.
+    pub fn states(y0s: &'a [[f64; 4]]) -> Points<'a> {
+        Points {
+            vary: &[],
+            values: &[],
+            y0s: Some(y0s),
+        }
+    }
+
     pub fn with_states(self, y0s: &'a [[f64; 4]]) -> Points<'a> {
         Points {
             y0s: Some(y0s),
@@ -88,7 +97,7 @@ impl<'a> Points<'a> {
 
     pub fn len(&self) -> usize {
         if self.vary.is_empty() {
-            1
+            self.y0s.map_or(1, |y| y.len())
         } else {
             self.values.len() / self.vary.len()
         }

@@ -4,7 +4,7 @@
 mod common;
 
 use common::{config, json, ok, rattle, scratch};
-use rattle::render::{CategoryMap, ClassKind, PERIOD_FAMILIES, category_map_png};
+use rattle::render::{ATTRACTOR_COLORS, CategoryMap, ClassKind, PERIOD_FAMILIES, category_map_png};
 
 /// CIE L*a*b* (D65) of an sRGB colour, computed here independently of the palette code.
 fn lab(c: [u8; 3]) -> [f64; 3] {
@@ -76,6 +76,19 @@ fn class_palette_is_distinct() {
         next = b + 1;
     }
     assert_eq!(next, 65);
+}
+
+#[test]
+fn attractor_palette_is_distinct() {
+    // Attractor colours of a basin map, the failed cells' magenta and the "other" grey.
+    let mut all = ATTRACTOR_COLORS.to_vec();
+    all.extend([ClassKind::Failed.color(), [190, 190, 190]]);
+    for (i, a) in all.iter().enumerate() {
+        for b in &all[i + 1..] {
+            let d = delta_e(*a, *b);
+            assert!(d >= 20.0, "{a:?} and {b:?}: delta-E {d:.1} < 20");
+        }
+    }
 }
 
 /// A class map in which every kind occurs: the legend (right of the map) must show every

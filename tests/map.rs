@@ -291,7 +291,11 @@ fn every_shipped_config_loads() {
             cfg.validate_map()
                 .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         }
+        if text.contains("[basin]") {
+            cfg.validate_basin()
+                .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        }
         n += 1;
     }
-    assert!(n >= 8, "{n} configs");
+    assert!(n >= 9, "{n} configs");
 }

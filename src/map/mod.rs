@@ -6,7 +6,8 @@ mod output;
 mod parts;
 
 pub use output::{
-    CompareReport, MapReport, MapTimings, category, title, write_compare, write_outputs,
+    CompareReport, MapReport, MapTimings, category, model_title, title, write_compare,
+    write_outputs,
 };
 pub use parts::{
     MapOptions, MapSummary, Part, compute_part, merge, merge_files, parse_shard, part_path,

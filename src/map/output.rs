@@ -76,6 +76,12 @@ pub fn title(cfg: &Config) -> String {
     if !cfg.map.title.is_empty() {
         return cfg.map.title.clone();
     }
+    model_title(cfg, &[cfg.map.x.name(), cfg.map.y.name()])
+}
+
+/// "Coulomb friction, eta=1.5, R=0.6, ...": the model's values except those named in `except`
+/// (the axes of a map).
+pub fn model_title(cfg: &Config, except: &[&str]) -> String {
     let m = &cfg.model;
     let mut fixed = Vec::new();
     for (k, v) in [
@@ -87,7 +93,7 @@ pub fn title(cfg: &Config) -> String {
         ("b1", m.b1),
         ("mu", m.mu),
     ] {
-        if k != cfg.map.x.name() && k != cfg.map.y.name() {
+        if !except.contains(&k) {
             fixed.push(format!("{k}={v}"));
         }
     }
@@ -357,21 +363,7 @@ pub fn write_outputs(
             source,
         })
     };
-    use npyz::WriterBuilder;
-    fn save<T: npyz::AutoSerialize + Copy>(
-        path: &Path,
-        shape: &[u64],
-        data: &[T],
-    ) -> std::io::Result<()> {
-        let f = std::io::BufWriter::new(std::fs::File::create(path)?);
-        let mut w = npyz::WriteOptions::new()
-            .default_dtype()
-            .shape(shape)
-            .writer(f)
-            .begin_nd()?;
-        w.extend(data.iter().copied())?;
-        w.finish()
-    }
+    use crate::output::save_npy as save;
     let f = fields;
     npy(&mut st, "class", &|p| save(p, &shape, &f.class))?;
     npy(&mut st, "period", &|p| save(p, &shape, &f.period))?;

@@ -18,7 +18,7 @@ pub use density::{
 };
 pub use lines::{LinePlot, Scale, Series, line_plot_png, line_plot_svg};
 pub use maps::{CategoryMap, ScalarMap, category_map_png, scalar_map_png};
-pub use palette::{ClassKind, MAX_PERIOD, PERIOD_FAMILIES, period_color};
+pub use palette::{ATTRACTOR_COLORS, ClassKind, MAX_PERIOD, PERIOD_FAMILIES, period_color};
 
 use std::path::Path;
 use std::sync::OnceLock;

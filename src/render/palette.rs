@@ -13,6 +13,25 @@
 //! (48 shades of one hue cannot all be told apart: the family is read as "long period", and the
 //! legend names every member shown).
 
+/// Colours of the attractors of a basin map, by rank (most cells first): the seven Okabe-Ito
+/// colours, then hues and lightnesses none of them has. Attractors beyond the list are drawn as
+/// "other" (grey); failed cells keep the class map's magenta. Pairwise delta-E >= 20
+/// (`tests/figures.rs`).
+pub const ATTRACTOR_COLORS: [[u8; 3]; 12] = [
+    [0x00, 0x72, 0xb2],
+    [0xe6, 0x9f, 0x00],
+    [0x00, 0x9e, 0x73],
+    [0xd5, 0x5e, 0x00],
+    [0x56, 0xb4, 0xe9],
+    [0xcc, 0x79, 0xa7],
+    [0xf0, 0xe4, 0x42],
+    [0x1a, 0x1a, 0x1a],
+    [0x8c, 0x51, 0x0a],
+    [0x5e, 0x3c, 0x99],
+    [0x9a, 0xd0, 0x8a],
+    [0x01, 0x45, 0x4d],
+];
+
 /// Period families: (first, last), in legend order.
 pub const PERIOD_FAMILIES: [(u32, u32); 7] =
     [(1, 1), (2, 2), (3, 3), (4, 4), (5, 8), (9, 16), (17, 64)];
