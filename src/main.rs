@@ -71,6 +71,10 @@ enum Cmd {
         /// marked "coexisting attractors".
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
         starts: u32,
+        /// Coarse-to-fine: compute every K-th cell, refine only blocks whose corners differ in
+        /// class, fill uniform blocks (flagged in PREFIX-inferred.npy).
+        #[arg(long, value_name = "K")]
+        refine: Option<usize>,
     },
     /// Basins of attraction at one parameter point: a grid of initial states, one colour per
     /// attractor (identified by its Newton-refined cycle).
@@ -289,6 +293,7 @@ fn run(cli: Cli) -> Result<()> {
             compare,
             starts,
             adapters,
+            refine,
         } => {
             let cfg = common.load_map(&common.config)?;
             check_prefix(&out, &["png", "json"])?;
@@ -303,6 +308,7 @@ fn run(cli: Cli) -> Result<()> {
                 shard,
                 checkpoint,
                 compare: other.as_ref(),
+                refine,
             };
             map_cmd(&cfg, &out, &opts, adapters)?
         }

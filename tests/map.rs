@@ -299,3 +299,65 @@ fn every_shipped_config_loads() {
     }
     assert!(n >= 9, "{n} configs");
 }
+
+#[test]
+fn refined_map_agrees_with_the_full_map_and_flags_inferred_cells() {
+    let text = "[model]\neta = 1.26\n[method]\nsteps_per_period = 64\n[run]\n\
+        transient_periods = 200\nsample_periods = 60\n[map]\nx = \"R\"\nx_from = 0.5\n\
+        x_to = 0.7\nx_points = 33\ny = \"lambda\"\ny_from = 0.05\ny_to = 0.1\ny_points = 33\n";
+    let d = scratch("refine");
+    let cfg = d.join("r.toml");
+    std::fs::write(&cfg, text).unwrap();
+    let out = |name: &str, extra: &[&str]| {
+        ok(rattle()
+            .args(["map", "--backend", "cpu", "--config"])
+            .arg(&cfg)
+            .arg("--out")
+            .arg(d.join(name))
+            .args(extra));
+    };
+    out("full", &[]);
+    out("coarse", &["--refine", "8"]);
+    let a: Vec<i32> = npy(&d.join("full-class.npy"));
+    let b: Vec<i32> = npy(&d.join("coarse-class.npy"));
+    let inferred: Vec<u8> = npy(&d.join("coarse-inferred.npy"));
+    let same = a.iter().zip(&b).filter(|(x, y)| x == y).count();
+    let n_inf = inferred.iter().filter(|&&v| v == 1).count();
+    eprintln!("refine 8: {same}/{} equal, {n_inf} inferred", a.len());
+    // The periodic bands of this window are wide: most cells are inferred, nearly all right.
+    assert!(n_inf >= a.len() / 3, "{n_inf}");
+    assert!(same as f64 >= 0.98 * a.len() as f64);
+    // Inferred cells claim no exponent, no multiplier and no integrated period.
+    let lyap: Vec<f64> = npy(&d.join("coarse-lyapunov.npy"));
+    let periods: Vec<u32> = npy(&d.join("coarse-periods.npy"));
+    for i in 0..a.len() {
+        assert_eq!(inferred[i] == 1, periods[i] == 0);
+        if inferred[i] == 1 {
+            assert!(lyap[i].is_nan());
+        }
+    }
+    assert!(
+        npy::<u8>(&d.join("full-inferred.npy"))
+            .iter()
+            .all(|&v| v == 0)
+    );
+    // Refinement needs the whole grid.
+    let o = rattle()
+        .args([
+            "map",
+            "--backend",
+            "cpu",
+            "--shard",
+            "0/2",
+            "--refine",
+            "8",
+            "--config",
+        ])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(d.join("bad"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--refine"));
+}

@@ -4,6 +4,7 @@
 
 mod output;
 mod parts;
+pub mod refine;
 
 pub use output::{
     CompareReport, MapReport, MapTimings, category, model_title, title, write_compare,
@@ -56,11 +57,12 @@ pub fn shard_range(cells: usize, i: usize, n: usize) -> Range<usize> {
 }
 
 /// (x, y) parameter values of the cells in `range`, point-major.
-pub fn cell_values(cfg: &Config, range: Range<usize>) -> Vec<f64> {
+pub fn cell_values(cfg: &Config, range: impl IntoIterator<Item = usize>) -> Vec<f64> {
     let m = &cfg.map;
     let xs = Config::map_axis(m.x_from, m.x_to, m.x_points);
     let ys = Config::map_axis(m.y_from, m.y_to, m.y_points);
     range
+        .into_iter()
         .flat_map(|c| {
             let (ix, iy) = (c % xs.len(), c / xs.len());
             [xs[ix], ys[iy]]
@@ -93,9 +95,20 @@ pub fn compute(
     starts: usize,
     progress: &dyn Progress,
 ) -> Result<(Vec<(Summary, u8)>, Timings), MapError> {
+    compute_cells(engine, cfg, range, starts, progress)
+}
+
+/// [`compute`] for any cells (coarse-to-fine maps compute scattered cells).
+pub fn compute_cells(
+    engine: &Engine,
+    cfg: &Config,
+    cells: impl IntoIterator<Item = usize>,
+    starts: usize,
+    progress: &dyn Progress,
+) -> Result<(Vec<(Summary, u8)>, Timings), MapError> {
     let spec = RunSpec::new(cfg).with_lyapunov();
     let k = starts.max(1);
-    let cells = cell_values(cfg, range);
+    let cells = cell_values(cfg, cells);
     let values: Vec<f64> = cells
         .chunks(2)
         .flat_map(|xy| std::iter::repeat_n([xy[0], xy[1]], k).flatten())
@@ -145,8 +158,11 @@ pub struct Fields {
     /// Distinct attractors reached from the `--starts` initial states (1 without).
     #[serde(default)]
     pub attractors: Vec<u8>,
-    /// Forcing periods integrated (early termination: fewer where the cycle was confirmed).
+    /// Forcing periods integrated (early termination: fewer where the cycle was confirmed;
+    /// 0 for inferred cells).
     pub periods: Vec<u32>,
+    /// 1 where `--refine` filled the cell from the corners of a uniform block.
+    pub inferred: Vec<u8>,
 }
 
 impl Fields {
@@ -182,6 +198,7 @@ impl Fields {
             nonfinite: s.iter().map(|c| c.diag.nonfinite as u8).collect(),
             cpu_rerun: s.iter().map(|c| c.diag.cpu_rerun as u8).collect(),
             periods: s.iter().map(|c| c.periods).collect(),
+            inferred: vec![0; s.len()],
         }
     }
 
@@ -207,6 +224,7 @@ impl Fields {
         self.cpu_rerun.extend(o.cpu_rerun);
         self.attractors.extend(o.attractors);
         self.periods.extend(o.periods);
+        self.inferred.extend(o.inferred);
     }
 
     pub fn classes(&self) -> Vec<Class> {

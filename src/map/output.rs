@@ -380,6 +380,7 @@ pub fn write_outputs(
     npy(&mut st, "cpu_rerun", &|p| save(p, &shape, &f.cpu_rerun))?;
     npy(&mut st, "attractors", &|p| save(p, &shape, &f.attractors))?;
     npy(&mut st, "periods", &|p| save(p, &shape, &f.periods))?;
+    npy(&mut st, "inferred", &|p| save(p, &shape, &f.inferred))?;
     let coexisting = cells.iter().filter(|&&c| c == COEXISTING).count();
     let j = MapJson {
         caption: caption(cfg, report, &fields.counts(), coexisting),
@@ -412,6 +413,7 @@ pub fn write_outputs(
 pub fn write_compare(
     prefix: &Path,
     cfg: &Config,
+    other: &Config,
     a: &[Class],
     b: &[Class],
 ) -> Result<Vec<PathBuf>, MapError> {
@@ -439,7 +441,23 @@ pub fn write_compare(
         (3, "failed in one", [0x1a, 0x1a, 0x1a]),
     ];
     let ordered = |r: (f64, f64)| (r.0.min(r.1), r.0.max(r.1));
-    let t = format!("class changes: {}", title(cfg));
+    // Name what differs between the two models, not the whole model (too long a title).
+    let (ma, mb) = (
+        serde_json::to_value(&cfg.model).unwrap_or_default(),
+        serde_json::to_value(&other.model).unwrap_or_default(),
+    );
+    let diffs: Vec<String> = ma
+        .as_object()
+        .into_iter()
+        .flatten()
+        .filter(|(k, v)| mb.get(k.as_str()) != Some(v))
+        .map(|(k, v)| format!("{k} = {v} -> {}", mb[k.as_str()]))
+        .collect();
+    let t = if diffs.is_empty() {
+        "class changes against the compared configuration".to_string()
+    } else {
+        format!("class changes: {}", diffs.join(", "))
+    };
     let (xl, yl) = (m.x.label(), m.y.label());
     let mut st = Staged::new();
     category_map_png(

@@ -99,6 +99,7 @@ impl Part {
             f.cpu_rerun.len(),
             f.attractors.len(),
             f.periods.len(),
+            f.inferred.len(),
         ];
         if lens.iter().any(|&l| l != len) {
             return Err(PartError(format!(
@@ -126,12 +127,14 @@ impl Part {
                 ))
             } else if !(f.impacts_per_period[c] >= 0.0 && f.impacts_per_period[c].is_finite()) {
                 Some(format!("impacts per period {}", f.impacts_per_period[c]))
-            } else if !(1..=total).contains(&f.periods[c]) {
+            } else if f.inferred[c] > 1
+                || (f.inferred[c] == 0 && !(1..=total).contains(&f.periods[c]))
+            {
                 Some(format!("{} periods of at most {total}", f.periods[c]))
             } else if f.lyapunov[c].is_some_and(|v| !v.is_finite()) {
                 Some("non-finite exponent".into())
             } else if f.multiplier[c].is_some_and(|m| !(0.0..1.0).contains(&m))
-                || f.multiplier[c].is_some() != (class > 0)
+                || (f.inferred[c] == 0 && f.multiplier[c].is_some() != (class > 0))
             {
                 Some(format!(
                     "multiplier {:?} with class {class}",
@@ -171,6 +174,39 @@ pub fn compute_part(
         backend: engine.name().into(),
         timings,
         fields: Fields::from_cells(&cells),
+        source: None,
+    })
+}
+
+/// The whole grid coarse-to-fine, as one part (never written to disk: `--refine` excludes
+/// shards and checkpoints).
+fn refined_part(
+    engine: &Engine,
+    cfg: &Config,
+    k: usize,
+    starts: usize,
+    progress: &dyn Progress,
+) -> Result<Part, MapError> {
+    let r = super::refine::compute_refined(engine, cfg, k, starts, progress)?;
+    let cells = cell_count(cfg);
+    eprintln!(
+        "refine: {} of {cells} cells integrated, {} inferred from uniform blocks",
+        r.computed,
+        r.inferred.iter().filter(|&&v| v == 1).count()
+    );
+    Ok(Part {
+        version: env!("CARGO_PKG_VERSION").into(),
+        config: cfg.clone(),
+        starts: starts.max(1),
+        shard: (0, 1),
+        range: (0, cells),
+        device: engine.device(),
+        backend: engine.name().into(),
+        timings: r.timings,
+        fields: Fields {
+            inferred: r.inferred,
+            ..Fields::from_cells(&r.cells)
+        },
         source: None,
     })
 }
@@ -264,6 +300,8 @@ pub struct MapOptions<'a> {
     pub checkpoint: Option<usize>,
     /// A second configuration on the same grid whose class changes are rendered.
     pub compare: Option<&'a Config>,
+    /// Coarse-to-fine with this coarse spacing (`--refine K`, see [`super::refine`]).
+    pub refine: Option<usize>,
 }
 
 /// Parses `--shard I/N`.
@@ -292,6 +330,18 @@ impl MapOptions<'_> {
         let bad = |m: String| Err(MapError::Options(m));
         if self.shard.is_some() && self.checkpoint.is_some() {
             return bad("--shard and --checkpoint exclude each other: a shard is one part".into());
+        }
+        if let Some(k) = self.refine {
+            if self.shard.is_some() || self.checkpoint.is_some() {
+                return bad(
+                    "--refine works on the whole grid: it excludes --shard and --checkpoint".into(),
+                );
+            }
+            if !(2..=1024).contains(&k) {
+                return bad(format!(
+                    "--refine {k}: allowed coarse spacing 2 to 1024 cells"
+                ));
+            }
         }
         if let Some((_, n)) = self.shard
             && n > cells
@@ -417,7 +467,10 @@ pub fn run(
             parts.push(p);
             continue;
         }
-        let p = compute_part(engine, cfg, (i, n), o.starts, progress)?;
+        let p = match o.refine {
+            Some(k) => refined_part(engine, cfg, k, o.starts, progress)?,
+            None => compute_part(engine, cfg, (i, n), o.starts, progress)?,
+        };
         if n > 1 {
             write_part(&path, &p)?;
         }
@@ -475,7 +528,7 @@ pub fn run(
         p.push("-compare");
         summary
             .files
-            .extend(write_compare(Path::new(&p), &cfg, &a, &b)?);
+            .extend(write_compare(Path::new(&p), &cfg, other, &a, &b)?);
         summary.changed = Some((changed, cells));
     }
     summary
@@ -495,9 +548,10 @@ pub fn run(
 /// A map split over every adapter of the machine: one contiguous share per adapter, computed
 /// concurrently, merged as shards are.
 pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> Result<MapSummary, MapError> {
-    if o.shard.is_some() || o.checkpoint.is_some() || o.compare.is_some() {
+    if o.shard.is_some() || o.checkpoint.is_some() || o.compare.is_some() || o.refine.is_some() {
         return Err(MapError::Options(
-            "--adapters all combines with neither --shard, --checkpoint nor --compare".into(),
+            "--adapters all combines with neither --shard, --checkpoint, --compare nor --refine"
+                .into(),
         ));
     }
     o.check(cfg)?;
