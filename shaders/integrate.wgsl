@@ -11,12 +11,13 @@
 // Rungs of the kernel ladder (`rattle bench --ladder`): each piece of the kernel can be left
 // out at pipeline creation, so that a rung is compiled without the pieces above it (on
 // llvmpipe the code present costs even where it does not run). The production kernel has
-// every piece (the defaults).
+// every piece (the defaults); without LADDER_QUIET every step goes through `step`.
 override LADDER_FINITE: bool = true;
 override LADDER_DETECTOR: bool = true;
 override LADDER_TWIN: bool = true;
 override LADDER_GUARDS: bool = true;
 override LADDER_EVENTS: bool = true;
+override LADDER_QUIET: bool = true;
 
 @group(0) @binding(0) var<uniform> ctl: Control;
 @group(0) @binding(1) var<storage, read> consts: array<F>;
@@ -471,11 +472,7 @@ fn step(k: u32) {
     if (LADDER_EVENTS && ctl.naive != 0u && naive_impact(k)) {
         f0 = field(st.y, st.mode, forcing(k, F(1.0)).x);
     }
-    // NaN or infinity (tested on the bits), or a state beyond any physical scale.
-    let y = st.y;
-    let big = F(1e30);
-    if (LADDER_FINITE
-        && (!finite4(y) || fmax(fmax(fabs(y.x), fabs(y.y)), fmax(fabs(y.z), fabs(y.w))) > big)) {
+    if (LADDER_FINITE && !finite_state(st.y)) {
         st.nonfinite = 1u;
     }
 }
@@ -489,12 +486,87 @@ fn finite4(y: vec4<F>) -> bool {
     return all(e != vec4<u32>(0x7f800000u));
 }
 
+// method.rs `clear_of`: the guard g stays above the bound of `bracket` over the whole step, so
+// it cannot reach zero there.
+fn clear_of(g0: F, g1: F, m0: F, m1: F) -> bool {
+    let d = g1 - g0;
+    let bound = F(0.25) * fmax(fabs(m0 - d), fabs(m1 - d));
+    return fmin(g0, g1) > bound;
+}
+
+// method.rs `quiet`: no guard of the mode can reach zero in the full step from y0 to y1, so
+// `locate` would find no event and the trial step is the step. `&` rather than `&&`: no
+// branches on the hot path.
+fn quiet(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, cs0: vec2<F>,
+         cs1: vec2<F>) -> bool {
+    if (ctl.naive != 0u) {
+        return false;
+    }
+    if (is_slip(mode)) {
+        let z0 = y0.z - y0.x;
+        let z1 = y1.z - y1.x;
+        let zd0 = (y0.w - y0.y) * h;
+        let zd1 = (y1.w - y1.y) * h;
+        let s = select(F(-1.0), F(1.0), mode == MODE_SLIP_POS);
+        return clear_of(r() - z0, r() - z1, -zd0, -zd1) & clear_of(r() + z0, r() + z1, zd0, zd1)
+            & clear_of(s * (y0.y - y0.w), s * (y1.y - y1.w), s * (f0.y - f0.w) * h,
+                       s * (f1.y - f1.w) * h);
+    }
+    let tn0 = needed_force(y0, cs0.x);
+    let tn1 = needed_force(y1, cs1.x);
+    let td0 = needed_force_rate(y0, f0.y, cs0.y) * h;
+    let td1 = needed_force_rate(y1, f1.y, cs1.y) * h;
+    return (mode == MODE_LOCK_NEG | clear_of(fs() - tn0, fs() - tn1, -td0, -td1))
+        & (mode == MODE_LOCK_POS | clear_of(fs() + tn0, fs() + tn1, td0, td1));
+}
+
+// Forcing (cos, sin) at grid point j (phase j/2 of a step: the table has half steps).
+fn table(j: u32) -> vec2<F> {
+    let t = min(j, 2u * ctl.steps);
+    return vec2<F>(consts[C_TABLE + 2u * t], consts[C_TABLE + 2u * t + 1u]);
+}
+
+// NaN or infinity (tested on the bits), or a state beyond any physical scale.
+fn finite_state(y: vec4<F>) -> bool {
+    let big = F(1e30);
+    return finite4(y) && fmax(fmax(fabs(y.x), fabs(y.y)), fmax(fabs(y.z), fabs(y.w))) <= big;
+}
+
 // Returns false when the period did not run to its end (non-finite state or a loop cut short).
+// Quiet steps (no guard near zero: almost all) run in the inner loop, which holds only the RK4
+// step and the guard bounds; a lane leaves it at a step that may hold an event, and that step
+// goes through `step`. On SIMD adapters the code of `step` then runs once per event rather
+// than masked in every step (method.rs `period_observed` is the twin).
 fn period() -> bool {
     f0 = field(st.y, st.mode, forcing(0u, F(0.0)).x);
     var k = 0u;
-    for (; k < ctl.steps; k++) {
+    loop {
+        if (LADDER_QUIET) {
+            loop {
+                if (k >= ctl.steps) {
+                    break;
+                }
+                let cs0 = table(2u * k);
+                let cs1 = table(2u * k + 2u);
+                let y1 = rk4(st.y, st.mode, h, f0, table(2u * k + 1u).x, cs1.x);
+                let f1 = field(y1, st.mode, cs1.x);
+                if (!quiet(st.y, y1, f0, f1, st.mode, cs0, cs1)) {
+                    break;
+                }
+                st.y = y1;
+                f0 = f1;
+                k++;
+                if (LADDER_FINITE && !finite_state(st.y)) {
+                    st.nonfinite = 1u;
+                    return false;
+                }
+            }
+        }
+        if (k >= ctl.steps) {
+            break;
+        }
         step(k);
+        k++;
         if (st.nonfinite != 0u) {
             return false;
         }

@@ -217,6 +217,21 @@ pub fn bracket<F: Real>(g0: F, g1: F, m0: F, m1: F, ev: u32) -> Bracket<F> {
     b
 }
 
+/// The guard stays above the bound of [`bracket`] over the whole step, so it cannot reach zero.
+#[inline(always)]
+pub fn clear_of<F: Real>(g0: F, g1: F, m0: F, m1: F) -> bool {
+    let d = g1 - g0;
+    let bound = F::of(0.25) * (m0 - d).abs().max((m1 - d).abs());
+    g0.min(g1) > bound
+}
+
+/// NaN, infinity, or a state beyond any physical scale fail the point (as in the shader).
+#[inline(always)]
+fn finite_state<F: Real>(y: &[F; 4]) -> bool {
+    let big = F::of(1e30);
+    y.iter().all(|v| v.abs() <= big)
+}
+
 #[inline(always)]
 fn hermite<F: Real>(a0: F, a1: F, a2: F, a3: F, t: F) -> F {
     a0 + t * (a1 + t * (a2 + t * a3))
@@ -564,6 +579,54 @@ impl<F: Real> Integrator<F> {
         best
     }
 
+    /// True when no guard of `mode` can reach zero in the full step k from y0 to y1 (each stays
+    /// above the bound of [`bracket`]), so that [`Integrator::locate`] would find no event and
+    /// the trial step is the step. Guards below the bound, or below zero, are left to `locate`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn quiet(
+        &self,
+        y0: &[F; 4],
+        y1: &[F; 4],
+        f0: &[F; 4],
+        f1: &[F; 4],
+        mode: Mode,
+        k: u32,
+    ) -> bool {
+        if self.naive {
+            return false;
+        }
+        let p = &self.p;
+        let h = self.h;
+        if mode.is_slip() {
+            let z0 = y0[2] - y0[0];
+            let z1 = y1[2] - y1[0];
+            let zd0 = (y0[3] - y0[1]) * h;
+            let zd1 = (y1[3] - y1[1]) * h;
+            let s = if mode == Mode::SlipPos {
+                F::one()
+            } else {
+                -F::one()
+            };
+            return clear_of(p.r - z0, p.r - z1, -zd0, -zd1)
+                & clear_of(p.r + z0, p.r + z1, zd0, zd1)
+                & clear_of(
+                    s * (y0[1] - y0[3]),
+                    s * (y1[1] - y1[3]),
+                    s * (f0[1] - f0[3]) * h,
+                    s * (f1[1] - f1[3]) * h,
+                );
+        }
+        let (c0, s0) = self.forcing(k, F::zero());
+        let (c1, s1) = self.forcing(k, F::one());
+        let tn0 = needed_force(p, y0, c0);
+        let tn1 = needed_force(p, y1, c1);
+        let td0 = needed_force_rate(p, y0, f0[1], s0) * h;
+        let td1 = needed_force_rate(p, y1, f1[1], s1) * h;
+        (mode == Mode::LockNeg || clear_of(p.fs - tn0, p.fs - tn1, -td0, -td1))
+            & (mode == Mode::LockPos || clear_of(p.fs + tn0, p.fs + tn1, td0, td1))
+    }
+
     /// Mode after an impact at `stop`: slip away, or lock when the rebound is below the Zeno
     /// speed and the stop is pressed.
     #[inline(always)]
@@ -709,9 +772,7 @@ impl<F: Real> Integrator<F> {
             let (c, _) = self.forcing(k, F::one());
             *f0 = field(&self.p, &st.y, st.mode, c);
         }
-        // NaN, infinity, or a state beyond any physical scale (as in the shader).
-        let big = F::of(1e30);
-        if !st.y.iter().all(|v| v.abs() <= big) {
+        if !finite_state(&st.y) {
             st.diag.nonfinite = true;
         }
     }
@@ -726,6 +787,22 @@ impl<F: Real> Integrator<F> {
         let (c0, _) = self.forcing(0, F::zero());
         let mut f0 = field(&self.p, &st.y, st.mode, c0);
         for k in 0..self.n {
+            // A quiet step (no guard near zero: almost all) is its trial step; the shader runs
+            // these in a loop of their own so that its event code runs only where needed.
+            if !O::ACTIVE {
+                let y1 = self.rk4(&st.y, st.mode, k, F::zero(), F::one(), &f0);
+                let (c1, _) = self.forcing(k, F::one());
+                let f1 = field(&self.p, &y1, st.mode, c1);
+                if self.quiet(&st.y, &y1, &f0, &f1, st.mode, k) {
+                    st.y = y1;
+                    f0 = f1;
+                    if !finite_state(&st.y) {
+                        st.diag.nonfinite = true;
+                        return;
+                    }
+                    continue;
+                }
+            }
             self.step_observed(st, k, &mut f0, obs);
             if st.diag.nonfinite {
                 return;

@@ -163,3 +163,37 @@ fn stick_at_large_friction_releases_at_the_static_limit() {
     );
     assert_eq!(st.diag.overflows, 0);
 }
+
+/// The quiet steps of `period` (accepted without the event code when no guard can reach zero)
+/// must be exactly the steps the event code would take: `period_observed` with an active
+/// observer sends every step through it. Coulomb and Stribeck points with impacts, slip
+/// reversals, stick and lock, in f32 and f64, bit for bit over 300 periods.
+#[test]
+fn quiet_steps_are_the_steps_of_the_event_code() {
+    fn check<F: rattle::real::Real>(p: &Params<f64>) -> u64 {
+        let it = Integrator::<F>::new(p, &Settings::default());
+        let mut a = it.start([0.0; 4]);
+        let mut b = a;
+        let mut tan = rattle::tangent::Tangent::<F>::identity(1);
+        for q in 0..300 {
+            it.period(&mut a);
+            it.period_observed(&mut b, &mut tan);
+            assert_eq!(a.y, b.y, "period {q}");
+            assert_eq!(a.mode, b.mode, "period {q}");
+        }
+        assert_eq!(a.diag.impacts, b.diag.impacts);
+        assert_eq!(a.diag.sticks, b.diag.sticks);
+        a.diag.impacts + a.diag.sticks
+    }
+    let mut events = 0;
+    for i in 0..12 {
+        let eta = 1.0 + i as f64 / 12.0;
+        let coulomb = Params::paper(eta);
+        let mut stribeck = coulomb;
+        (stribeck.fs, stribeck.fk, stribeck.l1, stribeck.l2) = (0.25, 0.05, 1.42, 0.005);
+        for p in [coulomb, stribeck] {
+            events += check::<f32>(&p) + check::<f64>(&p);
+        }
+    }
+    assert!(events > 10_000, "the points must have events: {events}");
+}

@@ -30,18 +30,22 @@ pub enum Rung {
     Twin,
     /// + the event guards and their brackets (a bracketed event ends the step as an overflow).
     Guards,
-    /// + root refinement and event application: the production kernel.
+    /// + root refinement and event application, all of it in every step.
+    Events,
+    /// + quiet steps out of line (only steps whose guards may reach zero go through the
+    ///   event code): the production kernel.
     #[default]
     Full,
 }
 
 impl Rung {
-    pub const ALL: [Rung; 6] = [
+    pub const ALL: [Rung; 7] = [
         Rung::Bare,
         Rung::Finite,
         Rung::Detector,
         Rung::Twin,
         Rung::Guards,
+        Rung::Events,
         Rung::Full,
     ];
 
@@ -52,19 +56,21 @@ impl Rung {
             Rung::Detector => "+ samples, period detector",
             Rung::Twin => "+ twin trajectory (compiled)",
             Rung::Guards => "+ event guards, brackets",
-            Rung::Full => "+ refinement, events (production)",
+            Rung::Events => "+ refinement, events in every step",
+            Rung::Full => "+ quiet steps out of line (production)",
         }
     }
 
     /// Values of the shader's `LADDER_*` constants.
-    fn constants(self) -> [(&'static str, f64); 5] {
+    fn constants(self) -> [(&'static str, f64); 6] {
         let on = |r: Rung| if self as u8 >= r as u8 { 1.0 } else { 0.0 };
         [
             ("LADDER_FINITE", on(Rung::Finite)),
             ("LADDER_DETECTOR", on(Rung::Detector)),
             ("LADDER_TWIN", on(Rung::Twin)),
             ("LADDER_GUARDS", on(Rung::Guards)),
-            ("LADDER_EVENTS", on(Rung::Full)),
+            ("LADDER_EVENTS", on(Rung::Events)),
+            ("LADDER_QUIET", on(Rung::Full)),
         ]
     }
 }
