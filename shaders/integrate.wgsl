@@ -18,6 +18,9 @@ override LADDER_TWIN: bool = true;
 override LADDER_GUARDS: bool = true;
 override LADDER_EVENTS: bool = true;
 override LADDER_QUIET: bool = true;
+// Every point of the job has Coulomb friction (l1 = l2 = 0, fs = fk): the law is fk, bit for
+// bit for any finite slip speed, without the division the general law needs in every stage.
+override COULOMB: bool = false;
 
 @group(0) @binding(0) var<uniform> ctl: Control;
 @group(0) @binding(1) var<storage, read> consts: array<F>;
@@ -81,6 +84,9 @@ fn slip(s: F) -> u32 { return select(MODE_SLIP_NEG, MODE_SLIP_POS, s > F(0.0)); 
 
 // model.rs `friction`: the Stribeck law as a smooth function of the signed slip speed w.
 fn friction(w: F) -> F {
+    if (COULOMB) {
+        return fk();
+    }
     return (fs() - fk()) / fmax(F(1.0) + l1() * w, F(0.5)) + fk() + l2() * w * w;
 }
 
@@ -542,19 +548,21 @@ fn period() -> bool {
     var k = 0u;
     loop {
         if (LADDER_QUIET) {
+            // Forcing at the start of the step: the end of the step before.
+            var cs0 = table(2u * k);
             loop {
                 if (k >= ctl.steps) {
                     break;
                 }
-                let cs0 = table(2u * k);
                 let cs1 = table(2u * k + 2u);
-                let y1 = rk4(st.y, st.mode, h, f0, table(2u * k + 1u).x, cs1.x);
+                let y1 = rk4(st.y, st.mode, h, f0, consts[C_TABLE + 4u * k + 2u], cs1.x);
                 let f1 = field(y1, st.mode, cs1.x);
                 if (!quiet(st.y, y1, f0, f1, st.mode, cs0, cs1)) {
                     break;
                 }
                 st.y = y1;
                 f0 = f1;
+                cs0 = cs1;
                 k++;
                 if (LADDER_FINITE && !finite_state(st.y)) {
                     st.nonfinite = 1u;

@@ -102,6 +102,11 @@ pub struct ParamError {
 }
 
 impl Params<f64> {
+    /// Coulomb friction (l1 = l2 = 0, fs = fk): [`friction`] is fk for every finite speed.
+    pub fn is_coulomb(&self) -> bool {
+        self.l1 == 0.0 && self.l2 == 0.0 && self.fs == self.fk
+    }
+
     /// The paper's Fig. 2 point (Coulomb friction), at the given eta.
     pub fn paper(eta: f64) -> Self {
         Params {

@@ -486,3 +486,56 @@ fn ladder_rungs(f64: bool) {
         }
     }
 }
+
+#[test]
+fn stribeck_points_agree_with_cpu() {
+    // Fig. 3's Stribeck law: the kernel compiled with the general friction law (the Coulomb
+    // kernels above skip its division) and its stick/release guards, against the CPU twin.
+    // One period from rest (tolerances as for Fig. 2 above), then 300 periods at points
+    // whose attractor is a stable cycle (period-1 at eta 1.40-1.50, |mu| 0.80-0.84; period-8
+    // at 1.35) or has no impact (1.8), where differences contract. (Near the grazing at 1.55
+    // the transient amplifies ulps: f64 GPU and CPU were 8e-3 apart after 300 periods.)
+    let mut base = Params::paper(1.5);
+    (base.fs, base.fk, base.l1, base.l2) = (0.25, 0.05, 1.42, 0.005);
+    for (etas, transient, tol32, tol64) in [
+        (
+            (0..32).map(|i| 1.0 + 0.03 * i as f64).collect::<Vec<_>>(),
+            1,
+            1e-5,
+            1e-12,
+        ),
+        (vec![1.35, 1.4, 1.45, 1.5, 1.8], 300, 1e-4, 1e-9),
+    ] {
+        for f64 in [false, true] {
+            let spec = RunSpec {
+                params: base,
+                ..eta_spec(Settings::default(), transient, 0, f64)
+            };
+            let Some(g) = run_job(&Job::new(&spec, Points::along(&[Param::Eta], &etas), true))
+            else {
+                return;
+            };
+            let (mut d, mut sticks) = (0.0f64, 0);
+            for (i, &eta) in etas.iter().enumerate() {
+                let p = Params { eta, ..base };
+                let c = if f64 {
+                    Integrator::<f64>::new(&p, &spec.settings).run([0.0; 4], transient, 0)
+                } else {
+                    Integrator::<f32>::new(&p, &spec.settings).run([0.0; 4], transient, 0)
+                };
+                d = d.max(max_diff(&g.results[i].final_y, &c.final_y));
+                if transient == 1 {
+                    assert_eq!(g.results[i].diag.impacts, c.diag.impacts, "eta {eta}");
+                    assert_eq!(g.results[i].diag.sticks, c.diag.sticks, "eta {eta}");
+                }
+                sticks += c.diag.sticks;
+            }
+            eprintln!("Stribeck, {transient} periods, f64 {f64}: max |GPU-CPU| {d:.2e}");
+            assert!(
+                d < if f64 { tol64 } else { tol32 },
+                "{d:e} after {transient} periods"
+            );
+            assert!(sticks > 0, "the points must stick");
+        }
+    }
+}

@@ -61,8 +61,9 @@ impl Rung {
         }
     }
 
-    /// Values of the shader's `LADDER_*` constants.
-    fn constants(self) -> [(&'static str, f64); 6] {
+    /// Values of the shader's `LADDER_*` constants, and `COULOMB` (friction law of every point
+    /// of the job is Coulomb's: a kernel without the general law's division).
+    fn constants(self, coulomb: bool) -> [(&'static str, f64); 7] {
         let on = |r: Rung| if self as u8 >= r as u8 { 1.0 } else { 0.0 };
         [
             ("LADDER_FINITE", on(Rung::Finite)),
@@ -71,6 +72,7 @@ impl Rung {
             ("LADDER_GUARDS", on(Rung::Guards)),
             ("LADDER_EVENTS", on(Rung::Events)),
             ("LADDER_QUIET", on(Rung::Full)),
+            ("COULOMB", if coulomb { 1.0 } else { 0.0 }),
         ]
     }
 }
@@ -79,7 +81,7 @@ impl Rung {
 /// jobs and compiles once; a run that never asks for f64 never compiles it).
 #[derive(Default)]
 pub(super) struct Kernels {
-    pipelines: Mutex<HashMap<(Precision, Rung), wgpu::ComputePipeline>>,
+    pipelines: Mutex<HashMap<(Precision, Rung, bool), wgpu::ComputePipeline>>,
 }
 
 impl Kernels {
@@ -88,10 +90,11 @@ impl Kernels {
         device: &wgpu::Device,
         precision: Precision,
         rung: Rung,
+        coulomb: bool,
     ) -> wgpu::ComputePipeline {
         let mut cache = self.pipelines.lock().unwrap();
         cache
-            .entry((precision, rung))
+            .entry((precision, rung, coulomb))
             .or_insert_with(|| {
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("integrate"),
@@ -103,7 +106,7 @@ impl Kernels {
                     module: &module,
                     entry_point: Some("main"),
                     compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &rung.constants(),
+                        constants: &rung.constants(coulomb),
                         ..Default::default()
                     },
                     cache: None,

@@ -296,7 +296,11 @@ impl Gpu {
         let t_setup = Instant::now();
         let spec = job.spec;
         let plan = Plan::new::<F>(job, &self.limits)?;
-        let pipeline = self.kernels.get(&self.device, spec.precision, job.rung);
+        let coulomb =
+            (0..job.points.len()).all(|i| job.points.params(&spec.params, i).is_coulomb());
+        let pipeline = self
+            .kernels
+            .get(&self.device, spec.precision, job.rung, coulomb);
         self.check_error()?;
         let shared = Shared::new::<F>(self, spec);
         let mut timer = self.timestamps.then(|| Timer::new(self));
