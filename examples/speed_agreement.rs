@@ -1,9 +1,10 @@
-//! Speed against agreement of the R x lambda map (`configs/r_lambda.toml` on an n x n grid,
-//! CPU backend): brute force, early termination, and early termination with coarse-to-fine
-//! refinement at two coarse spacings. Agreement = share of cells whose class equals the
-//! brute-force map's. Writes OUT.csv, OUT.png and OUT.svg.
+//! Speed against agreement of the sensitivity maps `configs/r_lambda.toml` (n x n cells) and
+//! `configs/eta_lambda.toml` (2n x n cells): brute force, early termination, and early
+//! termination with coarse-to-fine refinement at three coarse spacings. Agreement = share of
+//! cells whose class equals the brute-force map's. Writes OUT-MAP.csv, .png and .svg per map.
 //!
-//! `cargo run --release --example speed_agreement -- [n] [OUT]` (default 160, speed_agreement)
+//! `cargo run --release --example speed_agreement -- [n] [OUT] [cpu|gpu]`
+//! (default 160, speed_agreement, cpu)
 
 use rattle::config::{Backend, Config};
 use rattle::engine::Engine;
@@ -16,38 +17,99 @@ use std::time::Instant;
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let n: u32 = args.get(1).map_or(Ok(160), |s| s.parse())?;
-    let out = PathBuf::from(args.get(2).map_or("speed_agreement", String::as_str));
+    let out = args
+        .get(2)
+        .map_or("speed_agreement", String::as_str)
+        .to_string();
+    let backend = match args.get(3).map(String::as_str) {
+        None | Some("cpu") => Backend::Cpu,
+        Some("gpu") => Backend::Gpu,
+        Some(b) => anyhow::bail!("backend must be cpu or gpu, not {b}"),
+    };
     let dir = std::env::temp_dir().join(format!("rattle-speed-agreement-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
-    let engine = Engine::open(Backend::Cpu)?;
-    let cases: [(&str, bool, Option<usize>); 4] = [
+    let engine = Engine::open(backend)?;
+    let device = engine.device();
+    for (map, title, nx) in [
+        ("r_lambda", "Speed against agreement: R x lambda", n),
+        ("eta_lambda", "Speed against agreement: eta x lambda", 2 * n),
+    ] {
+        let rows = measure(&engine, &dir, map, nx, n)?;
+        let mut w = csv::Writer::from_path(format!("{out}-{map}.csv"))?;
+        w.write_record(["method", "seconds", "agreement", "cells_equal", "cells"])?;
+        for (name, secs, agree, same, cells) in &rows {
+            w.write_record([
+                name.to_string(),
+                format!("{secs:.2}"),
+                format!("{agree:.6}"),
+                same.to_string(),
+                cells.to_string(),
+            ])?;
+        }
+        w.flush()?;
+        let series: Vec<Series> = rows
+            .iter()
+            .enumerate()
+            .map(|(i, (name, secs, agree, _, _))| Series {
+                label: name.to_string(),
+                points: vec![(*secs, 100.0 * agree)],
+                color_index: i,
+                dashed: false,
+            })
+            .collect();
+        let title = format!("{title} ({nx} x {n} cells), {device}");
+        let plot = LinePlot {
+            title: &title,
+            x_label: "wall time (s)",
+            y_label: "cells with the brute-force class (%)",
+            x_scale: Scale::Linear,
+            y_scale: Scale::Linear,
+            series: &series,
+            width: 1100,
+            height: 700,
+        };
+        let stem = PathBuf::from(format!("{out}-{map}"));
+        line_plot_png(&stem.with_extension("png"), &plot)?;
+        line_plot_svg(&stem.with_extension("svg"), &plot)?;
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}
+
+/// (method, seconds, agreement, cells equal, cells) of each way to compute the map.
+fn measure(
+    engine: &Engine,
+    dir: &Path,
+    map: &str,
+    nx: u32,
+    ny: u32,
+) -> anyhow::Result<Vec<(&'static str, f64, f64, usize, usize)>> {
+    let cases: [(&str, bool, Option<usize>); 5] = [
         ("brute force", false, None),
         ("early termination", true, None),
         ("early termination + refine 8", true, Some(8)),
         ("early termination + refine 4", true, Some(4)),
+        ("early termination + refine 2", true, Some(2)),
     ];
     let mut rows = Vec::new();
     let mut reference: Option<Vec<i32>> = None;
     for (name, early, refine) in cases {
         let cfg = Config::load(
-            Path::new(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/configs/r_lambda.toml"
-            )),
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("configs/{map}.toml")),
             &[
-                format!("map.x_points={n}"),
-                format!("map.y_points={n}"),
+                format!("map.x_points={nx}"),
+                format!("map.y_points={ny}"),
                 format!("run.early_stop={early}"),
             ],
         )?;
-        let prefix = dir.join(name.replace([' ', '+'], "_"));
+        let prefix = dir.join(format!("{map}-{}", name.replace([' ', '+'], "_")));
         let opts = MapOptions {
             starts: 1,
             refine,
             ..Default::default()
         };
         let t = Instant::now();
-        run(&engine, &cfg, &prefix, &opts, &Silent)?;
+        run(engine, &cfg, &prefix, &opts, &Silent)?;
         let secs = t.elapsed().as_secs_f64();
         let class = read_i32(&with_suffix(&prefix, "class"))?;
         let reference = reference.get_or_insert_with(|| class.clone());
@@ -58,49 +120,13 @@ fn main() -> anyhow::Result<()> {
             .count();
         let agreement = same as f64 / class.len() as f64;
         println!(
-            "{name}: {secs:.1} s, classes equal at {same}/{} ({:.2}%)",
+            "{map} {name}: {secs:.2} s, classes equal at {same}/{} ({:.3}%)",
             class.len(),
             100.0 * agreement
         );
         rows.push((name, secs, agreement, same, class.len()));
     }
-    let mut w = csv::Writer::from_path(out.with_extension("csv"))?;
-    w.write_record(["method", "seconds", "agreement", "cells_equal", "cells"])?;
-    for (name, secs, agree, same, cells) in &rows {
-        w.write_record([
-            name.to_string(),
-            format!("{secs:.2}"),
-            format!("{agree:.6}"),
-            same.to_string(),
-            cells.to_string(),
-        ])?;
-    }
-    w.flush()?;
-    let series: Vec<Series> = rows
-        .iter()
-        .enumerate()
-        .map(|(i, (name, secs, agree, _, _))| Series {
-            label: name.to_string(),
-            points: vec![(*secs, 100.0 * agree)],
-            color_index: i,
-            dashed: false,
-        })
-        .collect();
-    let title = format!("R x lambda map, {n} x {n} cells, CPU: speed against agreement");
-    let plot = LinePlot {
-        title: &title,
-        x_label: "wall time (s)",
-        y_label: "cells with the brute-force class (%)",
-        x_scale: Scale::Linear,
-        y_scale: Scale::Linear,
-        series: &series,
-        width: 1100,
-        height: 700,
-    };
-    line_plot_png(&out.with_extension("png"), &plot)?;
-    line_plot_svg(&out.with_extension("svg"), &plot)?;
-    let _ = std::fs::remove_dir_all(&dir);
-    Ok(())
+    Ok(rows)
 }
 
 fn with_suffix(prefix: &Path, s: &str) -> PathBuf {
