@@ -6,6 +6,7 @@
 //! `cargo run --release --example speed_agreement -- [n] [OUT] [cpu|gpu]`
 //! (default 160, speed_agreement, cpu)
 
+use rattle::classify::Class;
 use rattle::config::{Backend, Config};
 use rattle::engine::Engine;
 use rattle::map::{MapOptions, run};
@@ -36,7 +37,14 @@ fn main() -> anyhow::Result<()> {
     ] {
         let rows = measure(&engine, &dir, map, nx, n)?;
         let mut w = csv::Writer::from_path(format!("{out}-{map}.csv"))?;
-        w.write_record(["method", "seconds", "agreement", "cells_equal", "cells"])?;
+        w.write_record([
+            "method",
+            "seconds",
+            "agreement",
+            "cells_equal",
+            "cells",
+            "device",
+        ])?;
         for (name, secs, agree, same, cells) in &rows {
             w.write_record([
                 name.to_string(),
@@ -44,6 +52,7 @@ fn main() -> anyhow::Result<()> {
                 format!("{agree:.6}"),
                 same.to_string(),
                 cells.to_string(),
+                device.clone(),
             ])?;
         }
         w.flush()?;
@@ -57,10 +66,13 @@ fn main() -> anyhow::Result<()> {
                 dashed: false,
             })
             .collect();
-        let title = format!("{title} ({nx} x {n} cells), {device}");
+        let title = format!("{title} ({nx} x {n} cells)");
+        // The adapter's short name ("llvmpipe", "NVIDIA H100 ...") keeps the label on the chart.
+        let short = device.split(" (").next().unwrap_or(&device);
+        let x_label = format!("wall time (s), {short}");
         let plot = LinePlot {
             title: &title,
-            x_label: "wall time (s)",
+            x_label: &x_label,
             y_label: "cells with the brute-force class (%)",
             x_scale: Scale::Linear,
             y_scale: Scale::Linear,
@@ -76,14 +88,17 @@ fn main() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// (method, seconds, agreement, cells equal, cells) of each way to compute the map.
+/// One way to compute the map: (method, seconds, agreement, cells equal, cells).
+type Row = (&'static str, f64, f64, usize, usize);
+
+/// The rows of every way to compute the map.
 fn measure(
     engine: &Engine,
     dir: &Path,
     map: &str,
     nx: u32,
     ny: u32,
-) -> anyhow::Result<Vec<(&'static str, f64, f64, usize, usize)>> {
+) -> anyhow::Result<Vec<Row>> {
     let cases: [(&str, bool, Option<usize>); 5] = [
         ("brute force", false, None),
         ("early termination", true, None),
@@ -124,6 +139,17 @@ fn measure(
             class.len(),
             100.0 * agreement
         );
+        // Which classes the differing cells have (brute force -> this method), most frequent first.
+        let mut pairs = std::collections::BTreeMap::<(String, String), usize>::new();
+        for (a, b) in reference.iter().zip(&class).filter(|(a, b)| a != b) {
+            let key = (Class::from_code(*a).name(), Class::from_code(*b).name());
+            *pairs.entry(key).or_default() += 1;
+        }
+        let mut pairs: Vec<_> = pairs.into_iter().collect();
+        pairs.sort_by_key(|p| std::cmp::Reverse(p.1));
+        for ((a, b), k) in pairs.iter().take(8) {
+            println!("    {k:>5}  {a} -> {b}");
+        }
         rows.push((name, secs, agreement, same, class.len()));
     }
     Ok(rows)

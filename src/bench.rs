@@ -391,7 +391,7 @@ pub fn ladder(cfg: &Config, points: usize, periods: u32) -> Result<String> {
     );
     let _ = writeln!(
         s,
-        "{:<36} {:<5} {:>11} {:>9}",
+        "{:<40} {:<5} {:>11} {:>9}",
         "rung", "prec", "steps/s", "vs bare"
     );
     for prec in [Precision::F32, Precision::F64] {
@@ -411,7 +411,7 @@ pub fn ladder(cfg: &Config, points: usize, periods: u32) -> Result<String> {
             let base = *bare.get_or_insert(rate);
             let _ = writeln!(
                 s,
-                "{:<36} {:<5} {:>11.3e} {:>9.2}",
+                "{:<40} {:<5} {:>11.3e} {:>9.2}",
                 rung.describe(),
                 prec.name(),
                 rate,

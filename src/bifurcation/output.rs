@@ -1,0 +1,419 @@
+//! The CSV, PNG and JSON files of a diagram, its title and caption.
+
+use super::{Bifurcation, Continuation, Direction, SweepPoint, plot_value};
+use crate::config::{Config, FrictionLaw};
+use crate::error::{Error, Result};
+use crate::method::Diagnostics;
+use crate::output::{OutputError, Staged, with_ext};
+use crate::render::{DensityPlot, Mark, density_png, panels_png};
+use crate::stability::{BifurcationPoint, Kind};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Figure title: the configured one, or the model's parameters.
+pub fn title(cfg: &Config) -> String {
+    if !cfg.sweep.title.is_empty() {
+        return cfg.sweep.title.clone();
+    }
+    let m = &cfg.model;
+    let friction = match m.friction {
+        FrictionLaw::Coulomb => format!("Coulomb friction: lambda={}", m.lambda),
+        FrictionLaw::Stribeck => format!(
+            "Stribeck friction: fs={} fk={} l1={} l2={}",
+            m.fs, m.fk, m.l1, m.l2
+        ),
+    };
+    format!(
+        "{friction}, R={}, r={}, delta={}, b1={}, mu={} (N={}, {})",
+        m.restitution,
+        m.r,
+        m.delta,
+        m.b1,
+        m.mu,
+        cfg.method.steps_per_period,
+        cfg.method.precision.name()
+    )
+}
+
+/// How a run was integrated, for captions: method, steps per period, precision, backend.
+pub fn computed_with(cfg: &Config, backend: &str, device: &str) -> String {
+    let m = &cfg.method;
+    let method = match m.impacts {
+        crate::method::ImpactMethod::Located => {
+            "event-located RK4 (impacts located inside the step)"
+        }
+        crate::method::ImpactMethod::Naive => {
+            "naive RK4 (impacts applied at step ends, first order)"
+        }
+    };
+    let dev = if device.is_empty() {
+        String::new()
+    } else {
+        format!(" ({device})")
+    };
+    format!(
+        "{method} with N = {} steps per forcing period in {} arithmetic on the {backend} \
+         backend{dev}",
+        m.steps_per_period,
+        m.precision.name()
+    )
+}
+
+/// "period-1 41%, chaotic 30%, ...": the most frequent classes, at most `k`.
+pub fn top_classes(counts: &BTreeMap<String, usize>, k: usize) -> String {
+    let total: usize = counts.values().sum();
+    let mut v: Vec<(&String, &usize)> = counts.iter().collect();
+    v.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+    v.iter()
+        .take(k)
+        .map(|(name, n)| format!("{name} {:.1}%", 100.0 * **n as f64 / total.max(1) as f64))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The caption of a diagram's JSON: what was computed, how, and what to notice.
+fn caption(b: &Bifurcation, counts: &BTreeMap<String, usize>, (w, h): (u32, u32)) -> String {
+    let c = &b.cfg;
+    let s = &c.sweep;
+    let start = match b.continuation {
+        None => format!("Every value starts from y0 = {:?} at phase 0.", c.initial.y),
+        Some(d) => format!(
+            "Parameter continuation ({}): each value starts from the final state of its \
+             neighbour in the sweep direction, the first from y0 = {:?}.",
+            match d {
+                Continuation::Up => "increasing values",
+                Continuation::Down => "decreasing values",
+                Continuation::Both => "up chain in the top panel, down chain in the bottom one",
+            },
+            c.initial.y
+        ),
+    };
+    let notice = match (b.continuation, b.hysteresis()) {
+        (Some(_), Some(hv)) => format!(
+            "The up and down chains end on different attractors (class or impacts per period) \
+             at {} of {} values (hysteresis_values): there, attractors coexist.",
+            hv.len(),
+            s.points
+        ),
+        (Some(_), None) => "Each chain follows one attractor; a jump marks where the followed \
+                            attractor ends or loses stability."
+            .into(),
+        (None, _) => "Where attractors coexist, neighbouring values started from the same y0 \
+                      can end on different ones: broken or interleaved branches come from \
+                      different attractors reached from y0, not from numerical error \
+                      (--continuation follows one attractor)."
+            .into(),
+    };
+    format!(
+        "Bifurcation diagram: {plot} at the stroboscopic section (once per forcing period) \
+         against {param} from {from} to {to}, {points} values. {start} Integrated with {how}; \
+         {tr} transient periods discarded, then {sa} section samples per value, drawn as pixels \
+         shaded by log density (raster, {w} x {h} px: {cm:.1} cm wide at 150 dpi). Classes: \
+         a period is kept only where Newton's method converges to a cycle whose Floquet \
+         multipliers all lie inside the unit circle. {early}Most frequent classes: {top}. \
+         {marks}\
+         {notice}",
+        plot = s.plot,
+        param = s.param,
+        from = s.from,
+        to = s.to,
+        points = s.points,
+        how = computed_with(c, b.backend, &b.device),
+        tr = c.run.transient_periods,
+        sa = c.run.sample_periods,
+        cm = f64::from(w) / 150.0 * 2.54,
+        top = top_classes(counts, 4),
+        marks = marks_sentence(&b.bifurcations),
+        early = early_sentence(b),
+    )
+}
+
+/// How many points left the run early (empty for a brute-force run).
+fn early_sentence(b: &Bifurcation) -> String {
+    let full = b.cfg.run.transient_periods + b.cfg.run.sample_periods;
+    let pts: Vec<&SweepPoint> = b.runs.iter().flat_map(|(_, p)| p).collect();
+    let early = pts.iter().filter(|p| p.periods < full).count();
+    if early == 0 {
+        return String::new();
+    }
+    format!(
+        "{early} of {} values left the run once their cycle was confirmed (early termination: \
+         {:.0} periods per value on average instead of {full}) and show their cycle's section \
+         points. ",
+        pts.len(),
+        pts.iter().map(|p| f64::from(p.periods)).sum::<f64>() / pts.len() as f64
+    )
+}
+
+/// What the triangles on the x axis are, with the count of each kind.
+pub(super) fn marks_sentence(bifurcations: &[Vec<BifurcationPoint>]) -> String {
+    let mut n = BTreeMap::<&str, usize>::new();
+    for b in bifurcations.iter().flatten() {
+        *n.entry(match b.kind {
+            Kind::PeriodDoubling => "period doubling",
+            Kind::Fold => "fold",
+            Kind::NeimarkSacker => "Neimark-Sacker",
+            Kind::NonSmooth => "non-smooth",
+        })
+        .or_default() += 1;
+    }
+    if n.is_empty() {
+        return String::new();
+    }
+    let list: Vec<String> = n.iter().map(|(k, v)| format!("{v} {k}")).collect();
+    format!(
+        "Triangles on the axis mark where a stable cycle loses stability, located by \
+         continuation and bisection of its multipliers ({}; values in the JSON). ",
+        list.join(", ")
+    )
+}
+
+/// A density panel of the sweep of `cfg`.
+pub(super) fn panel<'a>(
+    cfg: &'a Config,
+    title: &'a str,
+    x_label: &'a str,
+    points: &'a [(f64, f64)],
+    marks: &'a [Mark],
+    (width, height): (u32, u32),
+) -> DensityPlot<'a> {
+    DensityPlot {
+        title,
+        x_label,
+        y_label: &cfg.sweep.plot,
+        x_range: (
+            cfg.sweep.from.min(cfg.sweep.to),
+            cfg.sweep.from.max(cfg.sweep.to),
+        ),
+        y_range: None,
+        points,
+        width,
+        height,
+        print_dpi: None,
+        drop_isolated: false,
+        marks,
+    }
+}
+
+/// Marks of the bifurcation points of a chain (kinds in the order of `render::MARK_KINDS`).
+pub(super) fn marks(points: &[BifurcationPoint]) -> Vec<Mark> {
+    points
+        .iter()
+        .map(|b| Mark {
+            x: b.value,
+            kind: match b.kind {
+                Kind::PeriodDoubling => 0,
+                Kind::Fold => 1,
+                Kind::NeimarkSacker => 2,
+                Kind::NonSmooth => 3,
+            },
+        })
+        .collect()
+}
+
+/// (parameter, plotted value) of every sample of a chain.
+pub(super) fn plot_points(var: &str, points: &[SweepPoint]) -> Vec<(f64, f64)> {
+    points
+        .iter()
+        .flat_map(|pt| {
+            pt.result
+                .samples
+                .iter()
+                .map(|s| (pt.value, plot_value(var, s)))
+        })
+        .collect()
+}
+
+// Report structs list their fields in alphabetical order: the file is streamed (a diagram of
+// millions of points must not be built in memory) and keeps the key order of earlier versions.
+#[derive(Serialize)]
+struct PointJson {
+    class: String,
+    diagnostics: Diagnostics,
+    impacts_per_period: f64,
+    /// Floquet multipliers of the Newton-refined cycle ([re, im], modulus descending); null
+    /// where Newton did not converge or was not tried.
+    multipliers: Option<Vec<[f64; 2]>>,
+    period: Option<u32>,
+    /// Forcing periods integrated (early termination ends decided points sooner).
+    periods: u32,
+    value: f64,
+}
+
+#[derive(Serialize)]
+struct TimingsJson {
+    integration_s: f64,
+    kernel_s: Option<f64>,
+    readback_s: Option<f64>,
+    rk4_steps: f64,
+    setup_s: Option<f64>,
+    steps_per_s: f64,
+    total_s: f64,
+}
+
+#[derive(Serialize)]
+struct BifurcationJson<'a, P: Serialize> {
+    backend: &'static str,
+    /// Stability changes of the cycles, per chain (one list without continuation; up, down
+    /// with it).
+    bifurcations: &'a [Vec<BifurcationPoint>],
+    /// What the figure shows, how it was computed, and what to notice.
+    caption: String,
+    class_counts: BTreeMap<String, usize>,
+    command: &'static str,
+    /// As a JSON value, whose keys are sorted.
+    config: serde_json::Value,
+    device: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    hysteresis_values: Option<Vec<f64>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    points: Option<P>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    points_down: Option<P>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    points_up: Option<P>,
+    precision: &'static str,
+    timings: TimingsJson,
+    version: &'static str,
+}
+
+/// Serializes the points of a chain one by one as they are written.
+struct Chain<'a>(&'a [SweepPoint]);
+
+impl Serialize for Chain<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_seq(self.0.iter().map(|pt| {
+            PointJson {
+                class: pt.class.name(),
+                diagnostics: pt.result.diag,
+                impacts_per_period: pt.impacts_per_period(),
+                multipliers: pt
+                    .cycle
+                    .as_ref()
+                    .filter(|c| c.converged)
+                    .map(|c| c.multipliers.clone()),
+                period: pt.class.period(),
+                periods: pt.periods,
+                value: pt.value,
+            }
+        }))
+    }
+}
+
+/// Writes PREFIX.csv (parameter, sample index, state; with the direction of a continuation),
+/// PREFIX.png (density-shaded samples, one panel per chain) and PREFIX.json; all or nothing.
+pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
+    let cfg = &b.cfg;
+    let cont = b.continuation.is_some();
+    let mut staged = Staged::new();
+    let csv_path = with_ext(out, "csv");
+    {
+        let err = |e| Error::csv(&csv_path, e);
+        let mut w = csv::Writer::from_path(staged.path(&csv_path)).map_err(err)?;
+        let mut head = vec![cfg.sweep.param.name(), "sample", "y1", "y2", "y3", "y4"];
+        if cont {
+            head.insert(0, "direction");
+        }
+        w.write_record(&head).map_err(err)?;
+        for (dir, points) in &b.runs {
+            for pt in points {
+                for (i, s) in pt.result.samples.iter().enumerate() {
+                    let mut rec = vec![
+                        pt.value.to_string(),
+                        i.to_string(),
+                        s[0].to_string(),
+                        s[1].to_string(),
+                        s[2].to_string(),
+                        s[3].to_string(),
+                    ];
+                    if let Some(d) = dir {
+                        rec.insert(0, d.name().to_string());
+                    }
+                    w.write_record(&rec).map_err(err)?;
+                }
+            }
+        }
+        w.flush()
+            .map_err(|e| Error::csv(&csv_path, csv::Error::from(e)))?;
+    }
+    let var = cfg.sweep.plot.as_str();
+    let base_title = title(cfg);
+    let x_label = cfg.sweep.param.label();
+    let data: Vec<(String, Vec<(f64, f64)>)> = b
+        .runs
+        .iter()
+        .map(|(dir, points)| {
+            let title = match dir {
+                None => base_title.clone(),
+                Some(d) => format!("{base_title} [continuation {}]", d.name()),
+            };
+            (title, plot_points(var, points))
+        })
+        .collect();
+    let chain_marks: Vec<Vec<Mark>> = b.bifurcations.iter().map(|bs| marks(bs)).collect();
+    let panels: Vec<DensityPlot> = data
+        .iter()
+        .zip(&chain_marks)
+        .map(|((title, xy), m)| panel(cfg, title, &x_label, xy, m, (1200, 800)))
+        .collect();
+    let png_path = staged.path(&with_ext(out, "png"));
+    let panels_n = panels.len();
+    if panels.len() == 1 {
+        density_png(&png_path, &panels[0])?;
+    } else {
+        panels_png(&png_path, &panels, 1, 1200, 1400)?;
+    }
+    let mut counts = BTreeMap::<String, usize>::new();
+    for (_, points) in &b.runs {
+        for pt in points {
+            *counts.entry(pt.class.name()).or_default() += 1;
+        }
+    }
+    let chain = |d: Direction| b.runs.iter().find(|r| r.0 == Some(d)).map(|r| Chain(&r.1));
+    let steps = b.rk4_steps();
+    let j = BifurcationJson {
+        version: env!("CARGO_PKG_VERSION"),
+        command: "bifurcation",
+        backend: b.backend,
+        bifurcations: &b.bifurcations,
+        caption: caption(
+            b,
+            &counts,
+            if panels_n == 1 {
+                (1200, 800)
+            } else {
+                (1200, 1400)
+            },
+        ),
+        device: &b.device,
+        precision: cfg.method.precision.name(),
+        config: serde_json::to_value(cfg)?,
+        timings: TimingsJson {
+            setup_s: b.timings.map(|t| t.setup_s),
+            integration_s: b.integration_s,
+            readback_s: b.timings.map(|t| t.readback_s),
+            kernel_s: b.timings.and_then(|t| t.kernel_s),
+            total_s: b.total_s,
+            rk4_steps: steps,
+            steps_per_s: steps / b.integration_s,
+        },
+        class_counts: counts,
+        points: (!cont).then(|| Chain(&b.runs[0].1)),
+        points_up: chain(Direction::Up),
+        points_down: chain(Direction::Down),
+        hysteresis_values: b.hysteresis(),
+    };
+    let json_path = with_ext(out, "json");
+    let io = |source| OutputError::Io {
+        path: json_path.display().to_string(),
+        source,
+    };
+    let mut w =
+        std::io::BufWriter::new(std::fs::File::create(staged.path(&json_path)).map_err(io)?);
+    serde_json::to_writer_pretty(&mut w, &j)?;
+    w.flush().map_err(io)?;
+    drop(w);
+    Ok(staged.commit()?)
+}

@@ -1,0 +1,157 @@
+//! The `[map]` and `[basin]` grids: their validation and resolved ranges.
+
+use super::*;
+
+impl Config {
+    /// Checks the `[map]` section (only maps need it: the defaults name lambda, which a
+    /// Stribeck bifurcation config does not have).
+    pub fn validate_map(&self) -> Result<(), ConfigError> {
+        let m = &self.map;
+        for (key, name) in [("map.x", m.x), ("map.y", m.y)] {
+            if name == Param::Lambda && self.model.friction != FrictionLaw::Coulomb {
+                return Err(ConfigError::range(
+                    key,
+                    "\"lambda\"",
+                    "fs, fk, l1 or l2 with friction = \"stribeck\"",
+                ));
+            }
+        }
+        if m.x.overlaps(m.y) {
+            return Err(ConfigError::range(
+                "map.y",
+                format!("\"{}\"", m.y),
+                &format!("a parameter other than map.x = \"{}\"", m.x),
+            ));
+        }
+        check_grid("map", (m.x_points, m.y_points), 65536, MAX_MAP_CELLS)?;
+        for (key, name, v) in [
+            ("map.x_from", m.x, m.x_from),
+            ("map.x_to", m.x, m.x_to),
+            ("map.y_from", m.y, m.y_from),
+            ("map.y_to", m.y, m.y_to),
+        ] {
+            let mut p = self.params();
+            name.set(&mut p, v);
+            p.validate()
+                .map_err(|e| ConfigError::range(key, v, &format!("{} for `{name}`", e.range)))?;
+        }
+        self.check_precision([
+            ("map.x_from", m.x_from),
+            ("map.x_to", m.x_to),
+            ("map.y_from", m.y_from),
+            ("map.y_to", m.y_to),
+        ])?;
+        if m.x_from == m.x_to || m.y_from == m.y_to {
+            return Err(ConfigError::range(
+                "map range",
+                format!("x [{}, {}], y [{}, {}]", m.x_from, m.x_to, m.y_from, m.y_to),
+                "ranges of non-zero width",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Parameter values of map cell (ix, iy): grid points at cell centres.
+    pub fn map_axis(from: f64, to: f64, n: u32) -> Vec<f64> {
+        (0..n)
+            .map(|i| from + (to - from) * (i as f64 + 0.5) / n as f64)
+            .collect()
+    }
+}
+
+impl Config {
+    /// The basin axes' ranges, defaults resolved: (x_from, x_to, y_from, y_to).
+    pub fn basin_ranges(&self) -> (f64, f64, f64, f64) {
+        let b = &self.basin;
+        let r = self.model.r;
+        let default = |c: StateCoord| match c {
+            StateCoord::Z0 => (-r, r),
+            _ => (-1.0, 1.0),
+        };
+        let (x0, x1) = default(b.x);
+        let (y0, y1) = default(b.y);
+        (
+            b.x_from.unwrap_or(x0),
+            b.x_to.unwrap_or(x1),
+            b.y_from.unwrap_or(y0),
+            b.y_to.unwrap_or(y1),
+        )
+    }
+
+    /// Checks the `[basin]` section: two different coordinates, finite ranges of non-zero
+    /// width (z0 within the clearance), a grid of at most [`MAX_BASIN_CELLS`] cells and a
+    /// matching tolerance in (0, 0.1].
+    pub fn validate_basin(&self) -> Result<(), ConfigError> {
+        let b = &self.basin;
+        if b.x == b.y {
+            return Err(ConfigError::range(
+                "basin.y",
+                format!("\"{}\"", b.y.name()),
+                &format!("a coordinate other than basin.x = \"{}\"", b.x.name()),
+            ));
+        }
+        check_grid("basin", (b.x_points, b.y_points), 16384, MAX_BASIN_CELLS)?;
+        let (x0, x1, y0, y1) = self.basin_ranges();
+        let r = self.model.r;
+        for (key, c, v) in [
+            ("basin.x_from", b.x, x0),
+            ("basin.x_to", b.x, x1),
+            ("basin.y_from", b.y, y0),
+            ("basin.y_to", b.y, y1),
+        ] {
+            let (ok, range) = match c {
+                StateCoord::Z0 => (v.abs() <= r, format!("[-r, r] = [{}, {r}] for z0", -r)),
+                _ => (v.abs() <= 1e3, format!("[-1000, 1000] for {}", c.name())),
+            };
+            if !(v.is_finite() && ok) {
+                return Err(ConfigError::range(key, v, &range));
+            }
+        }
+        for (key, a, z) in [("basin.x_to", x0, x1), ("basin.y_to", y0, y1)] {
+            if a == z {
+                return Err(ConfigError::range(
+                    key,
+                    z,
+                    "a value other than the range's start (a range of non-zero width)",
+                ));
+            }
+        }
+        if !(b.tol.is_finite() && b.tol > 0.0 && b.tol <= 0.1) {
+            return Err(ConfigError::range("basin.tol", b.tol, "(0, 0.1]"));
+        }
+        self.check_precision([
+            ("basin.x_from", x0),
+            ("basin.x_to", x1),
+            ("basin.y_from", y0),
+            ("basin.y_to", y1),
+        ])
+    }
+}
+
+/// Checks `SECTION.x_points` and `SECTION.y_points` (each in [1, max_points]) and their
+/// product (at most `max_cells`).
+fn check_grid(
+    section: &str,
+    (nx, ny): (u32, u32),
+    max_points: u32,
+    max_cells: u64,
+) -> Result<(), ConfigError> {
+    for (axis, n) in [("x", nx), ("y", ny)] {
+        if !(1..=max_points).contains(&n) {
+            return Err(ConfigError::range(
+                &format!("{section}.{axis}_points"),
+                n,
+                &format!("[1, {max_points}]"),
+            ));
+        }
+    }
+    let cells = nx as u64 * ny as u64;
+    if cells > max_cells {
+        return Err(ConfigError::range(
+            &format!("{section}.x_points x {section}.y_points"),
+            format!("{nx} x {ny} = {cells} cells"),
+            &format!("at most {max_cells} cells"),
+        ));
+    }
+    Ok(())
+}
