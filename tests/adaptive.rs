@@ -97,3 +97,65 @@ fn early_stop_map_agrees_with_the_brute_force_map() {
         }
     }
 }
+
+/// Points that early termination does not decide run in rounds over ever smaller sets of
+/// live points (each round a new, compacted dispatch on the GPU), continuing from the state
+/// where the round before stopped. They must end exactly where the brute-force run ends them:
+/// same samples, same final state and mode, bit for bit.
+fn capped_points_end_bit_for_bit_as_brute_force(engine: &Engine, precision: &str) {
+    let sets = [format!("method.precision=\"{precision}\"")];
+    let cfg = |es: bool| {
+        let mut s: Vec<String> = vec!["sweep.points=120".into(), format!("run.early_stop={es}")];
+        s.extend(sets.iter().cloned());
+        Config::load(
+            Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/fig2.toml")),
+            &s,
+        )
+        .unwrap()
+    };
+    let brute = bifurcation::run(engine, &cfg(false), None, &Silent).unwrap();
+    let early = bifurcation::run(engine, &cfg(true), None, &Silent).unwrap();
+    let (b, e) = (&brute.runs[0].1, &early.runs[0].1);
+    let capped: Vec<_> = b.iter().zip(e).filter(|(_, y)| y.periods == 700).collect();
+    let decided = e.len() - capped.len();
+    eprintln!(
+        "{precision}: {} points ran to the cap, {decided} decided early",
+        capped.len()
+    );
+    assert!(
+        capped.len() >= 20 && decided >= 20,
+        "{} / {decided}",
+        capped.len()
+    );
+    for (x, y) in capped {
+        assert_eq!(x.result.samples, y.result.samples, "eta = {}", x.value);
+        assert_eq!(x.result.final_y, y.result.final_y, "eta = {}", x.value);
+        assert_eq!(
+            x.result.final_mode, y.result.final_mode,
+            "eta = {}",
+            x.value
+        );
+        assert_eq!(x.result.sample_impacts, y.result.sample_impacts);
+    }
+}
+
+#[test]
+fn capped_points_end_bit_for_bit_as_brute_force_on_the_cpu() {
+    capped_points_end_bit_for_bit_as_brute_force(&Engine::Cpu, "f64");
+}
+
+#[test]
+fn capped_points_end_bit_for_bit_as_brute_force_on_the_gpu() {
+    // Fails, not skips, without an adapter when RATTLE_REQUIRE_GPU=1 (CI).
+    let engine = match rattle::gpu::Gpu::new() {
+        Ok(g) => Engine::Gpu(Box::new(g)),
+        Err(e) if std::env::var("RATTLE_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+            panic!("RATTLE_REQUIRE_GPU=1 but no adapter: {e}")
+        }
+        Err(e) => {
+            eprintln!("SKIPPED: no GPU adapter ({e})");
+            return;
+        }
+    };
+    capped_points_end_bit_for_bit_as_brute_force(&engine, "f32");
+}
