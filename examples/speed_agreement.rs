@@ -92,13 +92,7 @@ fn main() -> anyhow::Result<()> {
 type Row = (&'static str, f64, f64, usize, usize);
 
 /// The rows of every way to compute the map.
-fn measure(
-    engine: &Engine,
-    dir: &Path,
-    map: &str,
-    nx: u32,
-    ny: u32,
-) -> anyhow::Result<Vec<Row>> {
+fn measure(engine: &Engine, dir: &Path, map: &str, nx: u32, ny: u32) -> anyhow::Result<Vec<Row>> {
     let cases: [(&str, bool, Option<usize>); 5] = [
         ("brute force", false, None),
         ("early termination", true, None),
