@@ -8,9 +8,10 @@
 //! of all sampled periods give the stroboscopic section and the laminar-phase analysis:
 //! sampled period k is a return when its section state x(k) (y1..y4) lies within
 //! `tol * max(1, s)` of x(k - p) in every coordinate (s the largest range of a coordinate over
-//! the sampled periods, the scale of the period detector); an episode is a maximal stretch of
-//! section points in which every point from the (p+1)-th on is a return, and its length is the
-//! number of its section points. A periodic point is one episode over all sampled periods.
+//! the sampled periods, the scale of the period detector); an episode is a maximal run of
+//! consecutive returns and its length is their number (runs, unlike stretches of section
+//! points, never overlap when p > 1). A periodic point is one episode of all sampled periods
+//! but the first p, which have nothing p periods earlier to return to.
 
 use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
@@ -143,7 +144,7 @@ pub struct Shown {
     pub releases: usize,
 }
 
-/// A nearly periodic episode: section points `first..=last` (period index, from 1).
+/// A nearly periodic episode: the returns of sampled periods `first..=last` (from 1).
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct Episode {
     pub first: u32,
@@ -182,8 +183,9 @@ pub struct Laminar {
 const RULE: &str = "sampled period k is a return when max_i |x_i(k) - x_i(k-p)| <= threshold, \
                     x = (y1, y2, y3, y4) at the section, threshold = tol * max(1, s), s the \
                     largest range of a section coordinate over the sampled periods; an episode \
-                    is a maximal stretch of section points whose points from the (p+1)-th on \
-                    are all returns; its length is its number of section points";
+                    is a maximal run of consecutive returns, its length the number of periods \
+                    in it (a periodic point: one episode of all sampled periods but the first \
+                    p)";
 
 /// Max-norm distance of two states.
 fn dist(a: &[f64; 4], b: &[f64; 4]) -> f64 {
@@ -212,7 +214,7 @@ pub fn laminar(samples: &[[f64; 4]], period: Option<u32>, tol: f64) -> Laminar {
         .fold(0.0, f64::max);
     let scale = s.max(1.0);
     let thr = tol * scale;
-    let most = (len.saturating_sub(1) as u32).min(MAX_LAG).max(1);
+    let most = (len.saturating_sub(1) as u32).clamp(1, MAX_LAG);
     let (lag, lag_rule) = match period.filter(|&n| (n as usize) < len) {
         Some(n) => (
             n,
@@ -256,12 +258,12 @@ pub fn laminar(samples: &[[f64; 4]], period: Option<u32>, tol: f64) -> Laminar {
             i += 1;
         }
         let b = i - 1;
-        // Returns a..=b compare section points a+p..=b+p with a..=b: points a..=b+p.
+        // Return i is sampled period k = i + p + 1 (periods count from 1).
         episodes.push(Episode {
-            first: a as u32 + 1,
+            first: (a + p) as u32 + 1,
             last: (b + p) as u32 + 1,
-            length: (b - a + 1 + p) as u32,
-            censored: a == 0 || b + p == len - 1,
+            length: (b - a + 1) as u32,
+            censored: a == 0 || b + 1 == ret.len(),
         });
     }
     Laminar {
@@ -564,8 +566,8 @@ pub fn caption(p: &PointPlot) -> String {
         [] => "no episode: no sampled period returns within the threshold".to_string(),
         [one] => format!(
             "1 episode of {one} periods{}",
-            if *one == c.run.sample_periods {
-                " (all sampled periods: the point is periodic to within the threshold)"
+            if *one + l.lag == c.run.sample_periods {
+                " (every sampled period returns: periodic to within the threshold)"
             } else {
                 ""
             }
@@ -617,8 +619,8 @@ pub fn caption(p: &PointPlot) -> String {
          lines; the line breaks at each impact, where the relative velocity jumps to -R times \
          its value (R = {rest}), and the triangle marks the state just before. (c) \
          Stroboscopic section (y1, y2) at phase 0 of the forcing, all {sa} sampled periods; \
-         {cycle}. (d) y1 at the section against the period index k = 1..{sa}, with the nearly \
-         periodic episodes shaded, and the histogram of episode lengths: {rule}; lag {lag_rule}; \
+         {cycle}. (d) y1 at the section against the period index k = 1..{sa}, with the returns \
+         (vermillion) and nearly periodic episodes (shaded), and the histogram of episode lengths: {rule}; lag {lag_rule}; \
          tol = {tol:e}, s = {s:.4}, threshold {thr:.3e}. Found: {episodes}. Quantities are \
          dimensionless (time in units of m1's natural period / 2 pi). Raster image, {w} x {h} \
          px, with an SVG twin.",
@@ -721,6 +723,15 @@ pub fn write_outputs(prefix: &Path, p: &PointPlot) -> Result<Vec<PathBuf>> {
         .map(|(k, y)| (k as f64 + 1.0, y[0]))
         .collect();
     let l = &p.laminar;
+    let returns: Vec<(f64, f64)> = l
+        .episodes
+        .iter()
+        .flat_map(|e| {
+            series[e.first as usize - 1..e.last as usize]
+                .iter()
+                .copied()
+        })
+        .collect();
     let episodes: Vec<(f64, f64)> = l
         .episodes
         .iter()
@@ -766,6 +777,7 @@ pub fn write_outputs(prefix: &Path, p: &PointPlot) -> Result<Vec<PathBuf>> {
         section: &section,
         cycle: &cycle,
         series: &series,
+        returns: &returns,
         episodes: &episodes,
         histogram: &hist,
     };
@@ -818,8 +830,8 @@ mod tests {
         let s: Vec<[f64; 4]> = (0..50).map(|k| state((k % 2) as f64)).collect();
         let l = laminar(&s, Some(2), 1e-3);
         assert_eq!(l.episodes.len(), 1);
-        assert_eq!(l.episodes[0].length, 50);
-        assert_eq!((l.episodes[0].first, l.episodes[0].last), (1, 50));
+        assert_eq!(l.episodes[0].length, 48);
+        assert_eq!((l.episodes[0].first, l.episodes[0].last), (3, 50));
         assert!(l.episodes[0].censored);
         assert_eq!(l.histogram.iter().map(|b| b.count).sum::<u32>(), 1);
     }
@@ -833,8 +845,9 @@ mod tests {
         let l = laminar(&s, None, 1e-3);
         assert_eq!(l.lag, 1);
         let lens: Vec<u32> = l.episodes.iter().map(|e| e.length).collect();
-        assert_eq!(lens, [10, 20]);
-        assert_eq!((l.episodes[1].first, l.episodes[1].last), (14, 33));
+        assert_eq!(lens, [9, 19]);
+        assert_eq!((l.episodes[0].first, l.episodes[0].last), (2, 10));
+        assert_eq!((l.episodes[1].first, l.episodes[1].last), (15, 33));
         assert_eq!(l.histogram.iter().map(|b| b.count).sum::<u32>(), 2);
     }
 }

@@ -54,8 +54,10 @@ pub struct PointFigure<'a> {
     /// (c) section points (y1, y2) and the refined cycle's points (may be empty).
     pub section: &'a [(f64, f64)],
     pub cycle: &'a [(f64, f64)],
-    /// (d) (period index, y1) and the nearly periodic episodes (first, last period index).
+    /// (d) (period index, y1), the returns among them, and the nearly periodic episodes
+    /// (first, last period index).
     pub series: &'a [(f64, f64)],
+    pub returns: &'a [(f64, f64)],
     pub episodes: &'a [(f64, f64)],
     /// (d) histogram of episode lengths: (from, to, count), lengths in [from, to).
     pub histogram: &'a [(f64, f64, u32)],
@@ -356,6 +358,12 @@ fn draw<DB: DrawingBackend>(
             .map(|&p| Circle::new(p, dot, BLUE.filled())),
     )
     .map_err(draw_err)?;
+    c.draw_series(
+        fig.returns
+            .iter()
+            .map(|&p| Circle::new(p, dot + 1, VERMILLION.filled())),
+    )
+    .map_err(draw_err)?;
 
     // Histogram of episode lengths.
     let (hx, hy) = if fig.histogram.is_empty() {
@@ -405,19 +413,20 @@ enum Key {
     Dashed,
     Triangle,
     Band(RGBColor),
-    Dot,
+    Dot(RGBColor),
     Ring,
 }
 
-const KEYS: [(Key, &str); 9] = [
+const KEYS: [(Key, &str); 10] = [
     (Key::Line(BLUE), "z (a), orbit (b)"),
     (Key::Line(VERMILLION), "v = y2 - y4"),
     (Key::Dashed, "stops z = +-r"),
     (Key::Triangle, "impact"),
     (Key::Band(ORANGE), "stick"),
     (Key::Band(GREEN), "lock at a stop"),
-    (Key::Dot, "section point"),
+    (Key::Dot(BLUE), "section point"),
     (Key::Ring, "Newton cycle"),
+    (Key::Dot(VERMILLION), "return (d)"),
     (Key::Band(SKY), "nearly periodic"),
 ];
 
@@ -428,7 +437,7 @@ fn legend_width<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, l: &Layout) -
         .map(|k| area.estimate_text_size(k.1, &style).map_or(0, |d| d.0))
         .max()
         .unwrap_or(0);
-    text + (l.tick * 4.0) as u32
+    text + (l.tick * 5.0) as u32
 }
 
 fn draw_legend<DB: DrawingBackend>(
@@ -469,8 +478,8 @@ fn draw_legend<DB: DrawingBackend>(
                     c.mix(BAND_ALPHA).filled(),
                 ))
                 .map_err(draw_err)?,
-            Key::Dot => area
-                .draw(&Circle::new((xm, y), (ms / 2).max(2), BLUE.filled()))
+            Key::Dot(c) => area
+                .draw(&Circle::new((xm, y), (ms / 2).max(2), c.filled()))
                 .map_err(draw_err)?,
             Key::Ring => area
                 .draw(&Circle::new((xm, y), ms * 2, BLACK.stroke_width(lw + 1)))
