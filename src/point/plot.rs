@@ -168,7 +168,9 @@ pub struct Laminar {
     pub lag: u32,
     pub lag_rule: String,
     pub tol: f64,
-    /// max(1, largest range of a section coordinate).
+    /// s: the largest range of a section coordinate over the sampled periods.
+    pub span: f64,
+    /// max(1, s).
     pub scale: f64,
     /// tol * scale.
     pub threshold: f64,
@@ -237,8 +239,8 @@ pub fn laminar(samples: &[[f64; 4]], period: Option<u32>, tol: f64) -> Laminar {
             (
                 p,
                 format!(
-                    "no confirmed period: p = {p}, the smallest lag in 1..={most} with at least \
-                     {:.0}% of the most returns of any lag there",
+                    "p = {p}: no confirmed period, so the smallest lag in 1..={most} with at \
+                     least {:.0}% of the most returns of any lag there",
                     100.0 * LAG_SHARE
                 ),
             )
@@ -270,6 +272,7 @@ pub fn laminar(samples: &[[f64; 4]], period: Option<u32>, tol: f64) -> Laminar {
         lag,
         lag_rule,
         tol,
+        span: s,
         scale,
         threshold: thr,
         rule: RULE,
@@ -521,6 +524,25 @@ impl PointPlot {
     }
 }
 
+/// "Stribeck friction (fs=0.25, fk=0.05, l1=1.42, l2=0.005), eta=1.2, R=0.6": the friction
+/// law with its own coefficients only, then eta and R, and with `all` the other parameters.
+fn model_line(cfg: &Config, all: bool) -> String {
+    let m = &cfg.model;
+    let law = match m.friction {
+        crate::config::FrictionLaw::Coulomb => format!("Coulomb friction lambda={}", m.lambda),
+        crate::config::FrictionLaw::Stribeck => format!(
+            "Stribeck friction fs={}, fk={}, l1={}, l2={}",
+            m.fs, m.fk, m.l1, m.l2
+        ),
+    };
+    let rest = if all {
+        format!(", r={}, delta={}, b1={}, mu={}", m.r, m.delta, m.b1, m.mu)
+    } else {
+        String::new()
+    };
+    format!("eta={}, R={}, {law}{rest}", m.eta, m.restitution)
+}
+
 /// "A, B and C".
 fn and_list(v: &[String]) -> String {
     match v {
@@ -601,10 +623,17 @@ pub fn caption(p: &PointPlot) -> String {
     let cycle = if p.cycle_points.is_empty() {
         "no converged cycle".to_string()
     } else {
+        let n = p.cycle_points.len();
         format!(
-            "black rings: the {} section point(s) of the Newton-refined cycle; every sampled \
-             section point lies within {spread:.1e} of one",
-            p.cycle_points.len()
+            "black {}: the {} of the Newton-refined cycle; every sampled section point lies \
+             within {spread:.1e} of {}",
+            if n == 1 { "ring" } else { "rings" },
+            if n == 1 {
+                "section point".to_string()
+            } else {
+                format!("{n} section points")
+            },
+            if n == 1 { "it" } else { "one of them" }
         )
     };
     format!(
@@ -620,11 +649,12 @@ pub fn caption(p: &PointPlot) -> String {
          its value (R = {rest}), and the triangle marks the state just before. (c) \
          Stroboscopic section (y1, y2) at phase 0 of the forcing, all {sa} sampled periods; \
          {cycle}. (d) y1 at the section against the period index k = 1..{sa}, with the returns \
-         (vermillion) and nearly periodic episodes (shaded), and the histogram of episode lengths: {rule}; lag {lag_rule}; \
-         tol = {tol:e}, s = {s:.4}, threshold {thr:.3e}. Found: {episodes}. Quantities are \
-         dimensionless (time in units of m1's natural period / 2 pi). Raster image, {w} x {h} \
+         (vermillion) and nearly periodic episodes (shaded), and the histogram of episode \
+         lengths: {rule}; lag {lag_rule}; tol = {tol:e}, s = {s:.3e}, threshold {thr:.3e}. \
+         Found: {episodes}. Quantities are dimensionless (time tau = omega1 t, omega1 the \
+         natural frequency of m1; eta = forcing frequency / omega1). Raster image, {w} x {h} \
          px, with an SVG twin.",
-        title = crate::map::model_title(c, &[]),
+        title = model_line(c, true),
         how = crate::bifurcation::computed_with(c, "cpu", &r.device)
             .split(" in f64")
             .next()
@@ -645,7 +675,7 @@ pub fn caption(p: &PointPlot) -> String {
         rule = l.rule,
         lag_rule = l.lag_rule,
         tol = l.tol,
-        s = l.scale,
+        s = l.span,
         thr = l.threshold,
         w = WIDTH,
         h = HEIGHT,
@@ -745,7 +775,7 @@ pub fn write_outputs(prefix: &Path, p: &PointPlot) -> Result<Vec<PathBuf>> {
     let m = &p.cfg.model;
     let title = format!(
         "{}: {} (CPU, f64)",
-        crate::map::model_title(&p.cfg, &["r", "delta", "b1", "mu"]),
+        model_line(&p.cfg, false),
         p.report.class
     );
     let t = [

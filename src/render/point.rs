@@ -29,7 +29,7 @@ const BAND_ALPHA: f64 = 0.3;
 const MIN_SPAN: f64 = 0.05;
 /// Polylines keep one point per this many pixels (and every piece's ends): thick lines through
 /// sub-pixel steps come out beaded in the bitmap, and the SVG stays small.
-const MIN_STEP_PX: i32 = 2;
+const MIN_STEP_PX: i32 = 6;
 
 /// Everything the four panels show, in plot coordinates.
 pub struct PointFigure<'a> {
