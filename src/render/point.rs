@@ -30,6 +30,8 @@ const MIN_SPAN: f64 = 0.05;
 /// Polylines keep one point per this many pixels (and every piece's ends): thick lines through
 /// sub-pixel steps come out beaded in the bitmap, and the SVG stays small.
 const MIN_STEP_PX: i32 = 6;
+/// Segments per drawn run of a polyline (see [`pieces`]).
+const RUN: usize = 6;
 
 /// Everything the four panels show, in plot coordinates.
 pub struct PointFigure<'a> {
@@ -180,8 +182,22 @@ fn pieces<DB: DrawingBackend>(
                 last = Some(px);
             }
         }
-        c.draw_series(LineSeries::new(kept, color.stroke_width(width)))
+        // Short runs: plotters fills a thick polyline as one polygon, and where a long one
+        // crosses itself (an orbit traced several times) the fill rule cancels the overlap.
+        let mut i = 0;
+        while i + 1 < kept.len() {
+            let end = (i + RUN).min(kept.len() - 1);
+            c.draw_series(LineSeries::new(
+                kept[i..=end].iter().copied(),
+                color.stroke_width(width),
+            ))
             .map_err(draw_err)?;
+            i = end;
+        }
+        if let [only] = kept.as_slice() {
+            c.draw_series(std::iter::once(Circle::new(*only, width, color.filled())))
+                .map_err(draw_err)?;
+        }
     }
     Ok(())
 }
@@ -318,10 +334,16 @@ fn draw<DB: DrawingBackend>(
         ("y1 (position of m1)", "y2 (velocity of m1)"),
         (false, false),
     )?;
+    // Smaller dots for dense sections, whose fine structure larger ones would hide.
+    let dot = if fig.section.len() > 600 {
+        2
+    } else {
+        (ms / 2).max(2)
+    };
     c.draw_series(
         fig.section
             .iter()
-            .map(|&p| Circle::new(p, (ms / 2).max(2), BLUE.filled())),
+            .map(|&p| Circle::new(p, dot, BLUE.filled())),
     )
     .map_err(draw_err)?;
     c.draw_series(
