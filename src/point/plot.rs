@@ -637,9 +637,10 @@ pub fn caption(p: &PointPlot) -> String {
         )
     };
     format!(
-        "One parameter point ({title}), integrated on the CPU in f64 arithmetic with {how}, from \
-         y0 = {y0:?} at phase 0 of the forcing; {tr} transient periods discarded, then {sa} \
-         sampled periods. Class: {class}. (a) z = y3 - y1 (position of m2 in the clearance) and \
+        "One parameter point ({title}), integrated with {how}, from y0 = {y0:?} at phase 0 \
+         of the forcing; {tr} transient periods discarded, then {sa} sampled periods (this \
+         figure is always computed on the CPU in f64, whatever the configuration names). \
+         Class: {class}. (a) z = y3 - y1 (position of m2 in the clearance) and \
          the slip velocity v = y2 - y4 over the last {n} forcing periods P = 2 pi / eta, \
          t / P from {from} to {to} after the transient; dashed: the stops z = +-{rr}; \
          triangles: the {imp} impacts ({ip} at +r, {im} at -r; the integrator's diagnostics \
@@ -655,10 +656,7 @@ pub fn caption(p: &PointPlot) -> String {
          natural frequency of m1; eta = forcing frequency / omega1). Raster image, {w} x {h} \
          px, with an SVG twin.",
         title = model_line(c, true),
-        how = crate::bifurcation::computed_with(c, "cpu", &r.device)
-            .split(" in f64")
-            .next()
-            .unwrap_or_default(),
+        how = crate::bifurcation::computed_with(c, "cpu", &r.device),
         y0 = c.initial.y,
         tr = c.run.transient_periods,
         sa = c.run.sample_periods,
