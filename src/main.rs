@@ -33,8 +33,18 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
         /// Print one JSON object instead of text.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "plot")]
         json: bool,
+        /// Draw the point instead (CPU, f64): time series, phase portrait, section and laminar
+        /// phases in PREFIX.png and PREFIX.svg, the data and caption in PREFIX.json.
+        #[arg(long, value_name = "PREFIX")]
+        plot: Option<PathBuf>,
+        /// With --plot: the last forcing periods shown in the time series and phase portrait.
+        #[arg(long, default_value_t = rattle::point::plot::DEFAULT_PERIODS, requires = "plot")]
+        periods: u32,
+        /// With --plot: return tolerance of the laminar phases, relative to max(1, attractor size).
+        #[arg(long, default_value_t = rattle::point::plot::DEFAULT_LAMINAR_TOL, requires = "plot")]
+        laminar_tol: f64,
     },
     /// Sweep one parameter and draw the bifurcation diagram (PNG, CSV, JSON).
     Bifurcation {
@@ -269,7 +279,33 @@ fn main() {
 /// Runs a command; returns the files it wrote, printed one per line.
 fn run(cli: Cli) -> Result<()> {
     let files = match cli.cmd {
-        Cmd::Point { common, json } => point(&common.load_from(&common.config)?, json)?,
+        Cmd::Point {
+            common,
+            json,
+            plot: None,
+            ..
+        } => point(&common.load_from(&common.config)?, json)?,
+        Cmd::Point {
+            common,
+            plot: Some(out),
+            periods,
+            laminar_tol,
+            ..
+        } => {
+            use rattle::point::plot::{PlotOptions, compute, write_outputs};
+            let cfg = common.load_from(&common.config)?;
+            check_prefix(&out, &["png", "svg", "json"])?;
+            let o = PlotOptions {
+                periods,
+                laminar_tol,
+            };
+            o.check(&cfg)?;
+            let pb = progress_bar(1, "point");
+            let p = compute(&cfg, &o, &|n| pb.inc(n))?;
+            pb.finish_and_clear();
+            eprint!("{}", p.summary());
+            write_outputs(&out, &p)?
+        }
         Cmd::Bifurcation {
             common,
             out,

@@ -1,4 +1,7 @@
-//! One parameter point: its class, exponent, diagnostics and samples, as text or JSON.
+//! One parameter point: its class, exponent, diagnostics and samples, as text or JSON; and its
+//! figure ([`plot`]).
+
+pub mod plot;
 
 use crate::classify::Class;
 use crate::config::Config;

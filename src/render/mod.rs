@@ -6,12 +6,13 @@
 //! together or not at all; rendering does not stage files a second time.
 //!
 //! This module holds what all figures share (font, checks, layout, axes, PNG
-//! writing); the figure kinds live in `density`, `maps` and `lines`.
+//! writing); the figure kinds live in `density`, `maps`, `lines` and `point`.
 
 mod density;
 mod lines;
 mod maps;
 mod palette;
+mod point;
 
 pub use density::{
     DensityPlot, DensityStats, MARK_KINDS, Mark, density_panel, density_png, panels_png,
@@ -19,6 +20,7 @@ pub use density::{
 pub use lines::{LinePlot, Scale, Series, line_plot_png, line_plot_svg};
 pub use maps::{CategoryMap, ScalarMap, category_map_png, scalar_map_png};
 pub use palette::{ATTRACTOR_COLORS, ClassKind, MAX_PERIOD, PERIOD_FAMILIES, period_color};
+pub use point::{PointFigure, point_figure_png, point_figure_svg};
 
 use std::path::Path;
 use std::sync::OnceLock;

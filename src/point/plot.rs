@@ -1,0 +1,881 @@
+//! `rattle point --plot PREFIX`: one parameter point looked at. Always on the CPU in f64,
+//! whatever backend and precision the configuration names: the figure shows one trajectory
+//! event by event, which only the f64 twin resolves to the method's accuracy.
+//!
+//! After the transient the point runs its sampled periods; the last few are integrated with an
+//! observer of every RK4 sub-step and every event ([`StepObserver`]), which gives the time
+//! series and the phase portrait with the events at their located times. The section points
+//! of all sampled periods give the stroboscopic section and the laminar-phase analysis:
+//! sampled period k is a return when its section state x(k) (y1..y4) lies within
+//! `tol * max(1, s)` of x(k - p) in every coordinate (s the largest range of a coordinate over
+//! the sampled periods, the scale of the period detector); an episode is a maximal run of
+//! consecutive returns and its length is their number (runs, unlike stretches of section
+//! points, never overlap when p > 1). A periodic point is one episode of all sampled periods
+//! but the first p, which have nothing p periods earlier to return to.
+
+use crate::config::{Backend, Config, Precision};
+use crate::engine::Engine;
+use crate::error::{Error, Result};
+use crate::method::{
+    EV_IMPACT_NEG, EV_IMPACT_POS, EV_RELEASE_NEG, EV_RELEASE_POS, EV_REVERSAL, Event, Integrator,
+    PointState, StepObserver,
+};
+use crate::model::{Mode, Params};
+use crate::output::{Staged, with_ext};
+use crate::progress::Progress;
+use crate::render::{PointFigure, point_figure_png, point_figure_svg};
+use crate::tangent::Cycle;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::PointReport;
+
+/// Forcing periods shown in the time series and the phase portrait by default.
+pub const DEFAULT_PERIODS: u32 = 6;
+/// Most periods the time series may show (a longer one is unreadable at this size).
+pub const MAX_PERIODS: u32 = 64;
+/// Default return tolerance of the laminar-phase analysis, relative to the attractor size.
+pub const DEFAULT_LAMINAR_TOL: f64 = 1e-2;
+/// Longest lag tried for a point without a confirmed period.
+const MAX_LAG: u32 = 16;
+/// The smallest lag with at least this share of the best lag's returns is taken (a multiple of
+/// the laminar period returns about as often).
+const LAG_SHARE: f64 = 0.9;
+/// Histogram bins at most.
+const MAX_BINS: u32 = 30;
+
+const WIDTH: u32 = 1500;
+const HEIGHT: u32 = 1400;
+
+/// Options of `--plot`.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PlotOptions {
+    /// Last forcing periods shown in the time series and the phase portrait.
+    pub periods: u32,
+    /// Return tolerance of the laminar-phase analysis, relative to max(1, attractor size).
+    pub laminar_tol: f64,
+}
+
+impl Default for PlotOptions {
+    fn default() -> Self {
+        PlotOptions {
+            periods: DEFAULT_PERIODS,
+            laminar_tol: DEFAULT_LAMINAR_TOL,
+        }
+    }
+}
+
+impl PlotOptions {
+    /// Checks the options against the configuration, before anything is computed.
+    pub fn check(&self, cfg: &Config) -> Result<()> {
+        let most = MAX_PERIODS.min(cfg.run.sample_periods);
+        if !(1..=most).contains(&self.periods) {
+            return Err(Error::Invalid(format!(
+                "--periods {} is outside the allowed range [1, {most}] (at most {MAX_PERIODS} \
+                 and at most run.sample_periods = {})",
+                self.periods, cfg.run.sample_periods
+            )));
+        }
+        if !(self.laminar_tol > 0.0 && self.laminar_tol < 1.0) {
+            return Err(Error::Invalid(format!(
+                "--laminar-tol {} is outside the allowed range (0, 1)",
+                self.laminar_tol
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// A point of the recorded trajectory; `t` in forcing periods after the transient.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct TracePoint {
+    pub t: f64,
+    pub y: [f64; 4],
+    pub mode: Mode,
+    /// First point after an impact: the velocities jumped, lines break here.
+    #[serde(skip)]
+    pub jump: bool,
+}
+
+/// An event as the integrator applied it.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct EventRecord {
+    /// Forcing periods after the transient.
+    pub t: f64,
+    /// `impact+` (at z = +r), `impact-`, `reversal` (v reaches 0), `release+`, `release-`.
+    pub kind: &'static str,
+    pub mode_before: Mode,
+    pub mode_after: Mode,
+    /// z = y3 - y1 at the event.
+    pub z: f64,
+    /// v = y2 - y4 just before and just after (an impact reverses it with factor -R).
+    pub v_before: f64,
+    pub v_after: f64,
+}
+
+impl EventRecord {
+    pub fn is_impact(&self) -> bool {
+        self.kind.starts_with("impact")
+    }
+}
+
+/// A stick or lock interval of the shown periods.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Interval {
+    pub mode: Mode,
+    pub from: f64,
+    pub to: f64,
+}
+
+/// The shown stretch: periods `from` to `to` after the transient, and its event counts.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Shown {
+    pub from: u32,
+    pub to: u32,
+    /// Impacts in the integrator's diagnostics over these periods.
+    pub impacts: u64,
+    pub sticks: u64,
+    pub locks: u64,
+    /// Impacts in the event list, at each stop.
+    pub impacts_pos: usize,
+    pub impacts_neg: usize,
+    pub reversals: usize,
+    pub releases: usize,
+}
+
+/// A nearly periodic episode: the returns of sampled periods `first..=last` (from 1).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Episode {
+    pub first: u32,
+    pub last: u32,
+    pub length: u32,
+    /// Touches the start or the end of the record: its true length may be longer.
+    pub censored: bool,
+}
+
+/// Histogram bin: episodes with length in [from, to).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Bin {
+    pub from: u32,
+    pub to: u32,
+    pub count: u32,
+}
+
+/// The laminar-phase analysis of the section states.
+#[derive(Clone, Debug, Serialize)]
+pub struct Laminar {
+    pub lag: u32,
+    pub lag_rule: String,
+    pub tol: f64,
+    /// s: the largest range of a section coordinate over the sampled periods.
+    pub span: f64,
+    /// max(1, s).
+    pub scale: f64,
+    /// tol * scale.
+    pub threshold: f64,
+    pub rule: &'static str,
+    /// Returns among the comparisons k = p+1..=S.
+    pub returns: usize,
+    pub comparisons: usize,
+    pub episodes: Vec<Episode>,
+    pub histogram: Vec<Bin>,
+}
+
+const RULE: &str = "sampled period k is a return when max_i |x_i(k) - x_i(k-p)| <= threshold, \
+                    x = (y1, y2, y3, y4) at the section, threshold = tol * max(1, s), s the \
+                    largest range of a section coordinate over the sampled periods; an episode \
+                    is a maximal run of consecutive returns, its length the number of periods \
+                    in it (a periodic point: one episode of all sampled periods but the first \
+                    p)";
+
+/// Max-norm distance of two states.
+fn dist(a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    (0..4).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max)
+}
+
+/// Whether each sampled period from the (p+1)-th on returns within `thr` of p periods before.
+fn returns(samples: &[[f64; 4]], p: usize, thr: f64) -> Vec<bool> {
+    (p..samples.len())
+        .map(|j| dist(&samples[j], &samples[j - p]) <= thr)
+        .collect()
+}
+
+/// The laminar-phase analysis of `samples` with the confirmed period, or the best lag.
+pub fn laminar(samples: &[[f64; 4]], period: Option<u32>, tol: f64) -> Laminar {
+    let len = samples.len();
+    let s = (0..4)
+        .map(|i| {
+            let (lo, hi) = samples
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |a, y| {
+                    (a.0.min(y[i]), a.1.max(y[i]))
+                });
+            hi - lo
+        })
+        .fold(0.0, f64::max);
+    let scale = s.max(1.0);
+    let thr = tol * scale;
+    let most = (len.saturating_sub(1) as u32).clamp(1, MAX_LAG);
+    let (lag, lag_rule) = match period.filter(|&n| (n as usize) < len) {
+        Some(n) => (
+            n,
+            format!("p = {n}, the period of the Newton-confirmed cycle"),
+        ),
+        None => {
+            let counts: Vec<usize> = (1..=most)
+                .map(|p| {
+                    returns(samples, p as usize, thr)
+                        .iter()
+                        .filter(|r| **r)
+                        .count()
+                })
+                .collect();
+            let best = counts.iter().copied().max().unwrap_or(0);
+            let p = counts
+                .iter()
+                .position(|&c| c > 0 && c as f64 >= LAG_SHARE * best as f64)
+                .map_or(1, |i| i as u32 + 1);
+            (
+                p,
+                format!(
+                    "p = {p}: no confirmed period, so the smallest lag in 1..={most} with at \
+                     least {:.0}% of the most returns of any lag there",
+                    100.0 * LAG_SHARE
+                ),
+            )
+        }
+    };
+    let p = lag as usize;
+    let ret = returns(samples, p, thr);
+    let mut episodes = Vec::new();
+    let mut i = 0;
+    while i < ret.len() {
+        if !ret[i] {
+            i += 1;
+            continue;
+        }
+        let a = i;
+        while i < ret.len() && ret[i] {
+            i += 1;
+        }
+        let b = i - 1;
+        // Return i is sampled period k = i + p + 1 (periods count from 1).
+        episodes.push(Episode {
+            first: (a + p) as u32 + 1,
+            last: (b + p) as u32 + 1,
+            length: (b - a + 1) as u32,
+            censored: a == 0 || b + 1 == ret.len(),
+        });
+    }
+    Laminar {
+        lag,
+        lag_rule,
+        tol,
+        span: s,
+        scale,
+        threshold: thr,
+        rule: RULE,
+        returns: ret.iter().filter(|r| **r).count(),
+        comparisons: ret.len(),
+        histogram: histogram(&episodes),
+        episodes,
+    }
+}
+
+/// Bins of equal integer width covering the episode lengths, at most [`MAX_BINS`].
+fn histogram(episodes: &[Episode]) -> Vec<Bin> {
+    let (Some(lo), Some(hi)) = (
+        episodes.iter().map(|e| e.length).min(),
+        episodes.iter().map(|e| e.length).max(),
+    ) else {
+        return Vec::new();
+    };
+    let w = (hi - lo + 1).div_ceil(MAX_BINS).max(1);
+    let start = lo / w * w;
+    let n = (hi - start) / w + 1;
+    let mut bins: Vec<Bin> = (0..n)
+        .map(|k| Bin {
+            from: start + k * w,
+            to: start + (k + 1) * w,
+            count: 0,
+        })
+        .collect();
+    for e in episodes {
+        bins[((e.length - start) / w) as usize].count += 1;
+    }
+    bins
+}
+
+/// Records the trajectory and the events of the shown periods.
+struct Recorder {
+    /// Steps per period and the period (time unit of `t`).
+    n: f64,
+    period: f64,
+    /// Start of the current period (forcing periods after the transient) and time into it.
+    start: f64,
+    t: f64,
+    jump: bool,
+    trace: Vec<TracePoint>,
+    events: Vec<EventRecord>,
+}
+
+impl Recorder {
+    fn push(&mut self, t: f64, y: [f64; 4], mode: Mode) {
+        let jump = std::mem::take(&mut self.jump);
+        self.trace.push(TracePoint { t, y, mode, jump });
+    }
+}
+
+impl StepObserver<f64> for Recorder {
+    const ACTIVE: bool = true;
+
+    fn substep(&mut self, _: &Params<f64>, stages: &[[f64; 4]; 4], mode: Mode, dt: f64) {
+        // The first stage point is the sub-step's start.
+        self.push(self.start + self.t, stages[0], mode);
+        self.t += dt / self.period;
+    }
+
+    fn event(&mut self, _: &Integrator<f64>, e: &Event<f64>) {
+        // The event's own phase, exact, rather than the sum of the sub-step lengths.
+        self.t = (f64::from(e.k) + e.theta) / self.n;
+        let t = self.start + self.t;
+        self.push(t, e.before, e.mode_before);
+        let kind = match e.ev {
+            EV_IMPACT_POS => "impact+",
+            EV_IMPACT_NEG => "impact-",
+            EV_REVERSAL => "reversal",
+            EV_RELEASE_POS => "release+",
+            EV_RELEASE_NEG => "release-",
+            _ => "unknown",
+        };
+        self.jump = matches!(e.ev, EV_IMPACT_POS | EV_IMPACT_NEG);
+        self.push(t, e.after.y, e.after.mode);
+        self.events.push(EventRecord {
+            t,
+            kind,
+            mode_before: e.mode_before,
+            mode_after: e.after.mode,
+            z: e.before[2] - e.before[0],
+            v_before: e.before[1] - e.before[3],
+            v_after: e.after.y[1] - e.after.y[3],
+        });
+    }
+}
+
+/// Everything `--plot` shows and writes.
+pub struct PointPlot {
+    /// The configuration as run: CPU backend, f64.
+    pub cfg: Config,
+    pub options: PlotOptions,
+    /// Class, period, cycle and exponents of the point (CPU, f64).
+    pub report: PointReport,
+    /// Section states of every sampled period (k = 1..=S).
+    pub samples: Vec<[f64; 4]>,
+    /// The n section points of the refined cycle (empty without a converged cycle).
+    pub cycle_points: Vec<[f64; 4]>,
+    pub shown: Shown,
+    pub trace: Vec<TracePoint>,
+    pub events: Vec<EventRecord>,
+    pub intervals: Vec<Interval>,
+    pub laminar: Laminar,
+    pub seconds: f64,
+}
+
+/// Integrates the point on the CPU in f64 and gathers what the figure shows.
+pub fn compute(cfg: &Config, o: &PlotOptions, progress: &dyn Progress) -> Result<PointPlot> {
+    o.check(cfg)?;
+    let t0 = Instant::now();
+    let mut cfg = cfg.clone();
+    cfg.method.backend = Backend::Cpu;
+    cfg.method.precision = Precision::F64;
+    let report = super::run(&Engine::Cpu, &cfg, progress)?;
+    let failed = || {
+        Error::Invalid(format!(
+            "the point failed (non-finite state) at eta = {}: nothing to plot",
+            cfg.model.eta
+        ))
+    };
+    if report.diagnostics.nonfinite {
+        return Err(failed());
+    }
+    let it = Integrator::<f64>::new(&cfg.params(), &cfg.settings());
+    let mut st = it.start(cfg.initial.y);
+    for _ in 0..cfg.run.transient_periods {
+        it.period(&mut st);
+    }
+    let s = cfg.run.sample_periods;
+    let first = s - o.periods;
+    let mut rec = Recorder {
+        n: f64::from(it.steps_per_period()),
+        period: 2.0 * std::f64::consts::PI / cfg.model.eta,
+        start: 0.0,
+        t: 0.0,
+        jump: false,
+        trace: Vec::new(),
+        events: Vec::new(),
+    };
+    let mut samples = Vec::with_capacity(s as usize);
+    let mut at_first = st.diag;
+    for j in 0..s {
+        if j == first {
+            at_first = st.diag;
+        }
+        if j >= first {
+            rec.start = f64::from(j);
+            rec.t = 0.0;
+            it.period_observed(&mut st, &mut rec);
+            rec.push(f64::from(j + 1), st.y, st.mode);
+        } else {
+            it.period(&mut st);
+        }
+        if st.diag.nonfinite {
+            return Err(failed());
+        }
+        samples.push(st.y);
+    }
+    let count = |k: &str| rec.events.iter().filter(|e| e.kind == k).count();
+    let shown = Shown {
+        from: first,
+        to: s,
+        impacts: st.diag.impacts - at_first.impacts,
+        sticks: st.diag.sticks - at_first.sticks,
+        locks: st.diag.locks - at_first.locks,
+        impacts_pos: count("impact+"),
+        impacts_neg: count("impact-"),
+        reversals: count("reversal"),
+        releases: count("release+") + count("release-"),
+    };
+    let intervals = intervals(&rec.trace, &rec.events, f64::from(first), f64::from(s));
+    let cycle_points = report
+        .cycle
+        .as_ref()
+        .filter(|c| c.converged)
+        .map_or_else(Vec::new, |c| cycle_points(&it, c));
+    let laminar = laminar(&samples, report.period, o.laminar_tol);
+    Ok(PointPlot {
+        cfg,
+        options: *o,
+        report,
+        samples,
+        cycle_points,
+        shown,
+        trace: rec.trace,
+        events: rec.events,
+        intervals,
+        laminar,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// The n section points of a refined cycle of period n.
+fn cycle_points(it: &Integrator<f64>, c: &Cycle) -> Vec<[f64; 4]> {
+    let mut st = PointState {
+        y: c.point,
+        mode: c.mode,
+        diag: Default::default(),
+    };
+    (0..c.period)
+        .map(|_| {
+            let y = st.y;
+            it.period(&mut st);
+            y
+        })
+        .collect()
+}
+
+/// Stick and lock intervals of the shown periods, from the mode at their start and the events.
+fn intervals(trace: &[TracePoint], events: &[EventRecord], t0: f64, t1: f64) -> Vec<Interval> {
+    let mut out = Vec::new();
+    let (mut mode, mut from) = (trace.first().map_or(Mode::SlipPos, |p| p.mode), t0);
+    for e in events {
+        if e.mode_after != mode {
+            if !mode.is_slip() {
+                out.push(Interval {
+                    mode,
+                    from,
+                    to: e.t,
+                });
+            }
+            mode = e.mode_after;
+            from = e.t;
+        }
+    }
+    if !mode.is_slip() {
+        out.push(Interval { mode, from, to: t1 });
+    }
+    out
+}
+
+impl PointPlot {
+    /// One line for the terminal.
+    pub fn summary(&self) -> String {
+        let l = &self.laminar;
+        format!(
+            "point: {} (CPU f64), {} impacts in the last {} periods, {} nearly periodic \
+             episode(s) at lag {}, {:.2} s\n",
+            self.report.class,
+            self.shown.impacts,
+            self.options.periods,
+            l.episodes.len(),
+            l.lag,
+            self.seconds
+        )
+    }
+}
+
+/// "Stribeck friction (fs=0.25, fk=0.05, l1=1.42, l2=0.005), eta=1.2, R=0.6": the friction
+/// law with its own coefficients only, then eta and R, and with `all` the other parameters.
+fn model_line(cfg: &Config, all: bool) -> String {
+    let m = &cfg.model;
+    let law = match m.friction {
+        crate::config::FrictionLaw::Coulomb => format!("Coulomb friction lambda={}", m.lambda),
+        crate::config::FrictionLaw::Stribeck => format!(
+            "Stribeck friction fs={}, fk={}, l1={}, l2={}",
+            m.fs, m.fk, m.l1, m.l2
+        ),
+    };
+    let rest = if all {
+        format!(", r={}, delta={}, b1={}, mu={}", m.r, m.delta, m.b1, m.mu)
+    } else {
+        String::new()
+    };
+    format!("eta={}, R={}, {law}{rest}", m.eta, m.restitution)
+}
+
+/// "A, B and C".
+fn and_list(v: &[String]) -> String {
+    match v {
+        [] => String::new(),
+        [a] => a.clone(),
+        [rest @ .., last] => format!("{} and {last}", rest.join(", ")),
+    }
+}
+
+/// The caption of the JSON: what was computed, how, and what to notice.
+pub fn caption(p: &PointPlot) -> String {
+    let c = &p.cfg;
+    let r = &p.report;
+    let l = &p.laminar;
+    let sh = &p.shown;
+    let class = match (&r.period, &r.cycle) {
+        (Some(n), Some(cy)) => format!(
+            "period-{n} (Newton-confirmed cycle, leading Floquet multiplier modulus {:.3})",
+            cy.leading_modulus()
+        ),
+        _ => format!(
+            "{} (largest Lyapunov exponent {:.4} per unit time)",
+            r.class,
+            r.lyapunov_spectrum.first().copied().unwrap_or(f64::NAN)
+        ),
+    };
+    let mut modes = Vec::new();
+    let n_stick = p.intervals.iter().filter(|i| i.mode == Mode::Stick).count();
+    let n_lock = p.intervals.len() - n_stick;
+    if n_stick > 0 {
+        modes.push(format!("{n_stick} stick intervals (orange)"));
+    }
+    if n_lock > 0 {
+        modes.push(format!("{n_lock} lock intervals at a stop (green)"));
+    }
+    let modes = if modes.is_empty() {
+        "no stick or lock in these periods".to_string()
+    } else {
+        and_list(&modes)
+    };
+    let lengths: Vec<u32> = l.episodes.iter().map(|e| e.length).collect();
+    let episodes = match lengths.as_slice() {
+        [] => "no episode: no sampled period returns within the threshold".to_string(),
+        [one] => format!(
+            "1 episode of {one} periods{}",
+            if *one + l.lag == c.run.sample_periods {
+                " (every sampled period returns: periodic to within the threshold)"
+            } else {
+                ""
+            }
+        ),
+        _ => {
+            let mut s = lengths.clone();
+            s.sort_unstable();
+            format!(
+                "{} episodes of {} to {} periods (median {}), {} of them cut by the ends of the \
+                 record; {:.1}% of the comparisons are returns: nearly periodic phases \
+                 interrupted by bursts",
+                s.len(),
+                s[0],
+                s[s.len() - 1],
+                s[s.len() / 2],
+                l.episodes.iter().filter(|e| e.censored).count(),
+                100.0 * l.returns as f64 / l.comparisons.max(1) as f64
+            )
+        }
+    };
+    let spread = p
+        .samples
+        .iter()
+        .map(|y| {
+            p.cycle_points
+                .iter()
+                .map(|q| dist(y, q))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0, f64::max);
+    let cycle = if p.cycle_points.is_empty() {
+        "no converged cycle".to_string()
+    } else {
+        let n = p.cycle_points.len();
+        format!(
+            "black {}: the {} of the Newton-refined cycle; every sampled section point lies \
+             within {spread:.1e} of {}",
+            if n == 1 { "ring" } else { "rings" },
+            if n == 1 {
+                "section point".to_string()
+            } else {
+                format!("{n} section points")
+            },
+            if n == 1 { "it" } else { "one of them" }
+        )
+    };
+    format!(
+        "One parameter point ({title}), integrated with {how}, from y0 = {y0:?} at phase 0 \
+         of the forcing; {tr} transient periods discarded, then {sa} sampled periods (this \
+         figure is always computed on the CPU in f64, whatever the configuration names). \
+         Class: {class}. (a) z = y3 - y1 (position of m2 in the clearance) and \
+         the slip velocity v = y2 - y4 over the last {n} forcing periods P = 2 pi / eta, \
+         t / P from {from} to {to} after the transient; dashed: the stops z = +-{rr}; \
+         triangles: the {imp} impacts ({ip} at +r, {im} at -r; the integrator's diagnostics \
+         count {dimp} over these periods); {modes}; {rev} slip reversals. (b) Phase portrait \
+         (z, dz/dt) over the same periods, dz/dt = y4 - y2 = -v; the stops as vertical dashed \
+         lines; the line breaks at each impact, where the relative velocity jumps to -R times \
+         its value (R = {rest}), and the triangle marks the state just before. (c) \
+         Stroboscopic section (y1, y2) at phase 0 of the forcing, all {sa} sampled periods; \
+         {cycle}. (d) y1 at the section against the period index k = 1..{sa}, with the returns \
+         (vermillion) and nearly periodic episodes (shaded), and the histogram of episode \
+         lengths: {rule}; lag {lag_rule}; tol = {tol:e}, s = {s:.3e}, threshold {thr:.3e}. \
+         Found: {episodes}. Quantities are dimensionless (time tau = omega1 t, omega1 the \
+         natural frequency of m1; eta = forcing frequency / omega1). Raster image, {w} x {h} \
+         px, with an SVG twin.",
+        title = model_line(c, true),
+        how = crate::bifurcation::computed_with(c, "cpu", &r.device),
+        y0 = c.initial.y,
+        tr = c.run.transient_periods,
+        sa = c.run.sample_periods,
+        n = p.options.periods,
+        from = sh.from,
+        to = sh.to,
+        rr = c.model.r,
+        imp = sh.impacts_pos + sh.impacts_neg,
+        ip = sh.impacts_pos,
+        im = sh.impacts_neg,
+        dimp = sh.impacts,
+        rev = sh.reversals,
+        rest = c.model.restitution,
+        rule = l.rule,
+        lag_rule = l.lag_rule,
+        tol = l.tol,
+        s = l.span,
+        thr = l.threshold,
+        w = WIDTH,
+        h = HEIGHT,
+    )
+}
+
+#[derive(Serialize)]
+struct PlotJson<'a> {
+    command: &'static str,
+    version: &'static str,
+    caption: String,
+    config: &'a Config,
+    options: &'a PlotOptions,
+    backend: &'static str,
+    precision: &'static str,
+    class: &'a str,
+    period: Option<u32>,
+    impacts_per_period: f64,
+    lyapunov_spectrum: &'a [f64],
+    cycle: &'a Option<Cycle>,
+    cycle_points: &'a [[f64; 4]],
+    shown: &'a Shown,
+    events: &'a [EventRecord],
+    intervals: &'a [Interval],
+    trace: &'a [TracePoint],
+    samples: &'a [[f64; 4]],
+    laminar: &'a Laminar,
+    width: u32,
+    height: u32,
+    seconds: f64,
+}
+
+/// (x, y) pieces of the trace, broken at every velocity jump.
+fn pieces(trace: &[TracePoint], f: impl Fn(&TracePoint) -> (f64, f64)) -> Vec<Vec<(f64, f64)>> {
+    let mut out: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+    for q in trace {
+        if q.jump && !out.last().is_some_and(Vec::is_empty) {
+            out.push(Vec::new());
+        }
+        out.last_mut().expect("one piece").push(f(q));
+    }
+    out
+}
+
+/// Writes PREFIX.png and PREFIX.svg (the four panels) and PREFIX.json (the data behind them
+/// and the caption); all or nothing.
+pub fn write_outputs(prefix: &Path, p: &PointPlot) -> Result<Vec<PathBuf>> {
+    let z = |q: &TracePoint| q.y[2] - q.y[0];
+    let zt = pieces(&p.trace, |q| (q.t, z(q)));
+    let vt = pieces(&p.trace, |q| (q.t, q.y[1] - q.y[3]));
+    let phase = pieces(&p.trace, |q| (z(q), q.y[3] - q.y[1]));
+    let span = |m: fn(Mode) -> bool| -> Vec<(f64, f64)> {
+        p.intervals
+            .iter()
+            .filter(|i| m(i.mode))
+            .map(|i| (i.from, i.to))
+            .collect()
+    };
+    let stick = span(|m| m == Mode::Stick);
+    let lock = span(|m| matches!(m, Mode::LockPos | Mode::LockNeg));
+    let impacts: Vec<&EventRecord> = p.events.iter().filter(|e| e.is_impact()).collect();
+    let r = p.cfg.model.r;
+    let imp_t: Vec<(f64, f64)> = impacts
+        .iter()
+        .map(|e| (e.t, if e.kind == "impact+" { r } else { -r }))
+        .collect();
+    let imp_phase: Vec<(f64, f64)> = impacts.iter().map(|e| (e.z, -e.v_before)).collect();
+    let xy = |y: &[f64; 4]| (y[0], y[1]);
+    let section: Vec<(f64, f64)> = p.samples.iter().map(xy).collect();
+    let cycle: Vec<(f64, f64)> = p.cycle_points.iter().map(xy).collect();
+    let series: Vec<(f64, f64)> = p
+        .samples
+        .iter()
+        .enumerate()
+        .map(|(k, y)| (k as f64 + 1.0, y[0]))
+        .collect();
+    let l = &p.laminar;
+    let returns: Vec<(f64, f64)> = l
+        .episodes
+        .iter()
+        .flat_map(|e| {
+            series[e.first as usize - 1..e.last as usize]
+                .iter()
+                .copied()
+        })
+        .collect();
+    let episodes: Vec<(f64, f64)> = l
+        .episodes
+        .iter()
+        .map(|e| (f64::from(e.first), f64::from(e.last)))
+        .collect();
+    let hist: Vec<(f64, f64, u32)> = l
+        .histogram
+        .iter()
+        .map(|b| (f64::from(b.from), f64::from(b.to), b.count))
+        .collect();
+    let m = &p.cfg.model;
+    let title = format!(
+        "{}: {} (CPU, f64)",
+        model_line(&p.cfg, false),
+        p.report.class
+    );
+    let t = [
+        format!("(a) z and v, last {} forcing periods", p.options.periods),
+        "(b) phase portrait, same periods".to_string(),
+        format!("(c) section (y1, y2), {} periods", p.cfg.run.sample_periods),
+        format!(
+            "(d) y1 at the section; nearly periodic (lag {}, tol {:e})",
+            l.lag, l.tol
+        ),
+        match l.episodes.len() {
+            1 => "episode lengths (1 episode)".to_string(),
+            n => format!("episode lengths ({n} episodes)"),
+        },
+    ];
+    let fig = PointFigure {
+        title: &title,
+        titles: [&t[0], &t[1], &t[2], &t[3], &t[4]],
+        width: WIDTH,
+        height: HEIGHT,
+        stop: m.r,
+        z: &zt,
+        v: &vt,
+        stick: &stick,
+        lock: &lock,
+        impacts: &imp_t,
+        phase: &phase,
+        phase_impacts: &imp_phase,
+        section: &section,
+        cycle: &cycle,
+        series: &series,
+        returns: &returns,
+        episodes: &episodes,
+        histogram: &hist,
+    };
+    let mut st = Staged::new();
+    point_figure_png(&st.path(&with_ext(prefix, "png")), &fig)?;
+    point_figure_svg(&st.path(&with_ext(prefix, "svg")), &fig)?;
+    let j = PlotJson {
+        command: "point --plot",
+        version: env!("CARGO_PKG_VERSION"),
+        caption: caption(p),
+        config: &p.cfg,
+        options: &p.options,
+        backend: "cpu",
+        precision: "f64",
+        class: &p.report.class,
+        period: p.report.period,
+        impacts_per_period: p.report.impacts_per_period,
+        lyapunov_spectrum: &p.report.lyapunov_spectrum,
+        cycle: &p.report.cycle,
+        cycle_points: &p.cycle_points,
+        shown: &p.shown,
+        events: &p.events,
+        intervals: &p.intervals,
+        trace: &p.trace,
+        samples: &p.samples,
+        laminar: &p.laminar,
+        width: WIDTH,
+        height: HEIGHT,
+        seconds: p.seconds,
+    };
+    // Through a Value, whose maps sort their keys: a stable file whatever the field order.
+    let j = serde_json::to_value(&j)?;
+    st.write(
+        &with_ext(prefix, "json"),
+        serde_json::to_string_pretty(&j)?.as_bytes(),
+    )?;
+    Ok(st.commit()?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state(y1: f64) -> [f64; 4] {
+        [y1, 0.0, 0.0, 0.0]
+    }
+
+    #[test]
+    fn periodic_record_is_one_episode() {
+        let s: Vec<[f64; 4]> = (0..50).map(|k| state((k % 2) as f64)).collect();
+        let l = laminar(&s, Some(2), 1e-3);
+        assert_eq!(l.episodes.len(), 1);
+        assert_eq!(l.episodes[0].length, 48);
+        assert_eq!((l.episodes[0].first, l.episodes[0].last), (3, 50));
+        assert!(l.episodes[0].censored);
+        assert_eq!(l.histogram.iter().map(|b| b.count).sum::<u32>(), 1);
+    }
+
+    #[test]
+    fn bursts_split_episodes_and_the_lag_is_found() {
+        // Period 1 near 0.5 for 10 points, a burst, then 20 points: lag 1 is found.
+        let mut s: Vec<[f64; 4]> = vec![state(0.5); 10];
+        s.extend([state(0.1), state(0.9), state(0.3)]);
+        s.extend(vec![state(0.7); 20]);
+        let l = laminar(&s, None, 1e-3);
+        assert_eq!(l.lag, 1);
+        let lens: Vec<u32> = l.episodes.iter().map(|e| e.length).collect();
+        assert_eq!(lens, [9, 19]);
+        assert_eq!((l.episodes[0].first, l.episodes[0].last), (2, 10));
+        assert_eq!((l.episodes[1].first, l.episodes[1].last), (15, 33));
+        assert_eq!(l.histogram.iter().map(|b| b.count).sum::<u32>(), 2);
+    }
+}
