@@ -76,14 +76,17 @@ fn main() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// (method, seconds, agreement, cells equal, cells) of each way to compute the map.
+/// (method, seconds, agreement, cells equal, cells) of one way to compute the map.
+type Measured = (&'static str, f64, f64, usize, usize);
+
+/// [`Measured`] of each way to compute the map.
 fn measure(
     engine: &Engine,
     dir: &Path,
     map: &str,
     nx: u32,
     ny: u32,
-) -> anyhow::Result<Vec<(&'static str, f64, f64, usize, usize)>> {
+) -> anyhow::Result<Vec<Measured>> {
     let cases: [(&str, bool, Option<usize>); 5] = [
         ("brute force", false, None),
         ("early termination", true, None),
