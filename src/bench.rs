@@ -402,7 +402,7 @@ pub fn report(
     lyapunov: bool,
 ) -> Result<String> {
     if ladder {
-        return self::ladder(cfg, points, periods);
+        return self::ladder(cfg, points, periods, lyapunov);
     }
     let rows = bench(cfg, points, periods, backends, lyapunov)?;
     let mut s = bench_table(&rows);
@@ -415,21 +415,29 @@ pub fn report(
 }
 
 /// The kernel ladder: the bench sweep on the GPU with the kernel compiled rung by rung (see
-/// [`Rung`]), in f32 and (where the adapter has it) f64; the table of steps/s per rung.
-pub fn ladder(cfg: &Config, points: usize, periods: u32) -> Result<String> {
+/// [`Rung`]), in f32 and (where the adapter has it) f64; the table of steps/s per rung. With
+/// `lyapunov` the exponent is estimated over the second half of the periods (the tangent rung
+/// and those above it carry the tangent).
+pub fn ladder(cfg: &Config, points: usize, periods: u32, lyapunov: bool) -> Result<String> {
     let engine = Engine::open(Backend::Gpu)?;
     let Engine::Gpu(gpu) = &engine else {
         return Err(Error::Invalid(
             "the ladder needs a GPU adapter (none found)".into(),
         ));
     };
-    let (mut spec, values) = bench_sweep(cfg, points, periods, false)?;
+    let (mut spec, values) = bench_sweep(cfg, points, periods, lyapunov)?;
+    spec.settings.lyapunov = lyapunov;
     let steps = points as f64 * periods as f64 * spec.settings.steps_per_period as f64;
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "kernel ladder: {points} points x {periods} periods x N = {} on {}",
+        "kernel ladder: {points} points x {periods} periods x N = {}{} on {}",
         spec.settings.steps_per_period,
+        if lyapunov {
+            format!(", exponent over the last {}", spec.samples)
+        } else {
+            String::new()
+        },
         gpu.adapter_name()
     );
     let _ = writeln!(

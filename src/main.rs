@@ -157,7 +157,7 @@ enum Cmd {
         ladder: bool,
         /// Also time each backend and precision with the Lyapunov exponent estimated over the
         /// second half of the periods (the first half then is the transient), and print its
-        /// extra cost.
+        /// extra cost; with --ladder, every rung with the exponent.
         #[arg(long)]
         lyapunov: bool,
     },

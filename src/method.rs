@@ -326,12 +326,6 @@ impl RunResult {
     }
 }
 
-/// Offset of the twin trajectory of the Lyapunov estimate: sqrt(machine epsilon) balances
-/// round-off in the measured separation against the nonlinearity of a finite separation.
-pub fn twin_offset<F: Real>() -> F {
-    F::EPSILON.sqrt()
-}
-
 /// Observer of the accepted RK4 sub-steps and events of [`Integrator::step_observed`]: the
 /// tangent dynamics ([`crate::tangent`]) follow the state through the same stages and events.
 /// `()` observes nothing and compiles away, so the plain integrator pays nothing for it.

@@ -490,7 +490,7 @@ pub struct Spectrum {
 
 /// Below this norm a tangent vector is taken as collapsed (a stick or lock removes up to two
 /// directions exactly); it is replaced by a fresh orthogonal direction and counted at the floor.
-fn collapse_floor<F: Real>() -> F {
+pub fn collapse_floor<F: Real>() -> F {
     F::EPSILON * F::EPSILON
 }
 

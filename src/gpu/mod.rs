@@ -298,9 +298,13 @@ impl Gpu {
         let plan = Plan::new::<F>(job, &self.limits)?;
         let coulomb =
             (0..job.points.len()).all(|i| job.points.params(&spec.params, i).is_coulomb());
-        let pipeline = self
-            .kernels
-            .get(&self.device, spec.precision, job.rung, coulomb);
+        let pipeline = self.kernels.get(
+            &self.device,
+            spec.precision,
+            job.rung,
+            coulomb,
+            spec.settings.lyapunov,
+        );
         self.check_error()?;
         let shared = Shared::new::<F>(self, spec);
         let mut timer = self.timestamps.then(|| Timer::new(self));
