@@ -564,3 +564,117 @@ fn stribeck_points_agree_with_cpu() {
         }
     }
 }
+
+#[test]
+fn tangent_exponents_agree_with_cpu_at_periodic_points_of_fig2() {
+    // The kernel's tangent vector is the twin of the CPU run's (same variational RK4 on the same
+    // stage points, same saltations, f32 logarithms of the norms on both sides). On periodic
+    // attractors the states agree to round-off, so the exponents do: in f64 to the f32
+    // logarithms' rounding (a few 1e-8 per period, averaging out over 200 periods); in f32 the
+    // states differ by up to 1.6e-5 (README, `rattle validate`), which moves the per-period
+    // log growth by about that much times the orbit's sensitivity; 200 periods of P ~ 4 average
+    // it to a few 1e-7, and 3e-6 leaves a margin of ten while a wrong saltation or stage
+    // (1e-3 and more) fails.
+    let etas = [1.30, 1.35, 1.40, 1.45, 1.50, 1.55, 1.60, 1.65, 1.90];
+    let s = Settings {
+        lyapunov: true,
+        ..Settings::default()
+    };
+    for (f64, tol) in [(true, 1e-7), (false, 3e-6)] {
+        let Some(g) = run_gpu(&etas, s, 300, 200, f64) else {
+            return;
+        };
+        let mut worst = 0.0f64;
+        for (i, &eta) in etas.iter().enumerate() {
+            let c = if f64 {
+                run_cpu::<f64>(eta, &s, 300, 200)
+            } else {
+                run_cpu::<f32>(eta, &s, 300, 200)
+            };
+            let (a, b) = (g.results[i].lyapunov, c.lyapunov);
+            assert!(a.is_finite() && b < 0.0, "eta {eta}: GPU {a}, CPU {b}");
+            worst = worst.max((a - b).abs());
+            assert!((a - b).abs() <= tol, "eta {eta} f64 {f64}: GPU {a} CPU {b}");
+        }
+        eprintln!("f64 {f64}: max |GPU - CPU| exponent {worst:.1e} (bound {tol:.0e})");
+    }
+}
+
+#[test]
+fn tangent_exponent_where_an_impact_falls_near_the_section() {
+    // The R x lambda map's period-1 cell of tests/lyapunov.rs where the twin trajectory read
+    // +0.1205 (GPU f32 as CPU f32; +0.018 to +0.035 in the cells just below): the kernel's
+    // tangent reads the Floquet rate ln|mu1| / P of the cycle it reaches, up to the finite-time
+    // error of 100 periods (1e-3 here).
+    let r = 0.5 + 0.2 * 51.5 / 512.0;
+    let lambdas = [0.08013, 0.08015, 0.080155];
+    let values: Vec<f64> = lambdas.iter().flat_map(|&l| [r, l]).collect();
+    let s = Settings {
+        steps_per_period: 128,
+        lyapunov: true,
+        ..Settings::default()
+    };
+    for f64 in [false, true] {
+        let spec = RunSpec {
+            params: Params {
+                restitution: r,
+                ..Params::paper(1.26)
+            },
+            ..eta_spec(s, 300, 100, f64)
+        };
+        let vary = [Param::R, Param::Lambda];
+        let points = Points::along(&vary, &values);
+        let Some(g) = run_job(&Job::new(&spec, points, false)) else {
+            return;
+        };
+        for (i, &lambda) in lambdas.iter().enumerate() {
+            let p = points.params(&spec.params, i);
+            let res = &g.results[i];
+            let start = rattle::method::PointState {
+                y: res.final_y,
+                mode: res.final_mode,
+                diag: Default::default(),
+            };
+            let c = rattle::tangent::refine(&Integrator::<f64>::new(&p, &s), &start, 1);
+            assert!(c.is_stable(), "lambda {lambda}: {c:?}");
+            let floquet = c.leading_modulus().ln() / (2.0 * std::f64::consts::PI / p.eta);
+            eprintln!(
+                "lambda {lambda} f64 {f64}: GPU {:.5}, Floquet {floquet:.5}",
+                res.lyapunov
+            );
+            assert!(
+                (res.lyapunov - floquet).abs() < 2e-3,
+                "lambda {lambda} f64 {f64}: {} vs {floquet}",
+                res.lyapunov
+            );
+        }
+    }
+}
+
+#[test]
+fn the_loop_budget_holds_with_the_tangent_at_n_64() {
+    // llvmpipe ends an invocation's loops after 65535 iterations; the runner sizes dispatches
+    // by iterations per step, which the tangent must not raise (it adds no loop: the twin
+    // trajectory it replaced ran every sampled period twice). At N = 64 a dispatch holds the
+    // most periods, so a budget too small for the kernel shows here first: no point may be cut
+    // short (and rerun on the CPU), in either precision.
+    let etas: Vec<f64> = (0..256).map(|i| 1.0 + i as f64 / 256.0).collect();
+    let s = Settings {
+        steps_per_period: 64,
+        lyapunov: true,
+        ..Settings::default()
+    };
+    for f64 in [false, true] {
+        let spec = eta_spec(s, 100, 100, f64);
+        let Some(g) = run_job(&Job::new(&spec, Points::along(&[Param::Eta], &etas), false)) else {
+            return;
+        };
+        eprintln!(
+            "N = 64, f64 {f64}: {} dispatches, {} points cut short",
+            g.timings.dispatches,
+            g.truncated.len()
+        );
+        assert!(g.truncated.is_empty(), "cut short: {:?}", g.truncated);
+        assert!(g.results.iter().all(|r| r.lyapunov.is_finite()));
+    }
+}
