@@ -138,6 +138,9 @@ pub(super) struct Batch<F> {
     /// Control block of the batch; the dispatch loop sets the periods of each dispatch.
     pub(super) control: Control,
     pub(super) pipeline: wgpu::ComputePipeline,
+    /// The kernel without the tangent, for dispatches of transient periods only, when the
+    /// job's kernel carries it.
+    pub(super) transient_pipeline: Option<wgpu::ComputePipeline>,
     pub(super) bind: wgpu::BindGroup,
     ys: wgpu::Buffer,
     us: wgpu::Buffer,
@@ -148,10 +151,11 @@ pub(super) struct Batch<F> {
 }
 
 impl<F: Real + Pod> Batch<F> {
-    /// Uploads the per-point values and initial states of the points in `range`.
+    /// Uploads the per-point values and initial states of the points in `range`. `pipelines`:
+    /// the job's kernel, and the one for transient periods if it differs.
     pub(super) fn new(
         gpu: &Gpu,
-        pipeline: &wgpu::ComputePipeline,
+        (pipeline, transient_pipeline): (&wgpu::ComputePipeline, Option<&wgpu::ComputePipeline>),
         shared: &Shared,
         job: &Job,
         plan: &Plan,
@@ -245,6 +249,7 @@ impl<F: Real + Pod> Batch<F> {
             grid: (gx, gy),
             control,
             pipeline: pipeline.clone(),
+            transient_pipeline: transient_pipeline.cloned(),
             bind,
             ys,
             us,

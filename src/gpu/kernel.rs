@@ -3,7 +3,7 @@
 use super::layout;
 use crate::config::Precision;
 use std::collections::HashMap;
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 
 /// The kernel body as written. It does not compile alone: the precision alias, the constants
 /// and `Control` come from the prelude (see [`shader_source`]).
@@ -87,6 +87,38 @@ impl Rung {
 #[derive(Default)]
 pub(super) struct Kernels {
     pipelines: Mutex<HashMap<(Precision, Rung, bool, bool), wgpu::ComputePipeline>>,
+    /// One bind group layout for every pipeline (an automatic layout belongs to its pipeline
+    /// alone), so that a batch's bind group serves the kernel with the tangent and the one
+    /// without it, which runs the transient.
+    layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
+}
+
+/// The kernel's bindings: the control uniform, the read-only constants and per-point
+/// parameters, then the per-point state, counters, samples and ring.
+fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("integrate"),
+        entries: &[
+            entry(0, wgpu::BufferBindingType::Uniform),
+            entry(1, storage(true)),
+            entry(2, storage(true)),
+            entry(3, storage(false)),
+            entry(4, storage(false)),
+            entry(5, storage(false)),
+            entry(6, storage(false)),
+        ],
+    })
 }
 
 impl Kernels {
@@ -98,6 +130,15 @@ impl Kernels {
         coulomb: bool,
         tangent: bool,
     ) -> wgpu::ComputePipeline {
+        let (_, layout) = self.layout.get_or_init(|| {
+            let group = bind_group_layout(device);
+            let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("integrate"),
+                bind_group_layouts: &[Some(&group)],
+                immediate_size: 0,
+            });
+            (group, layout)
+        });
         let mut cache = self.pipelines.lock().unwrap();
         cache
             .entry((precision, rung, coulomb, tangent))
@@ -108,7 +149,7 @@ impl Kernels {
                 });
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some("integrate"),
-                    layout: None,
+                    layout: Some(layout),
                     module: &module,
                     entry_point: Some("main"),
                     compilation_options: wgpu::PipelineCompilationOptions {
