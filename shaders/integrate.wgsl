@@ -14,13 +14,16 @@
 // every piece (the defaults); without LADDER_QUIET every step goes through `step`.
 override LADDER_FINITE: bool = true;
 override LADDER_DETECTOR: bool = true;
-override LADDER_TWIN: bool = true;
 override LADDER_GUARDS: bool = true;
 override LADDER_EVENTS: bool = true;
 override LADDER_QUIET: bool = true;
 // Every point of the job has Coulomb friction (l1 = l2 = 0, fs = fk): the law is fk, bit for
 // bit for any finite slip speed, without the division the general law needs in every stage.
 override COULOMB: bool = false;
+// The job estimates the largest Lyapunov exponent: one tangent vector follows the state through
+// its RK4 stages and events (tangent.rs `Leading`). Off, none of its code is compiled in, so the
+// plain kernel computes and costs what it did without it.
+override TANGENT: bool = false;
 
 @group(0) @binding(0) var<uniform> ctl: Control;
 @group(0) @binding(1) var<storage, read> consts: array<F>;
@@ -90,6 +93,16 @@ fn friction(w: F) -> F {
     return (fs() - fk()) / fmax(F(1.0) + l1() * w, F(0.5)) + fk() + l2() * w * w;
 }
 
+// model.rs `friction_slope`: d friction / dw, zero where the divisor is clamped.
+fn friction_slope(w: F) -> F {
+    if (COULOMB) {
+        return F(0.0);
+    }
+    let q = F(1.0) + l1() * w;
+    let decay = select(F(0.0), -(fs() - fk()) * l1() / (q * q), q > F(0.5));
+    return decay + F(2.0) * l2() * w;
+}
+
 fn field(y: vec4<F>, mode: u32, c: F) -> vec4<F> {
     if (is_slip(mode)) {
         let v = y.y - y.w;
@@ -101,6 +114,18 @@ fn field(y: vec4<F>, mode: u32, c: F) -> vec4<F> {
     }
     let a = (c - b1() * y.y - y.x) / (F(1.0) + mu());
     return vec4<F>(y.y, a, y.w, a);
+}
+
+// model.rs `jacobian_times`: J(y) x, the field's Jacobian in a fixed mode times x.
+fn jacobian_times(y: vec4<F>, mode: u32, x: vec4<F>) -> vec4<F> {
+    if (is_slip(mode)) {
+        let s = select(F(-1.0), F(1.0), mode == MODE_SLIP_POS);
+        let e = b1() * delta() + friction_slope(s * (y.y - y.w));
+        let rel = e * (x.y - x.w);
+        return vec4<F>(x.y, -x.x - b1() * x.y - rel, x.w, rel / mu());
+    }
+    let a = -(x.x + b1() * x.y) / (F(1.0) + mu());
+    return vec4<F>(x.y, a, x.w, a);
 }
 
 fn needed_force(y: vec4<F>, c: F) -> F {
@@ -277,12 +302,27 @@ fn forcing(k: u32, theta: F) -> vec2<F> {
     return vec2<F>(cj * cs.x - sj * cs.y, sj * cs.x + cj * cs.y);
 }
 
-// c2, c4: forcing at the middle and the end of the (sub)step, computed by the caller.
-fn rk4(y: vec4<F>, mode: u32, dt: F, k1: vec4<F>, c2: F, c4: F) -> vec4<F> {
+// Stage points 2-4 of the last RK4 step (the first is its start): the tangent evaluates its
+// Jacobian there.
+var<private> stage1: vec4<F>;
+var<private> stage2: vec4<F>;
+var<private> stage3: vec4<F>;
+
+// method.rs `rk4_stages` (its `rk4` is the same without the stages). c2, c4: forcing at the
+// middle and the end of the (sub)step, computed by the caller.
+fn rk4_stages(y: vec4<F>, mode: u32, dt: F, k1: vec4<F>, c2: F, c4: F) -> vec4<F> {
     let half = F(0.5) * dt;
-    let k2 = field(y + half * k1, mode, c2);
-    let k3 = field(y + half * k2, mode, c2);
-    let k4 = field(y + dt * k3, mode, c4);
+    let s1 = y + half * k1;
+    let k2 = field(s1, mode, c2);
+    let s2 = y + half * k2;
+    let k3 = field(s2, mode, c2);
+    let s3 = y + dt * k3;
+    let k4 = field(s3, mode, c4);
+    if (TANGENT) {
+        stage1 = s1;
+        stage2 = s2;
+        stage3 = s3;
+    }
     let sixth = dt / F(6.0);
     return y + sixth * (k1 + F(2.0) * (k2 + k3) + k4);
 }
@@ -429,9 +469,10 @@ fn naive_impact(k: u32) -> bool {
 var<private> f0: vec4<F>;
 
 // One grid step. The loop alternates a trial to the end of the step and, after an event was
-// located, the sub-step up to it; written with one call of rk4 and of forcing per stage (the
-// CPU twin calls them where they are needed), because llvmpipe inlines every call site into
-// one function and its size, not the work executed, decides the speed of the whole kernel.
+// located, the sub-step up to it; written with one call of rk4_stages and of forcing per stage
+// (the CPU twin calls them where they are needed), because llvmpipe inlines every call site
+// into one function and its size, not the work executed, decides the speed of the whole
+// kernel. The tangent advances before the state is overwritten (it needs the step's start).
 fn step(k: u32) {
     var theta0 = F(0.0);
     var events = 0u;
@@ -446,7 +487,7 @@ fn step(k: u32) {
         let span = select(de, dtheta, trial);
         let c2 = forcing(k, theta0 + F(0.5) * span).x;
         let cs4 = forcing(k, theta0 + span);
-        let y1 = rk4(st.y, st.mode, span * h, f0, c2, cs4.x);
+        let y1 = rk4_stages(st.y, st.mode, span * h, f0, c2, cs4.x);
         if (trial) {
             // forcing(k, 1) is a table entry: theta0 + dtheta may miss 1 by an ulp.
             let f1 = field(y1, st.mode, consts[C_TABLE + 2u * min(2u * k + 2u, 2u * ctl.steps)]);
@@ -457,6 +498,9 @@ fn step(k: u32) {
                 if (hit.ev != EV_NONE) {
                     st.overflows += 1u;
                 }
+                if (TANGENT && tan_on) {
+                    tangent_substep(st.y, st.mode, span * h);
+                }
                 st.y = y1;
                 f0 = f1;
                 break;
@@ -464,10 +508,17 @@ fn step(k: u32) {
             de = hit.t * dtheta;
             continue;
         }
+        if (TANGENT && tan_on) {
+            tangent_substep(st.y, st.mode, span * h);
+        }
         st.y = y1;
+        let mode_before = st.mode;
         theta0 = select(theta0 + de, F(1.0), hit.t >= F(1.0));
         cs0 = forcing(k, theta0);
         apply_event(hit.ev, cs0.x);
+        if (TANGENT && tan_on) {
+            tangent_event(hit.ev, y1, mode_before, cs0);
+        }
         events += 1u;
         f0 = field(st.y, st.mode, cs0.x);
         de = F(-1.0);
@@ -555,10 +606,13 @@ fn period() -> bool {
                     break;
                 }
                 let cs1 = table(2u * k + 2u);
-                let y1 = rk4(st.y, st.mode, h, f0, consts[C_TABLE + 4u * k + 2u], cs1.x);
+                let y1 = rk4_stages(st.y, st.mode, h, f0, consts[C_TABLE + 4u * k + 2u], cs1.x);
                 let f1 = field(y1, st.mode, cs1.x);
                 if (!quiet(st.y, y1, f0, f1, st.mode, cs0, cs1)) {
                     break;
+                }
+                if (TANGENT && tan_on) {
+                    tangent_substep(st.y, st.mode, h);
                 }
                 st.y = y1;
                 f0 = f1;
@@ -582,27 +636,88 @@ fn period() -> bool {
     return k == ctl.steps;
 }
 
-// Twin trajectory of the Lyapunov estimate, between periods.
-var<private> tw_y: vec4<F>;
-var<private> tw_mode: u32;
-var<private> tw_bad: u32;
+// ---- tangent.rs: one tangent vector for the largest Lyapunov exponent (`Leading`) ----
 
-fn renormalize(main_y: vec4<F>, d0: F) -> F {
-    let e = tw_y - main_y;
-    let d = sqrt(e.x * e.x + e.y * e.y + e.z * e.z + e.w * e.w);
-    let floor = d0 * F(1e-12);
-    if (d > F(0.0)) {
-        tw_y = main_y + (tw_y - main_y) * (d0 / d);
-    } else {
-        tw_y = main_y;
-        tw_y.x += d0;
-        tw_mode = st.mode;
+var<private> tvec: vec4<F>;
+// The tangent runs in this period (a sampled one, the vector still finite).
+var<private> tan_on: bool;
+
+// tangent.rs `Jump`.
+const JUMP_IDENTITY: u32 = 0u;
+const JUMP_IMPACT: u32 = 1u;
+const JUMP_CO_MOVE: u32 = 2u;
+
+fn jump_apply(jump: u32, x: vec4<F>) -> vec4<F> {
+    if (jump == JUMP_IMPACT) {
+        return impact(x);
     }
-    let v = tw_y.y - tw_y.w;
-    if (v != F(0.0)) {
-        tw_mode = slip(v);
+    if (jump == JUMP_CO_MOVE) {
+        return co_move(x);
     }
-    return fmax(d, floor) / d0;
+    return x;
+}
+
+fn dot4(a: vec4<F>, b: vec4<F>) -> F {
+    return a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w;
+}
+
+// RK4 of the variational equation on the stage points of the state's last RK4 step, from its
+// start y (before the state is overwritten).
+fn tangent_substep(y: vec4<F>, mode: u32, dt: F) {
+    let half = F(0.5) * dt;
+    let k1 = jacobian_times(y, mode, tvec);
+    let k2 = jacobian_times(stage1, mode, tvec + half * k1);
+    let k3 = jacobian_times(stage2, mode, tvec + half * k2);
+    let k4 = jacobian_times(stage3, mode, tvec + dt * k3);
+    let sixth = dt / F(6.0);
+    tvec = tvec + sixth * (k1 + F(2.0) * (k2 + k3) + k4);
+}
+
+// The saltation of event ev (tangent.rs `Saltation::at`, then `apply`), called after
+// `apply_event`: `before` and `mode_before` are the state just before the jump, `st` the state
+// after it, cs the forcing (cos, sin) at the event.
+fn tangent_event(ev: u32, before: vec4<F>, mode_before: u32, cs: vec2<F>) {
+    let o = F(1.0);
+    let z = F(0.0);
+    // Release: h = Fs -+ Tn, Tn = kf (c - b1 y2 - y1), time rate -kf eta sin.
+    let kf = mu() / (o + mu());
+    var jump = JUMP_IDENTITY;
+    var n = vec4<F>(kf, kf * b1(), z, z);
+    var ht = kf * eta() * cs.y;
+    if (ev == EV_IMPACT_POS || ev == EV_IMPACT_NEG) {
+        // h = r -+ z; an impact that ended in co-motion (below the Zeno speed) projects.
+        let s = select(-o, o, ev == EV_IMPACT_POS);
+        jump = select(JUMP_IMPACT, JUMP_CO_MOVE, st.y.y == st.y.w);
+        n = vec4<F>(s, z, -s, z);
+        ht = z;
+    } else if (ev == EV_REVERSAL) {
+        let s = select(-o, o, mode_before == MODE_SLIP_POS);
+        jump = JUMP_CO_MOVE;
+        n = vec4<F>(z, s, z, -s);
+        ht = z;
+    } else if (ev == EV_RELEASE_NEG) {
+        n = -n;
+        ht = -ht;
+    }
+    let fm = field(before, mode_before, cs.x);
+    let fp = field(st.y, st.mode, cs.x);
+    let u = fp - jump_apply(jump, fm);
+    let d = dot4(n, fm) + ht;
+    let a = dot4(n, tvec) / d;
+    tvec = jump_apply(jump, tvec) + u * a;
+}
+
+// Unit length, and the log of the length before, in f32 even in the f64 kernel (f64 log is
+// unreliable on some drivers). A collapsed vector restarts along y1 and counts at the floor.
+fn tangent_renormalize() -> f32 {
+    let norm = sqrt(dot4(tvec, tvec));
+    let floor = consts[C_TAN_FLOOR];
+    if (norm <= floor) {
+        tvec = vec4<F>(F(1.0), F(0.0), F(0.0), F(0.0));
+        return log(f32(floor));
+    }
+    tvec = tvec / norm;
+    return log(f32(norm));
 }
 
 // ---- classify.rs: PeriodDetector::push on the section value y1 ----
@@ -638,7 +753,7 @@ fn detector_push(i: u32, x: F) {
     us[U_DET_HI * n + i] = phi;
 }
 
-// A state in `ys` from slot `base` on (Y_MAIN or Y_TWIN).
+// A vector in `ys` from slot `base` on (Y_MAIN or Y_TAN).
 fn load_y(base: u32, i: u32) -> vec4<F> {
     let n = ctl.n_points;
     return vec4<F>(ys[base * n + i], ys[(base + 1u) * n + i], ys[(base + 2u) * n + i],
@@ -701,11 +816,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     st.overflows = us[U_OVERFLOWS * n + i];
     st.nonfinite = us[U_NONFINITE * n + i];
     var sample_impacts = us[U_SAMPLE_IMPACTS * n + i];
-    let d0 = consts[C_TWIN];
-    tw_y = load_y(Y_TWIN, i);
-    tw_mode = us[U_TWIN_MODE * n + i];
-    tw_bad = us[U_TWIN_BAD * n + i];
-    var log_sum = ring[R_LOG_SUM * n + i];
+    var tan_bad = 1u;
+    var log_sum = F(0.0);
+    if (TANGENT) {
+        tvec = load_y(Y_TAN, i);
+        tan_bad = us[U_TAN_BAD * n + i];
+        log_sum = ring[R_LOG_SUM * n + i];
+    }
 
     var q = 0u;
     for (; q < ctl.periods; q++) {
@@ -713,14 +830,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             break;
         }
         let idx = ctl.period0 + q;
-        if (ctl.lyap != 0u && idx == ctl.transient) {
-            // Twin offset along y1 at the start of sampling.
-            tw_y = st.y;
-            tw_y.x += d0;
-            tw_mode = st.mode;
-            tw_bad = 0u;
+        if (TANGENT && idx == ctl.transient) {
+            // The tangent vector starts along y1 with sampling.
+            tvec = vec4<F>(F(1.0), F(0.0), F(0.0), F(0.0));
+            tan_bad = 0u;
             log_sum = F(0.0);
         }
+        tan_on = TANGENT && idx >= ctl.transient && tan_bad == 0u;
         let before = st.impacts;
         if (!period() && st.nonfinite == 0u) {
             us[U_TRUNCATED * n + i] = 1u;
@@ -739,20 +855,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             if (LADDER_DETECTOR) {
                 detector_push(i, st.y.x);
             }
-            if (LADDER_TWIN && ctl.lyap != 0u && tw_bad == 0u) {
-                let main = st;
-                st.y = tw_y;
-                st.mode = tw_mode;
-                if (!period() && st.nonfinite == 0u) {
-                    us[U_TRUNCATED * n + i] = 1u;
-                }
-                tw_y = st.y;
-                tw_mode = st.mode;
-                tw_bad = st.nonfinite;
-                st = main;
-                if (tw_bad == 0u) {
-                    // f32 logarithm even in the f64 kernel (f64 log is unreliable on some drivers).
-                    log_sum += F(log(f32(renormalize(st.y, d0))));
+            if (tan_on) {
+                if (finite_state(tvec)) {
+                    log_sum += F(tangent_renormalize());
+                } else {
+                    tan_bad = 1u;
                 }
             }
         }
@@ -762,10 +869,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 
     store_y(Y_MAIN, i, st.y);
-    store_y(Y_TWIN, i, tw_y);
-    us[U_TWIN_MODE * n + i] = tw_mode;
-    us[U_TWIN_BAD * n + i] = tw_bad;
-    ring[R_LOG_SUM * n + i] = log_sum;
+    if (ctl.lyap != 0u) {
+        // Without the tangent compiled in (ladder rungs below it) the point has no exponent.
+        if (TANGENT) {
+            store_y(Y_TAN, i, tvec);
+            ring[R_LOG_SUM * n + i] = log_sum;
+        }
+        us[U_TAN_BAD * n + i] = tan_bad;
+    }
     us[U_MODE * n + i] = st.mode;
     us[U_IMPACTS * n + i] = st.impacts;
     us[U_SAMPLE_IMPACTS * n + i] = sample_impacts;

@@ -24,36 +24,54 @@ pub struct BenchRow {
     pub rk4_steps: f64,
     pub timings: Timings,
     pub steps_per_s: f64,
+    /// The largest Lyapunov exponent was estimated over the sampled periods.
+    pub lyapunov: bool,
 }
 
 /// The bench sweep: `points` values of eta over the config's sweep range, `periods` periods
-/// each (the last two sampled).
-fn bench_sweep(cfg: &Config, points: usize, periods: u32) -> Result<(RunSpec, Vec<f64>)> {
+/// each (the last two sampled; the second half with `lyapunov`, where the exponent is
+/// estimated, so that its cost shows).
+fn bench_sweep(
+    cfg: &Config,
+    points: usize,
+    periods: u32,
+    lyapunov: bool,
+) -> Result<(RunSpec, Vec<f64>)> {
     if points == 0 || periods < 3 {
         return Err(Error::Invalid("--points >= 1 and --periods >= 3".into()));
     }
     let mut spec = RunSpec::new(cfg);
-    spec.transient = periods - 2;
-    spec.samples = 2;
+    spec.samples = if lyapunov { periods / 2 } else { 2 };
+    spec.transient = periods - spec.samples;
     Ok((spec, cfg.sweep_values_n(points as u32)))
 }
 
 /// Runs the same sweep (eta over the config's sweep range, `periods` periods, no samples) on
-/// each backend and precision. A precision the adapter lacks is reported as a row with an
-/// error, not silently dropped.
+/// each backend and precision; with `lyapunov` each twice, without and with the exponent. A
+/// precision the adapter lacks is reported as a row with an error, not silently dropped.
 pub fn bench(
     cfg: &Config,
     points: usize,
     periods: u32,
     backends: &[Backend],
+    lyapunov: bool,
 ) -> Result<Vec<Result<BenchRow>>> {
-    let (mut spec, values) = bench_sweep(cfg, points, periods)?;
+    let (mut spec, values) = bench_sweep(cfg, points, periods, lyapunov)?;
     let n_steps = spec.settings.steps_per_period;
     let mut rows = Vec::new();
+    let exponent = if lyapunov {
+        &[false, true][..]
+    } else {
+        &[false][..]
+    };
     for &b in backends {
         let engine = Engine::open(b)?;
-        for prec in [Precision::F32, Precision::F64] {
+        for (prec, &lyap) in [Precision::F32, Precision::F64]
+            .into_iter()
+            .flat_map(|p| exponent.iter().map(move |l| (p, l)))
+        {
             spec.precision = prec;
+            spec.settings.lyapunov = lyap;
             let res = engine
                 .run(&spec, &Points::along(&[Param::Eta], &values), &Silent)
                 .map_err(Error::from)
@@ -69,6 +87,7 @@ pub fn bench(
                         rk4_steps: steps,
                         timings: t,
                         steps_per_s: steps / t.integration_s,
+                        lyapunov: lyap,
                     }
                 });
             rows.push(res);
@@ -81,7 +100,7 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:<8} {:<5} {:>8} {:>7} {:>6} {:>12} {:>8} {:>10} {:>9} {:>10} {:>11}  device",
+        "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12} {:>8} {:>10} {:>9} {:>10} {:>11}  device",
         "backend",
         "prec",
         "points",
@@ -97,11 +116,16 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
     for r in rows {
         match r {
             Ok(r) => {
+                let prec = if r.lyapunov {
+                    format!("{}+exp", r.precision)
+                } else {
+                    r.precision.clone()
+                };
                 let _ = writeln!(
                     s,
-                    "{:<8} {:<5} {:>8} {:>7} {:>6} {:>12.4e} {:>8.3} {:>10.3} {:>9.4} {:>10} {:>11.3e}  {}",
+                    "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12.4e} {:>8.3} {:>10.3} {:>9.4} {:>10} {:>11.3e}  {}",
                     r.backend,
-                    r.precision,
+                    prec,
                     r.points,
                     r.periods,
                     r.steps_per_period,
@@ -121,15 +145,33 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
             }
         }
     }
-    let rate = |b: &str, p: &str| {
+    let row = |b: &str, p: &str, l: bool| {
         rows.iter()
             .flatten()
-            .find(|r| r.backend == b && r.precision == p)
-            .map(|r| r.steps_per_s)
+            .find(|r| r.backend == b && r.precision == p && r.lyapunov == l)
     };
     for p in ["f32", "f64"] {
-        if let (Some(g), Some(c)) = (rate("gpu", p), rate("cpu", "f64")) {
-            let _ = writeln!(s, "ratio gpu {p} / cpu f64: {:.2}", g / c);
+        if let (Some(g), Some(c)) = (row("gpu", p, false), row("cpu", "f64", false)) {
+            let _ = writeln!(
+                s,
+                "ratio gpu {p} / cpu f64: {:.2}",
+                g.steps_per_s / c.steps_per_s
+            );
+        }
+    }
+    // The exponent's extra cost, in integration seconds of the same sweep.
+    for b in ["gpu", "cpu"] {
+        for p in ["f32", "f64"] {
+            if let (Some(plain), Some(exp)) = (row(b, p, false), row(b, p, true)) {
+                let (a, e) = (plain.timings.integration_s, exp.timings.integration_s);
+                let _ = writeln!(
+                    s,
+                    "exponent cost {b} {p}: {a:.3} s -> {e:.3} s ({:+.0}%), {:.3e} -> {:.3e} steps/s",
+                    100.0 * (e / a - 1.0),
+                    plain.steps_per_s,
+                    exp.steps_per_s
+                );
+            }
         }
     }
     s
@@ -357,11 +399,12 @@ pub fn report(
     backends: &[Backend],
     json: bool,
     ladder: bool,
+    lyapunov: bool,
 ) -> Result<String> {
     if ladder {
-        return self::ladder(cfg, points, periods);
+        return self::ladder(cfg, points, periods, lyapunov);
     }
-    let rows = bench(cfg, points, periods, backends)?;
+    let rows = bench(cfg, points, periods, backends, lyapunov)?;
     let mut s = bench_table(&rows);
     if json {
         let ok: Vec<_> = rows.iter().flatten().collect();
@@ -372,21 +415,29 @@ pub fn report(
 }
 
 /// The kernel ladder: the bench sweep on the GPU with the kernel compiled rung by rung (see
-/// [`Rung`]), in f32 and (where the adapter has it) f64; the table of steps/s per rung.
-pub fn ladder(cfg: &Config, points: usize, periods: u32) -> Result<String> {
+/// [`Rung`]), in f32 and (where the adapter has it) f64; the table of steps/s per rung. With
+/// `lyapunov` the exponent is estimated over the second half of the periods (the tangent rung
+/// and those above it carry the tangent).
+pub fn ladder(cfg: &Config, points: usize, periods: u32, lyapunov: bool) -> Result<String> {
     let engine = Engine::open(Backend::Gpu)?;
     let Engine::Gpu(gpu) = &engine else {
         return Err(Error::Invalid(
             "the ladder needs a GPU adapter (none found)".into(),
         ));
     };
-    let (mut spec, values) = bench_sweep(cfg, points, periods)?;
+    let (mut spec, values) = bench_sweep(cfg, points, periods, lyapunov)?;
+    spec.settings.lyapunov = lyapunov;
     let steps = points as f64 * periods as f64 * spec.settings.steps_per_period as f64;
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "kernel ladder: {points} points x {periods} periods x N = {} on {}",
+        "kernel ladder: {points} points x {periods} periods x N = {}{} on {}",
         spec.settings.steps_per_period,
+        if lyapunov {
+            format!(", exponent over the last {}", spec.samples)
+        } else {
+            String::new()
+        },
         gpu.adapter_name()
     );
     let _ = writeln!(

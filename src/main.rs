@@ -165,6 +165,11 @@ enum Cmd {
         /// The kernel ladder instead: the GPU kernel compiled piece by piece, steps/s each.
         #[arg(long)]
         ladder: bool,
+        /// Also time each backend and precision with the Lyapunov exponent estimated over the
+        /// second half of the periods (the first half then is the transient), and print its
+        /// extra cost; with --ladder, every rung with the exponent.
+        #[arg(long)]
+        lyapunov: bool,
     },
 }
 
@@ -425,11 +430,20 @@ fn run(cli: Cli) -> Result<()> {
             periods,
             json,
             ladder,
+            lyapunov,
         } => {
             let cfg = common.load_sweep()?;
             print!(
                 "{}",
-                bench::report(&cfg, points, periods, &common.backends(), json, ladder)?
+                bench::report(
+                    &cfg,
+                    points,
+                    periods,
+                    &common.backends(),
+                    json,
+                    ladder,
+                    lyapunov
+                )?
             );
             vec![]
         }

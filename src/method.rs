@@ -34,7 +34,8 @@ pub struct Settings {
     pub max_events: u32,
     pub zeno_speed: f64,
     pub impacts: ImpactMethod,
-    /// Estimate the largest Lyapunov exponent over the sampled periods (twice the work there).
+    /// Estimate the largest Lyapunov exponent over the sampled periods (one tangent vector
+    /// carried through the state's RK4 stages and events).
     pub lyapunov: bool,
 }
 
@@ -292,7 +293,7 @@ pub struct RunResult {
     pub final_y: [f64; 4],
     pub final_mode: Mode,
     /// Largest Lyapunov exponent per unit time over the sampled periods (NaN when not
-    /// computed or when the twin trajectory failed).
+    /// computed or when the tangent vector overflowed).
     pub lyapunov: f64,
 }
 
@@ -323,12 +324,6 @@ impl RunResult {
     pub fn impacts_per_period(&self) -> f64 {
         self.sample_impacts as f64 / self.samples.len().max(1) as f64
     }
-}
-
-/// Offset of the twin trajectory of the Lyapunov estimate: sqrt(machine epsilon) balances
-/// round-off in the measured separation against the nonlinearity of a finite separation.
-pub fn twin_offset<F: Real>() -> F {
-    F::EPSILON.sqrt()
 }
 
 /// Observer of the accepted RK4 sub-steps and events of [`Integrator::step_observed`]: the
@@ -786,22 +781,26 @@ impl<F: Real> Integrator<F> {
     pub fn period_observed<O: StepObserver<F>>(&self, st: &mut PointState<F>, obs: &mut O) {
         let (c0, _) = self.forcing(0, F::zero());
         let mut f0 = field(&self.p, &st.y, st.mode, c0);
+        let mut stages = [[F::zero(); 4]; 4];
         for k in 0..self.n {
             // A quiet step (no guard near zero: almost all) is its trial step; the shader runs
-            // these in a loop of their own so that its event code runs only where needed.
-            if !O::ACTIVE {
-                let y1 = self.rk4(&st.y, st.mode, k, F::zero(), F::one(), &f0);
-                let (c1, _) = self.forcing(k, F::one());
-                let f1 = field(&self.p, &y1, st.mode, c1);
-                if self.quiet(&st.y, &y1, &f0, &f1, st.mode, k) {
-                    st.y = y1;
-                    f0 = f1;
-                    if !finite_state(&st.y) {
-                        st.diag.nonfinite = true;
-                        return;
-                    }
-                    continue;
+            // these in a loop of their own so that its event code runs only where needed. An
+            // observer sees it as the one sub-step `step_observed` would report.
+            let (z, o) = (F::zero(), F::one());
+            let y1 = self.rk4_stages(&st.y, st.mode, k, z, o, &f0, &mut stages, O::ACTIVE);
+            let (c1, _) = self.forcing(k, F::one());
+            let f1 = field(&self.p, &y1, st.mode, c1);
+            if self.quiet(&st.y, &y1, &f0, &f1, st.mode, k) {
+                if O::ACTIVE {
+                    obs.substep(&self.p, &stages, st.mode, self.h);
                 }
+                st.y = y1;
+                f0 = f1;
+                if !finite_state(&st.y) {
+                    st.diag.nonfinite = true;
+                    return;
+                }
+                continue;
             }
             self.step_observed(st, k, &mut f0, obs);
             if st.diag.nonfinite {
@@ -830,35 +829,6 @@ impl<F: Real> Integrator<F> {
         self.run_from(&mut st, transient, samples)
     }
 
-    /// Rescales the twin trajectory of the Lyapunov estimate back to distance d0 from the main
-    /// one (Benettin's method, once per period at the stroboscopic section, where both are
-    /// normally away from an impact) and returns the growth factor of the separation. A twin
-    /// that coincides with the main trajectory is restarted along y1; a rescaled twin that
-    /// slips takes the slip mode of its own v.
-    pub fn renormalize(&self, main: &PointState<F>, twin: &mut PointState<F>, d0: F) -> F {
-        let mut dd = F::zero();
-        for i in 0..4 {
-            let e = twin.y[i] - main.y[i];
-            dd += e * e;
-        }
-        let d = dd.sqrt();
-        let floor = d0 * F::of(1e-12);
-        if d > F::zero() {
-            for i in 0..4 {
-                twin.y[i] = main.y[i] + (twin.y[i] - main.y[i]) * (d0 / d);
-            }
-        } else {
-            twin.y = main.y;
-            twin.y[0] += d0;
-            twin.mode = main.mode;
-        }
-        let v = twin.y[1] - twin.y[3];
-        if v != F::zero() {
-            twin.mode = Mode::slip(v);
-        }
-        d.max(floor) / d0
-    }
-
     /// As [`Integrator::run`], from a given state (continuation).
     pub fn run_from(&self, st: &mut PointState<F>, transient: u32, samples: u32) -> RunResult {
         for _ in 0..transient {
@@ -869,30 +839,34 @@ impl<F: Real> Integrator<F> {
         }
         let before = st.diag.impacts;
         let mut out = Vec::with_capacity(samples as usize);
-        // Twin trajectory for the Lyapunov estimate, offset along y1 at the start of sampling.
-        let d0 = twin_offset::<F>();
-        let mut twin = *st;
-        twin.y[0] += d0;
+        // The Lyapunov estimate: a tangent vector along y1 at the start of sampling, carried
+        // through the same stages and events as the state (which it leaves bit for bit as
+        // without it), renormalised at each section.
+        let mut tangent = crate::tangent::Leading::<F>::default();
+        let mut tangent_ok = self.lyapunov;
         let mut log_sum = 0.0f64;
         for _ in 0..samples {
             if st.diag.nonfinite {
                 break;
             }
-            self.period(st);
+            if tangent_ok {
+                self.period_observed(st, &mut tangent);
+            } else {
+                self.period(st);
+            }
             if st.diag.nonfinite {
                 break;
             }
             out.push(st.y.map(|v| v.to_f64()));
-            if self.lyapunov && !twin.diag.nonfinite {
-                self.period(&mut twin);
-                if !twin.diag.nonfinite {
-                    // The logarithm in f32, as on the GPU (f64 logarithms are unreliable there).
-                    log_sum += (self.renormalize(st, &mut twin, d0).to_f64() as f32).ln() as f64;
+            if tangent_ok {
+                tangent_ok = tangent.is_finite();
+                if tangent_ok {
+                    log_sum += tangent.renormalize();
                 }
             }
         }
         let period = 2.0 * std::f64::consts::PI / self.p.eta.to_f64();
-        let lyapunov = if self.lyapunov && !twin.diag.nonfinite && !out.is_empty() {
+        let lyapunov = if tangent_ok && !out.is_empty() {
             log_sum / (out.len() as f64 * period)
         } else {
             f64::NAN

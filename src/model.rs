@@ -374,6 +374,28 @@ pub fn jacobian<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode) -> [[F; 4]; 4] {
     }
 }
 
+/// `J(y) x` for one tangent vector, without forming [`jacobian`] (the kernel's form; its rows
+/// written out, with the zeros left out).
+#[inline(always)]
+pub fn jacobian_times<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode, x: &[F; 4]) -> [F; 4] {
+    match mode {
+        Mode::SlipPos | Mode::SlipNeg => {
+            let s = if mode == Mode::SlipPos {
+                F::one()
+            } else {
+                -F::one()
+            };
+            let e = p.b1 * p.delta + friction_slope(p, s * (y[1] - y[3]));
+            let rel = e * (x[1] - x[3]);
+            [x[1], -x[0] - p.b1 * x[1] - rel, x[3], rel / p.mu]
+        }
+        _ => {
+            let a = -(x[0] + p.b1 * x[1]) / (F::one() + p.mu);
+            [x[1], a, x[3], a]
+        }
+    }
+}
+
 /// Force m2 needs from m1 to move with it (v = 0): `Tn = mu * a`.
 #[inline(always)]
 pub fn needed_force<F: Real>(p: &Params<F>, y: &[F; 4], c: F) -> F {

@@ -24,7 +24,7 @@ use crate::method::{
     EV_IMPACT_NEG, EV_IMPACT_POS, EV_RELEASE_NEG, EV_RELEASE_POS, EV_REVERSAL, Event, Integrator,
     PointState, StepObserver,
 };
-use crate::model::{Mode, Params, co_move, field, impact, initial_mode, jacobian};
+use crate::model::{Mode, Params, co_move, field, impact, initial_mode, jacobian, jacobian_times};
 use crate::real::Real;
 use nalgebra::{Matrix4, Vector4};
 use serde::Serialize;
@@ -235,6 +235,104 @@ impl<F: Real> StepObserver<F> for Tangent<F> {
     }
 }
 
+/// One tangent vector: the largest Lyapunov exponent of a run ([`Integrator::run_from`]; the
+/// kernel's `tangent_*` functions are its twin). It starts along y1 and is renormalised at each
+/// stroboscopic section; unlike a twin trajectory at a finite offset, it cannot straddle an
+/// impact that falls near the section.
+#[derive(Clone, Copy, Debug)]
+pub struct Leading<F> {
+    pub x: [F; 4],
+}
+
+impl<F: Real> Default for Leading<F> {
+    fn default() -> Self {
+        let mut x = [F::zero(); 4];
+        x[0] = F::one();
+        Leading { x }
+    }
+}
+
+impl<F: Real> Leading<F> {
+    /// NaN, infinity, or beyond any scale a renormalised vector reaches in one period (a
+    /// near-grazing event divides by its vanishing rate): the same bound as for the state.
+    pub fn is_finite(&self) -> bool {
+        let big = F::of(1e30);
+        self.x.iter().all(|v| v.abs() <= big)
+    }
+
+    /// Rescales the vector to unit length and returns the logarithm of its length, taken in
+    /// f32 as in the kernel (f64 logarithms are unreliable on some drivers).
+    pub fn renormalize(&mut self) -> f64 {
+        tangent_renormalize(&mut self.x)
+    }
+}
+
+impl<F: Real> StepObserver<F> for Leading<F> {
+    const ACTIVE: bool = true;
+
+    #[inline(always)]
+    fn substep(&mut self, p: &Params<F>, stages: &[[F; 4]; 4], mode: Mode, dt: F) {
+        tangent_substep(p, stages, mode, dt, &mut self.x);
+    }
+
+    #[inline(always)]
+    fn event(&mut self, it: &Integrator<F>, e: &Event<F>) {
+        tangent_event(it, e, &mut self.x);
+    }
+}
+
+/// RK4 of the variational equation for one vector on the state's stage points, with `J x`
+/// formed directly.
+#[inline(always)]
+pub fn tangent_substep<F: Real>(
+    p: &Params<F>,
+    stages: &[[F; 4]; 4],
+    mode: Mode,
+    dt: F,
+    x: &mut [F; 4],
+) {
+    let half = F::of(0.5) * dt;
+    let at = |a: F, k: &[F; 4]| {
+        [
+            x[0] + a * k[0],
+            x[1] + a * k[1],
+            x[2] + a * k[2],
+            x[3] + a * k[3],
+        ]
+    };
+    let k1 = jacobian_times(p, &stages[0], mode, x);
+    let k2 = jacobian_times(p, &stages[1], mode, &at(half, &k1));
+    let k3 = jacobian_times(p, &stages[2], mode, &at(half, &k2));
+    let k4 = jacobian_times(p, &stages[3], mode, &at(dt, &k3));
+    let sixth = dt / F::of(6.0);
+    let two = F::of(2.0);
+    for i in 0..4 {
+        x[i] += sixth * (k1[i] + two * (k2[i] + k3[i]) + k4[i]);
+    }
+}
+
+/// The saltation of event `e` applied to one vector.
+#[inline(always)]
+pub fn tangent_event<F: Real>(it: &Integrator<F>, e: &Event<F>, x: &mut [F; 4]) {
+    Saltation::at(it, e).apply(&it.p, x);
+}
+
+/// Unit length, and the log of the length before (f32 logarithm). A collapsed vector (a stick
+/// or lock removes its direction) restarts along y1 and counts at the floor, as in
+/// [`orthonormalize`].
+pub fn tangent_renormalize<F: Real>(x: &mut [F; 4]) -> f64 {
+    let norm = dot(x, x).sqrt();
+    let floor = collapse_floor::<F>();
+    if norm <= floor {
+        *x = Leading::default().x;
+        return (floor.to_f64() as f32).ln() as f64;
+    }
+    for v in x.iter_mut() {
+        *v = *v / norm;
+    }
+    (norm.to_f64() as f32).ln() as f64
+}
+
 /// Integrates `periods` forcing periods from `st` with the full tangent (identity at the
 /// start): the state at the end and the derivative of the `periods`-period stroboscopic map
 /// (the monodromy matrix of a cycle of that period).
@@ -392,7 +490,7 @@ pub struct Spectrum {
 
 /// Below this norm a tangent vector is taken as collapsed (a stick or lock removes up to two
 /// directions exactly); it is replaced by a fresh orthogonal direction and counted at the floor.
-fn collapse_floor<F: Real>() -> F {
+pub fn collapse_floor<F: Real>() -> F {
     F::EPSILON * F::EPSILON
 }
 

@@ -432,10 +432,13 @@ fn points_beyond_the_drivers_loop_budget_are_computed_on_the_cpu_and_marked() {
         return;
     };
     let on_cpu_adapter = g.lock().unwrap().info.device_type == wgpu::DeviceType::Cpu;
-    // Chattering without the Zeno cut: hundreds of events per period, beyond the 65535 loop
-    // iterations llvmpipe allows an invocation per dispatch. The run must not be lost.
-    let text = "[model]\nR = 0.3\neta = 0.8\n[method]\nzeno_speed = 0.0\nprecision = \"f64\"\n\
-        [run]\ntransient_periods = 20\nsample_periods = 10\n";
+    // Chattering without the Zeno cut in a clearance of 0.1 (the paper's 0.8 no longer
+    // suffices since the exponent stopped integrating a twin trajectory), every event of a
+    // step allowed: hundreds of events per period, beyond the 65535 loop iterations llvmpipe
+    // allows an invocation per dispatch. The run must not be lost.
+    let text = "[model]\nR = 0.6\neta = 0.8\nr = 0.1\n[method]\nzeno_speed = 0.0\n\
+        max_events = 1000\nprecision = \"f64\"\n[run]\ntransient_periods = 20\n\
+        sample_periods = 10\n";
     let cfg = rattle::config::Config::from_toml(text, &[]).unwrap();
     let engine = Engine::Gpu(Box::new(Gpu::new().unwrap()));
     let r = rattle::point::run(&engine, &cfg, &Silent).expect("the run survives");
@@ -456,20 +459,33 @@ fn every_rung_of_the_kernel_ladder_compiles_and_the_top_rung_is_the_kernel() {
     // The ladder (`rattle bench --ladder`) compiles the kernel with pieces left out; each rung
     // must build and run, and the top rung must be the production kernel, bit for bit. The
     // rung below it sends every step through the event code: the quiet steps run out of line
-    // must give the same numbers, bit for bit, in both precisions.
+    // must give the same numbers, bit for bit, in both precisions, with the exponent too (the
+    // tangent is advanced in both loops). The tangent only observes: with the exponent on, the
+    // states are those of the plain kernel, bit for bit.
     for f64 in [false, true] {
-        ladder_rungs(f64);
+        let plain = ladder_rungs(f64, false);
+        let with = ladder_rungs(f64, true);
+        let (Some(plain), Some(with)) = (plain, with) else {
+            return;
+        };
+        for (a, b) in plain.results.iter().zip(&with.results) {
+            assert_eq!(a.final_y, b.final_y, "f64 {f64}");
+            assert_eq!(a.samples, b.samples, "f64 {f64}");
+            assert_eq!(a.diag, b.diag, "f64 {f64}");
+            assert!(a.lyapunov.is_nan() && b.lyapunov.is_finite(), "f64 {f64}");
+        }
     }
 }
 
-fn ladder_rungs(f64: bool) {
+fn ladder_rungs(f64: bool, lyapunov: bool) -> Option<GpuOutput> {
     let etas: Vec<f64> = (0..64).map(|i| 1.0 + i as f64 / 64.0).collect();
-    let s = Settings::default();
+    let s = Settings {
+        lyapunov,
+        ..Settings::default()
+    };
     let spec = eta_spec(s, 20, 10, f64);
     let base = Job::new(&spec, Points::along(&[Param::Eta], &etas), true);
-    let Some(full) = run_job(&base) else {
-        return;
-    };
+    let full = run_job(&base)?;
     for rung in rattle::gpu::Rung::ALL {
         let out = run_job(&Job {
             rung,
@@ -479,12 +495,21 @@ fn ladder_rungs(f64: bool) {
         assert_eq!(out.results.len(), etas.len(), "{rung:?}");
         if rung == rattle::gpu::Rung::Full || rung == rattle::gpu::Rung::Events {
             for (a, b) in out.results.iter().zip(&full.results) {
-                assert_eq!(a.final_y, b.final_y, "{rung:?} f64 {f64}");
-                assert_eq!(a.samples, b.samples, "{rung:?} f64 {f64}");
-                assert_eq!(a.diag.impacts, b.diag.impacts, "{rung:?} f64 {f64}");
+                let what = format!("{rung:?} f64 {f64} lyapunov {lyapunov}");
+                assert_eq!(a.final_y, b.final_y, "{what}");
+                assert_eq!(a.samples, b.samples, "{what}");
+                assert_eq!(a.diag.impacts, b.diag.impacts, "{what}");
+                assert_eq!(
+                    a.lyapunov.to_bits(),
+                    b.lyapunov.to_bits(),
+                    "{what}: {} vs {}",
+                    a.lyapunov,
+                    b.lyapunov
+                );
             }
         }
     }
+    Some(full)
 }
 
 #[test]
@@ -537,5 +562,119 @@ fn stribeck_points_agree_with_cpu() {
             );
             assert!(sticks > 0, "the points must stick");
         }
+    }
+}
+
+#[test]
+fn tangent_exponents_agree_with_cpu_at_periodic_points_of_fig2() {
+    // The kernel's tangent vector is the twin of the CPU run's (same variational RK4 on the same
+    // stage points, same saltations, f32 logarithms of the norms on both sides). On periodic
+    // attractors the states agree to round-off, so the exponents do: in f64 to the f32
+    // logarithms' rounding (a few 1e-8 per period, averaging out over 200 periods); in f32 the
+    // states differ by up to 1.6e-5 (README, `rattle validate`), which moves the per-period
+    // log growth by about that much times the orbit's sensitivity; 200 periods of P ~ 4 average
+    // it to a few 1e-7, and 3e-6 leaves a margin of ten while a wrong saltation or stage
+    // (1e-3 and more) fails.
+    let etas = [1.30, 1.35, 1.40, 1.45, 1.50, 1.55, 1.60, 1.65, 1.90];
+    let s = Settings {
+        lyapunov: true,
+        ..Settings::default()
+    };
+    for (f64, tol) in [(true, 1e-7), (false, 3e-6)] {
+        let Some(g) = run_gpu(&etas, s, 300, 200, f64) else {
+            return;
+        };
+        let mut worst = 0.0f64;
+        for (i, &eta) in etas.iter().enumerate() {
+            let c = if f64 {
+                run_cpu::<f64>(eta, &s, 300, 200)
+            } else {
+                run_cpu::<f32>(eta, &s, 300, 200)
+            };
+            let (a, b) = (g.results[i].lyapunov, c.lyapunov);
+            assert!(a.is_finite() && b < 0.0, "eta {eta}: GPU {a}, CPU {b}");
+            worst = worst.max((a - b).abs());
+            assert!((a - b).abs() <= tol, "eta {eta} f64 {f64}: GPU {a} CPU {b}");
+        }
+        eprintln!("f64 {f64}: max |GPU - CPU| exponent {worst:.1e} (bound {tol:.0e})");
+    }
+}
+
+#[test]
+fn tangent_exponent_where_an_impact_falls_near_the_section() {
+    // The R x lambda map's period-1 cell of tests/lyapunov.rs where the twin trajectory read
+    // +0.1205 (GPU f32 as CPU f32; +0.018 to +0.035 in the cells just below): the kernel's
+    // tangent reads the Floquet rate ln|mu1| / P of the cycle it reaches, up to the finite-time
+    // error of 100 periods (1e-3 here).
+    let r = 0.5 + 0.2 * 51.5 / 512.0;
+    let lambdas = [0.08013, 0.08015, 0.080155];
+    let values: Vec<f64> = lambdas.iter().flat_map(|&l| [r, l]).collect();
+    let s = Settings {
+        steps_per_period: 128,
+        lyapunov: true,
+        ..Settings::default()
+    };
+    for f64 in [false, true] {
+        let spec = RunSpec {
+            params: Params {
+                restitution: r,
+                ..Params::paper(1.26)
+            },
+            ..eta_spec(s, 300, 100, f64)
+        };
+        let vary = [Param::R, Param::Lambda];
+        let points = Points::along(&vary, &values);
+        let Some(g) = run_job(&Job::new(&spec, points, false)) else {
+            return;
+        };
+        for (i, &lambda) in lambdas.iter().enumerate() {
+            let p = points.params(&spec.params, i);
+            let res = &g.results[i];
+            let start = rattle::method::PointState {
+                y: res.final_y,
+                mode: res.final_mode,
+                diag: Default::default(),
+            };
+            let c = rattle::tangent::refine(&Integrator::<f64>::new(&p, &s), &start, 1);
+            assert!(c.is_stable(), "lambda {lambda}: {c:?}");
+            let floquet = c.leading_modulus().ln() / (2.0 * std::f64::consts::PI / p.eta);
+            eprintln!(
+                "lambda {lambda} f64 {f64}: GPU {:.5}, Floquet {floquet:.5}",
+                res.lyapunov
+            );
+            assert!(
+                (res.lyapunov - floquet).abs() < 2e-3,
+                "lambda {lambda} f64 {f64}: {} vs {floquet}",
+                res.lyapunov
+            );
+        }
+    }
+}
+
+#[test]
+fn the_loop_budget_holds_with_the_tangent_at_n_64() {
+    // llvmpipe ends an invocation's loops after 65535 iterations; the runner sizes dispatches
+    // by iterations per step, which the tangent must not raise (it adds no loop: the twin
+    // trajectory it replaced ran every sampled period twice). At N = 64 a dispatch holds the
+    // most periods, so a budget too small for the kernel shows here first: no point may be cut
+    // short (and rerun on the CPU), in either precision.
+    let etas: Vec<f64> = (0..256).map(|i| 1.0 + i as f64 / 256.0).collect();
+    let s = Settings {
+        steps_per_period: 64,
+        lyapunov: true,
+        ..Settings::default()
+    };
+    for f64 in [false, true] {
+        let spec = eta_spec(s, 100, 100, f64);
+        let Some(g) = run_job(&Job::new(&spec, Points::along(&[Param::Eta], &etas), false)) else {
+            return;
+        };
+        eprintln!(
+            "N = 64, f64 {f64}: {} dispatches, {} points cut short",
+            g.timings.dispatches,
+            g.truncated.len()
+        );
+        assert!(g.truncated.is_empty(), "cut short: {:?}", g.truncated);
+        assert!(g.results.iter().all(|r| r.lyapunov.is_finite()));
     }
 }

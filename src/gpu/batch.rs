@@ -3,13 +3,13 @@
 
 use super::layout::{
     C_B1, C_DELTA, C_DPHI, C_ETA, C_FK, C_FS, C_L1, C_L2, C_MU, C_PERIOD_TOL, C_R, C_RESTITUTION,
-    C_TABLE, C_TOL, C_TWIN, C_ZENO, Control, R_LOG_SUM, R_SLOTS, STATE_DIM, U_DET_COUNT, U_DET_HI,
-    U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS,
-    U_STICKS, U_TRUNCATED, U_TWIN_BAD, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
+    C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_LOG_SUM, R_SLOTS, STATE_DIM, U_DET_COUNT,
+    U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS,
+    U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
 };
 use super::{Gpu, GpuError, Job};
 use crate::classify::{Class, PeriodDetector, class_of};
-use crate::method::{Diagnostics, ImpactMethod, RunResult, forcing_table, twin_offset};
+use crate::method::{Diagnostics, ImpactMethod, RunResult, forcing_table};
 use crate::model::{Mode, Params, initial_mode};
 use crate::real::Real;
 use crate::spec::RunSpec;
@@ -124,7 +124,7 @@ fn consts<F: Real>(spec: &RunSpec) -> Vec<F> {
         c[slot as usize] = F::of(v);
     }
     c[C_TOL as usize] = F::EPSILON * F::of(16.0);
-    c[C_TWIN as usize] = twin_offset::<F>();
+    c[C_TAN_FLOOR as usize] = crate::tangent::collapse_floor::<F>();
     c.extend(forcing_table(nsteps).iter().flatten().map(|&v| F::of(v)));
     c
 }
@@ -138,6 +138,9 @@ pub(super) struct Batch<F> {
     /// Control block of the batch; the dispatch loop sets the periods of each dispatch.
     pub(super) control: Control,
     pub(super) pipeline: wgpu::ComputePipeline,
+    /// The kernel without the tangent, for dispatches of transient periods only, when the
+    /// job's kernel carries it.
+    pub(super) transient_pipeline: Option<wgpu::ComputePipeline>,
     pub(super) bind: wgpu::BindGroup,
     ys: wgpu::Buffer,
     us: wgpu::Buffer,
@@ -148,10 +151,11 @@ pub(super) struct Batch<F> {
 }
 
 impl<F: Real + Pod> Batch<F> {
-    /// Uploads the per-point values and initial states of the points in `range`.
+    /// Uploads the per-point values and initial states of the points in `range`. `pipelines`:
+    /// the job's kernel, and the one for transient periods if it differs.
     pub(super) fn new(
         gpu: &Gpu,
-        pipeline: &wgpu::ComputePipeline,
+        (pipeline, transient_pipeline): (&wgpu::ComputePipeline, Option<&wgpu::ComputePipeline>),
         shared: &Shared,
         job: &Job,
         plan: &Plan,
@@ -245,6 +249,7 @@ impl<F: Real + Pod> Batch<F> {
             grid: (gx, gy),
             control,
             pipeline: pipeline.clone(),
+            transient_pipeline: transient_pipeline.cloned(),
             bind,
             ys,
             us,
@@ -264,7 +269,7 @@ impl<F: Real + Pod> Batch<F> {
     ) -> Result<ReadBack<F>, GpuError> {
         let m = self.range.len() as u64;
         let fsz = size_of::<F>() as u64;
-        // The main state only: the twin is the kernel's business.
+        // The state only: the tangent vector is the kernel's business.
         let ys = gpu.read_storage(&self.ys, (Y_MAIN + STATE_DIM) as u64 * m * fsz)?;
         let ring = if job.spec.settings.lyapunov {
             gpu.read_storage(&self.ring, m * R_SLOTS as u64 * fsz)?
@@ -360,7 +365,7 @@ impl<F: Real> ReadBack<F> {
                 || PeriodDetector::period_from(possible, count),
             ));
             // Mean log growth per unit time over the sampled periods.
-            let lyapunov = if spec.settings.lyapunov && u(U_TWIN_BAD) == 0 && count > 0 {
+            let lyapunov = if spec.settings.lyapunov && u(U_TAN_BAD) == 0 && count > 0 {
                 let eta = job.points.params(&spec.params, self.start + i).eta;
                 let period = 2.0 * std::f64::consts::PI / eta;
                 self.ring[at(R_LOG_SUM, self.m, i)].to_f64() / (count as f64 * period)

@@ -80,7 +80,16 @@ impl Gpu {
             .min(cap);
         let mut done = 0u32;
         while done < total_periods {
-            let periods = chunk.min(total_periods - done);
+            let mut periods = chunk.min(total_periods - done);
+            // No dispatch straddles the start of sampling when the transient has a kernel of
+            // its own (the same states, bit for bit, without the tangent's cost).
+            let pipeline = match &batch.transient_pipeline {
+                Some(p) if done < ctl.transient => {
+                    periods = periods.min(ctl.transient - done);
+                    p
+                }
+                _ => &batch.pipeline,
+            };
             ctl.period0 = done;
             ctl.periods = periods;
             self.queue
@@ -95,7 +104,7 @@ impl Gpu {
                         end_of_pass_write_index: Some(1),
                     }),
                 });
-                pass.set_pipeline(&batch.pipeline);
+                pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, &batch.bind, &[]);
                 pass.dispatch_workgroups(batch.grid.0, batch.grid.1, 1);
             }

@@ -3,7 +3,7 @@
 use super::layout;
 use crate::config::Precision;
 use std::collections::HashMap;
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 
 /// The kernel body as written. It does not compile alone: the precision alias, the constants
 /// and `Control` come from the prelude (see [`shader_source`]).
@@ -26,8 +26,9 @@ pub enum Rung {
     Finite,
     /// + stroboscopic samples and the period detector.
     Detector,
-    /// + the twin trajectory of the Lyapunov estimate (compiled in; runs only when asked).
-    Twin,
+    /// + the tangent vector of the Lyapunov estimate (compiled in when the job asks for the
+    ///   exponent, as in production).
+    Tangent,
     /// + the event guards and their brackets (a bracketed event ends the step as an overflow).
     Guards,
     /// + root refinement and event application, all of it in every step.
@@ -43,7 +44,7 @@ impl Rung {
         Rung::Bare,
         Rung::Finite,
         Rung::Detector,
-        Rung::Twin,
+        Rung::Tangent,
         Rung::Guards,
         Rung::Events,
         Rung::Full,
@@ -54,34 +55,70 @@ impl Rung {
             Rung::Bare => "RK4 step, forcing table",
             Rung::Finite => "+ non-finite test",
             Rung::Detector => "+ samples, period detector",
-            Rung::Twin => "+ twin trajectory (compiled)",
+            Rung::Tangent => "+ tangent (with the exponent)",
             Rung::Guards => "+ event guards, brackets",
             Rung::Events => "+ refinement, events in every step",
             Rung::Full => "+ quiet steps out of line (production)",
         }
     }
 
-    /// Values of the shader's `LADDER_*` constants, and `COULOMB` (friction law of every point
-    /// of the job is Coulomb's: a kernel without the general law's division).
-    fn constants(self, coulomb: bool) -> [(&'static str, f64); 7] {
+    /// Values of the shader's `LADDER_*` constants, `COULOMB` (friction law of every point
+    /// of the job is Coulomb's: a kernel without the general law's division) and `TANGENT` (the
+    /// job estimates the exponent: a kernel without it has none of the tangent's code, which
+    /// on llvmpipe costs even where it does not run).
+    fn constants(self, coulomb: bool, tangent: bool) -> [(&'static str, f64); 7] {
         let on = |r: Rung| if self as u8 >= r as u8 { 1.0 } else { 0.0 };
+        let flag = |b: bool| if b { 1.0 } else { 0.0 };
         [
             ("LADDER_FINITE", on(Rung::Finite)),
             ("LADDER_DETECTOR", on(Rung::Detector)),
-            ("LADDER_TWIN", on(Rung::Twin)),
             ("LADDER_GUARDS", on(Rung::Guards)),
             ("LADDER_EVENTS", on(Rung::Events)),
             ("LADDER_QUIET", on(Rung::Full)),
-            ("COULOMB", if coulomb { 1.0 } else { 0.0 }),
+            ("COULOMB", flag(coulomb)),
+            ("TANGENT", flag(tangent) * on(Rung::Tangent)),
         ]
     }
 }
 
-/// Compiled kernels per precision and rung, built on first use (continuation runs many small
-/// jobs and compiles once; a run that never asks for f64 never compiles it).
+/// Compiled kernels per precision, rung, Coulomb-only and tangent, built on first use
+/// (continuation runs many small jobs and compiles once; a run that never asks for f64 never
+/// compiles it).
 #[derive(Default)]
 pub(super) struct Kernels {
-    pipelines: Mutex<HashMap<(Precision, Rung, bool), wgpu::ComputePipeline>>,
+    pipelines: Mutex<HashMap<(Precision, Rung, bool, bool), wgpu::ComputePipeline>>,
+    /// One bind group layout for every pipeline (an automatic layout belongs to its pipeline
+    /// alone), so that a batch's bind group serves the kernel with the tangent and the one
+    /// without it, which runs the transient.
+    layout: OnceLock<(wgpu::BindGroupLayout, wgpu::PipelineLayout)>,
+}
+
+/// The kernel's bindings: the control uniform, the read-only constants and per-point
+/// parameters, then the per-point state, counters, samples and ring.
+fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("integrate"),
+        entries: &[
+            entry(0, wgpu::BufferBindingType::Uniform),
+            entry(1, storage(true)),
+            entry(2, storage(true)),
+            entry(3, storage(false)),
+            entry(4, storage(false)),
+            entry(5, storage(false)),
+            entry(6, storage(false)),
+        ],
+    })
 }
 
 impl Kernels {
@@ -91,10 +128,20 @@ impl Kernels {
         precision: Precision,
         rung: Rung,
         coulomb: bool,
+        tangent: bool,
     ) -> wgpu::ComputePipeline {
+        let (_, layout) = self.layout.get_or_init(|| {
+            let group = bind_group_layout(device);
+            let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("integrate"),
+                bind_group_layouts: &[Some(&group)],
+                immediate_size: 0,
+            });
+            (group, layout)
+        });
         let mut cache = self.pipelines.lock().unwrap();
         cache
-            .entry((precision, rung, coulomb))
+            .entry((precision, rung, coulomb, tangent))
             .or_insert_with(|| {
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("integrate"),
@@ -102,11 +149,11 @@ impl Kernels {
                 });
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some("integrate"),
-                    layout: None,
+                    layout: Some(layout),
                     module: &module,
                     entry_point: Some("main"),
                     compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &rung.constants(coulomb),
+                        constants: &rung.constants(coulomb, tangent),
                         ..Default::default()
                     },
                     cache: None,

@@ -78,10 +78,9 @@ u32_group!(US, "Slots of `us`, u32 per point: us[slot * n_points + i]." {
     /// Set when the driver cut a loop short (llvmpipe limits the loop iterations of one
     /// invocation); the host then rejects the run instead of returning a wrong answer.
     U_TRUNCATED = 10;
-    /// Twin trajectory of the Lyapunov estimate: its mode and failure flag.
-    U_TWIN_MODE = 11;
-    U_TWIN_BAD = 12;
-    U_SLOTS = 13;
+    /// The Lyapunov tangent vector overflowed: the point has no exponent.
+    U_TAN_BAD = 11;
+    U_SLOTS = 12;
 });
 
 // The detector's MAX_PERIOD past section values sit at slots 0..MAX_PERIOD.
@@ -89,15 +88,15 @@ u32_group!(RING, "Slots of `ring`, F per point: past values, their range, the lo
     /// Range of the values pushed so far (the detector's tolerance scales with it).
     R_LO = MAX_PERIOD;
     R_HI = MAX_PERIOD + 1;
-    /// Sum of the log growth of the twin's distance (Lyapunov estimate).
+    /// Sum of the logs of the tangent vector's growth per sampled period (Lyapunov estimate).
     R_LOG_SUM = MAX_PERIOD + 2;
     R_SLOTS = MAX_PERIOD + 3;
 });
 
-u32_group!(YS, "Slots of `ys`, F per point: main and twin state, STATE_DIM slots each." {
+u32_group!(YS, "Slots of `ys`, F per point: state and Lyapunov tangent, STATE_DIM slots each." {
     Y_MAIN = 0;
-    Y_TWIN = Y_MAIN + STATE_DIM;
-    Y_SLOTS = Y_TWIN + STATE_DIM;
+    Y_TAN = Y_MAIN + STATE_DIM;
+    Y_SLOTS = Y_TAN + STATE_DIM;
 });
 
 // Base parameters in the order of the kernel's Params, method constants, then the forcing
@@ -120,8 +119,8 @@ u32_group!(CONSTS, "Slots of `consts`, F shared by all points." {
     C_PERIOD_TOL = 12;
     /// Forcing phase of one RK4 step, 2 pi / N.
     C_DPHI = 13;
-    /// Initial distance of the Lyapunov twin.
-    C_TWIN = 14;
+    /// Norm below which the Lyapunov tangent vector counts as collapsed (eps^2 of F).
+    C_TAN_FLOOR = 14;
     /// Start of the forcing table (slot 15 is unused).
     C_TABLE = 16;
 });
@@ -191,7 +190,7 @@ control! {
     naive,
     /// Invocations per row of a 2-D grid (dispatches beyond the per-dimension limit).
     row,
-    /// Whether the Lyapunov twin runs.
+    /// Whether the Lyapunov tangent vector runs (in the sampled periods).
     lyap,
     /// Pads the uniform to a multiple of 16 bytes.
     pad1,

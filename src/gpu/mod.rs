@@ -298,9 +298,19 @@ impl Gpu {
         let plan = Plan::new::<F>(job, &self.limits)?;
         let coulomb =
             (0..job.points.len()).all(|i| job.points.params(&spec.params, i).is_coulomb());
-        let pipeline = self
-            .kernels
-            .get(&self.device, spec.precision, job.rung, coulomb);
+        let pipeline = self.kernels.get(
+            &self.device,
+            spec.precision,
+            job.rung,
+            coulomb,
+            spec.settings.lyapunov,
+        );
+        // The tangent's code costs on llvmpipe even where it does not run: the transient
+        // periods run the kernel without it.
+        let transient = spec.settings.lyapunov.then(|| {
+            self.kernels
+                .get(&self.device, spec.precision, job.rung, coulomb, false)
+        });
         self.check_error()?;
         let shared = Shared::new::<F>(self, spec);
         let mut timer = self.timestamps.then(|| Timer::new(self));
@@ -316,7 +326,8 @@ impl Gpu {
         for range in plan.batches(n) {
             let t_batch = Instant::now();
             timings.batches += 1;
-            let batch = Batch::<F>::new(self, &pipeline, &shared, job, &plan, range)?;
+            let pipelines = (&pipeline, transient.as_ref());
+            let batch = Batch::<F>::new(self, pipelines, &shared, job, &plan, range)?;
             self.check_error()?;
             timings.setup_s += t_batch.elapsed().as_secs_f64();
 
