@@ -1,0 +1,249 @@
+//! The command line's arguments (clap): commands, their options, and the options every
+//! command shares (configuration file and overrides).
+
+use anyhow::Result;
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use rattle::bifurcation::Continuation;
+use rattle::config::{Backend, Config, Overrides, Precision};
+use rattle::map;
+use std::path::{Path, PathBuf};
+
+#[derive(Parser)]
+#[command(
+    name = "rattle",
+    version,
+    about = "Impact oscillator with dry friction: GPU/CPU parameter sweeps"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+pub enum Cmd {
+    /// Integrate one parameter point and classify its motion.
+    Point {
+        #[command(flatten)]
+        common: Common,
+        /// Print one JSON object instead of text.
+        #[arg(long, conflicts_with = "plot")]
+        json: bool,
+        /// Draw the point instead (CPU, f64): time series, phase portrait, section and laminar
+        /// phases in PREFIX.png and PREFIX.svg, the data and caption in PREFIX.json.
+        #[arg(long, value_name = "PREFIX")]
+        plot: Option<PathBuf>,
+        /// With --plot: the last forcing periods shown in the time series and phase portrait.
+        #[arg(long, default_value_t = rattle::point::plot::DEFAULT_PERIODS, requires = "plot")]
+        periods: u32,
+        /// With --plot: return tolerance of the laminar phases, relative to max(1, attractor size).
+        #[arg(long, default_value_t = rattle::point::plot::DEFAULT_LAMINAR_TOL, requires = "plot")]
+        laminar_tol: f64,
+    },
+    /// Sweep one parameter and draw the bifurcation diagram (PNG, CSV, JSON).
+    Bifurcation {
+        #[command(flatten)]
+        common: Common,
+        /// Output prefix: writes PREFIX.png, PREFIX.csv, PREFIX.json.
+        #[arg(long, default_value = "bifurcation")]
+        out: PathBuf,
+        /// Parameter continuation: each point starts from its neighbour's final state.
+        #[arg(long, value_enum)]
+        continuation: Option<Continuation>,
+    },
+    /// A 2-D map of attractor classes and Lyapunov exponents over two parameters.
+    Map {
+        #[command(flatten)]
+        common: Common,
+        /// Output prefix: PREFIX.png, PREFIX-lyapunov.png, PREFIX-*.npy, PREFIX.json.
+        #[arg(long, default_value = "map")]
+        out: PathBuf,
+        /// Compute only the contiguous share I of N (0-based) and write PREFIX.part-I-of-N.json.
+        #[arg(long, value_name = "I/N", value_parser = map::parse_shard)]
+        shard: Option<(usize, usize)>,
+        /// Run in K shards, keeping each finished one on disk: an interrupted run started again
+        /// with the same arguments resumes from the completed shards.
+        #[arg(long, value_name = "K")]
+        checkpoint: Option<usize>,
+        /// Also compute the map of OTHER.toml (same grid) and render where the class differs.
+        #[arg(long, value_name = "OTHER.toml")]
+        compare: Option<PathBuf>,
+        /// `all`: split the cells over every adapter of the machine, computed concurrently.
+        #[arg(long, value_enum, default_value_t = Adapters::One)]
+        adapters: Adapters,
+        /// K initial states per cell; cells whose starts end on different attractors are
+        /// marked "coexisting attractors".
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+        starts: u32,
+        /// Coarse-to-fine: compute every K-th cell, refine only blocks whose corners differ in
+        /// class, fill uniform blocks (flagged in PREFIX-inferred.npy).
+        #[arg(long, value_name = "K")]
+        refine: Option<usize>,
+    },
+    /// Basins of attraction at one parameter point: a grid of initial states, one colour per
+    /// attractor (identified by its Newton-refined cycle).
+    Basin {
+        #[command(flatten)]
+        common: Common,
+        /// Output prefix: PREFIX.png, PREFIX.npy (attractor id per cell), PREFIX.json.
+        #[arg(long, default_value = "basin")]
+        out: PathBuf,
+    },
+    /// Merge the partial outputs of a sharded map into the files a single run writes.
+    Merge {
+        /// PREFIX.part-I-of-N.json files.
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        #[arg(long, default_value = "map")]
+        out: PathBuf,
+    },
+    /// Figures for reports: `paper` renders Figs. 2, 3, 4a and 4b side by side.
+    Figure {
+        /// Which figure.
+        #[arg(value_enum)]
+        which: Figure,
+        /// Directory with fig2.toml, fig3.toml, fig4a.toml, fig4b.toml (default: the built-in
+        /// copies of configs/).
+        #[arg(long)]
+        configs: Option<PathBuf>,
+        /// Parameter points per panel (overrides sweep.points).
+        #[arg(long)]
+        points: Option<u32>,
+        #[arg(long, default_value = "paper.png")]
+        out: PathBuf,
+        #[arg(long, value_enum)]
+        backend: Option<Backend>,
+        #[arg(long, value_enum)]
+        precision: Option<Precision>,
+    },
+    /// Work-precision chart and failure fractions of every method, precision and backend.
+    Accuracy {
+        #[command(flatten)]
+        common: Common,
+        /// Output prefix: PREFIX.csv, PREFIX.png (work-precision), PREFIX-failure.png, PREFIX.json.
+        #[arg(long, default_value = "accuracy")]
+        out: PathBuf,
+        /// Copies of the test point run together for the timing.
+        #[arg(long, default_value_t = 64)]
+        ensemble: usize,
+        /// Sweep points of the failure study.
+        #[arg(long, default_value_t = 100)]
+        failure_points: u32,
+        /// Transient periods before the section point is taken.
+        #[arg(long, default_value_t = 300)]
+        transient: u32,
+    },
+    /// List the adapters wgpu sees and the one rattle would use.
+    Adapters,
+    /// Run the same points on GPU and CPU and print the agreement table.
+    Validate {
+        #[command(flatten)]
+        common: Common,
+        /// Points for the state-difference rows (the class rows use the whole sweep).
+        #[arg(long, default_value_t = 64)]
+        state_points: usize,
+    },
+    /// Measure RK4 steps/s of every backend and precision in one run.
+    Bench {
+        #[command(flatten)]
+        common: Common,
+        /// Parameter points (eta spread over the config's sweep range).
+        #[arg(long, default_value_t = 2000)]
+        points: usize,
+        /// Forcing periods per point.
+        #[arg(long, default_value_t = 100)]
+        periods: u32,
+        /// Print the table as JSON too.
+        #[arg(long)]
+        json: bool,
+        /// The kernel ladder instead: the GPU kernel compiled piece by piece, steps/s each.
+        #[arg(long)]
+        ladder: bool,
+        /// Also time each backend and precision with the Lyapunov exponent estimated over the
+        /// second half of the periods (the first half then is the transient), and print its
+        /// extra cost; with --ladder, every rung with the exponent.
+        #[arg(long)]
+        lyapunov: bool,
+    },
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Adapters {
+    One,
+    /// Every adapter of the machine, one share of the cells each.
+    All,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Figure {
+    /// Figs. 2, 3, 4a and 4b of the paper side by side.
+    Paper,
+}
+
+#[derive(Args, Clone)]
+pub struct Common {
+    /// TOML configuration (every key defaults to the paper's values).
+    #[arg(long)]
+    pub config: PathBuf,
+    /// Forcing frequency (overrides model.eta).
+    #[arg(long)]
+    pub eta: Option<f64>,
+    /// Restitution coefficient (overrides model.R).
+    #[arg(long = "R")]
+    pub restitution: Option<f64>,
+    /// Coulomb friction coefficient (overrides model.lambda).
+    #[arg(long)]
+    pub lambda: Option<f64>,
+    /// Any other key: `--set r=0.9`, `--set method.steps_per_period=512`.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Floating-point precision of the integrator.
+    #[arg(long, value_enum)]
+    pub precision: Option<Precision>,
+    /// Compute backend.
+    #[arg(long, value_enum)]
+    pub backend: Option<Backend>,
+}
+
+impl Common {
+    /// Backends a comparison command measures: the one named, or both.
+    pub fn backends(&self) -> Vec<Backend> {
+        self.backend
+            .map_or(vec![Backend::Gpu, Backend::Cpu], |b| vec![b])
+    }
+
+    /// The configuration of `path` with this command line's overrides, validated.
+    pub fn load_from(&self, path: &Path) -> Result<Config> {
+        let o = Overrides {
+            eta: self.eta,
+            restitution: self.restitution,
+            lambda: self.lambda,
+            precision: self.precision,
+            backend: self.backend,
+        };
+        let cfg = Config::load_with(path, &self.set, &o)?;
+        for n in cfg.notes() {
+            eprintln!("note: {n}");
+        }
+        Ok(cfg)
+    }
+
+    pub fn load_map(&self, path: &Path) -> Result<Config> {
+        let cfg = self.load_from(path)?;
+        cfg.validate_map()?;
+        Ok(cfg)
+    }
+
+    /// With `[basin]` checked too.
+    pub fn load_basin(&self) -> Result<Config> {
+        let cfg = self.load_from(&self.config)?;
+        cfg.validate_basin()?;
+        Ok(cfg)
+    }
+
+    /// With `[sweep]` checked too, for the commands that sweep.
+    pub fn load_sweep(&self) -> Result<Config> {
+        let cfg = self.load_from(&self.config)?;
+        cfg.validate_sweep()?;
+        Ok(cfg)
+    }
+}
