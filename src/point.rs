@@ -1,6 +1,7 @@
 //! One parameter point: its class, exponent, diagnostics and samples, as text or JSON; and its
 //! figure ([`plot`]).
 
+pub mod laminar;
 pub mod plot;
 
 use crate::classify::Class;
