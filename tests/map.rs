@@ -361,3 +361,22 @@ fn refined_map_agrees_with_the_full_map_and_flags_inferred_cells() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--refine"));
 }
+
+#[test]
+fn map_titles_name_the_parameters_of_the_friction_law() {
+    // A Stribeck map's caption must name fs, fk, l1, l2 (its friction), not Coulomb's lambda.
+    let s = Config::from_toml(
+        "[model]\nfriction = \"stribeck\"\nfs = 0.25\nfk = 0.05\n[map]\nx = \"R\"\ny = \"eta\"\n",
+        &[],
+    )
+    .unwrap();
+    let t = rattle::map::model_title(&s, &["R", "eta"]);
+    assert!(
+        t.contains("fs=0.25") && t.contains("fk=0.05") && t.contains("l2="),
+        "{t}"
+    );
+    assert!(!t.contains("lambda"), "{t}");
+    let c = Config::from_toml("[map]\nx = \"R\"\ny = \"eta\"\n", &[]).unwrap();
+    let t = rattle::map::model_title(&c, &["R", "eta"]);
+    assert!(t.contains("lambda=0.02") && !t.contains("fs="), "{t}");
+}

@@ -2,7 +2,7 @@
 
 use super::{Fields, MapError};
 use crate::classify::Class;
-use crate::config::Config;
+use crate::config::{Config, FrictionLaw};
 use crate::model::Param;
 use crate::output::{Staged, with_ext};
 use crate::render::{
@@ -83,16 +83,15 @@ pub fn title(cfg: &Config) -> String {
 /// (the axes of a map).
 pub fn model_title(cfg: &Config, except: &[&str]) -> String {
     let m = &cfg.model;
+    // The friction law's own parameters: lambda for Coulomb, fs, fk, l1, l2 for Stribeck.
+    let friction: &[(&str, f64)] = match m.friction {
+        FrictionLaw::Coulomb => &[("lambda", m.lambda)],
+        FrictionLaw::Stribeck => &[("fs", m.fs), ("fk", m.fk), ("l1", m.l1), ("l2", m.l2)],
+    };
     let mut fixed = Vec::new();
-    for (k, v) in [
-        ("eta", m.eta),
-        ("R", m.restitution),
-        ("lambda", m.lambda),
-        ("r", m.r),
-        ("delta", m.delta),
-        ("b1", m.b1),
-        ("mu", m.mu),
-    ] {
+    let common = [("r", m.r), ("delta", m.delta), ("b1", m.b1), ("mu", m.mu)];
+    let head = [("eta", m.eta), ("R", m.restitution)];
+    for &(k, v) in head.iter().chain(friction).chain(&common) {
         if !except.contains(&k) {
             fixed.push(format!("{k}={v}"));
         }
