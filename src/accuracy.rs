@@ -574,8 +574,7 @@ pub fn write_outputs(
         config: cfg,
         seconds,
     };
-    let text = serde_json::to_string_pretty(&serde_json::to_value(&j)?)?;
-    st.write(&with_ext(out, "json"), text.as_bytes())?;
+    st.write_json(&with_ext(out, "json"), &j)?;
     Ok(st.commit()?)
 }
 

@@ -611,11 +611,6 @@ pub fn write_outputs(prefix: &Path, cfg: &Config, b: &Basin) -> Result<Vec<PathB
                          per period",
         timings: &b.timings,
     };
-    // Through a Value, whose maps sort their keys: a stable file whatever the field order.
-    let j = serde_json::to_value(&j)?;
-    st.write(
-        &with_ext(prefix, "json"),
-        serde_json::to_string_pretty(&j)?.as_bytes(),
-    )?;
+    st.write_json(&with_ext(prefix, "json"), &j)?;
     Ok(st.commit()?)
 }

@@ -87,6 +87,19 @@ impl Staged {
         std::fs::write(&tmp, bytes).map_err(io(final_path))
     }
 
+    /// Writes `value` as pretty JSON to a staged file, through a `serde_json::Value` (whose
+    /// maps sort their keys: a stable file whatever the field order).
+    pub fn write_json<T: serde::Serialize>(
+        &mut self,
+        final_path: &Path,
+        value: &T,
+    ) -> Result<(), OutputError> {
+        let text = serde_json::to_value(value)
+            .and_then(|v| serde_json::to_string_pretty(&v))
+            .map_err(|e| other(final_path, e.to_string()))?;
+        self.write(final_path, text.as_bytes())
+    }
+
     /// `path`, if it exists, is removed at commit: the set no longer contains it.
     pub fn remove_stale(&mut self, path: &Path) {
         self.stale.push(path.to_path_buf());

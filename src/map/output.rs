@@ -397,14 +397,7 @@ pub fn write_outputs(
             layout: "arrays have shape (y_points, x_points); row 0 is y_from",
         },
     };
-    // Through a Value, whose maps sort their keys: a stable file whatever the field order.
-    let j = serde_json::to_value(&j)?;
-    st.write(
-        &with_ext(prefix, "json"),
-        serde_json::to_string_pretty(&j)
-            .map_err(MapError::Json)?
-            .as_bytes(),
-    )?;
+    st.write_json(&with_ext(prefix, "json"), &j)?;
     Ok(st.commit()?)
 }
 

@@ -668,11 +668,6 @@ pub fn write_outputs(prefix: &Path, p: &PointPlot) -> Result<Vec<PathBuf>> {
         height: HEIGHT,
         seconds: p.seconds,
     };
-    // Through a Value, whose maps sort their keys: a stable file whatever the field order.
-    let j = serde_json::to_value(&j)?;
-    st.write(
-        &with_ext(prefix, "json"),
-        serde_json::to_string_pretty(&j)?.as_bytes(),
-    )?;
+    st.write_json(&with_ext(prefix, "json"), &j)?;
     Ok(st.commit()?)
 }
