@@ -10,6 +10,7 @@ use rattle::classify::Class;
 use rattle::config::{Backend, Config};
 use rattle::engine::Engine;
 use rattle::map::{MapOptions, run};
+use rattle::output::with_suffix;
 use rattle::progress::Silent;
 use rattle::render::{LinePlot, Scale, Series, line_plot_png, line_plot_svg};
 use std::path::{Path, PathBuf};
@@ -120,7 +121,7 @@ fn measure(engine: &Engine, dir: &Path, map: &str, nx: u32, ny: u32) -> anyhow::
         let t = Instant::now();
         run(engine, &cfg, &prefix, &opts, &Silent)?;
         let secs = t.elapsed().as_secs_f64();
-        let class = read_i32(&with_suffix(&prefix, "class"))?;
+        let class = read_i32(&with_suffix(&prefix, "class.npy"))?;
         let reference = reference.get_or_insert_with(|| class.clone());
         let same = class
             .iter()
@@ -147,12 +148,6 @@ fn measure(engine: &Engine, dir: &Path, map: &str, nx: u32, ny: u32) -> anyhow::
         rows.push((name, secs, agreement, same, class.len()));
     }
     Ok(rows)
-}
-
-fn with_suffix(prefix: &Path, s: &str) -> PathBuf {
-    let mut p = prefix.as_os_str().to_owned();
-    p.push(format!("-{s}.npy"));
-    PathBuf::from(p)
 }
 
 fn read_i32(path: &Path) -> anyhow::Result<Vec<i32>> {
