@@ -1,6 +1,8 @@
 //! Early termination (`rattle::adaptive`): decided points leave the run, the classes stay
 //! those of the brute-force run.
 
+mod common;
+
 use rattle::bifurcation;
 use rattle::classify::Class;
 use rattle::config::Config;
@@ -147,15 +149,8 @@ fn capped_points_end_bit_for_bit_as_brute_force_on_the_cpu() {
 #[test]
 fn capped_points_end_bit_for_bit_as_brute_force_on_the_gpu() {
     // Fails, not skips, without an adapter when RATTLE_REQUIRE_GPU=1 (CI).
-    let engine = match rattle::gpu::Gpu::new() {
-        Ok(g) => Engine::Gpu(Box::new(g)),
-        Err(e) if std::env::var("RATTLE_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
-            panic!("RATTLE_REQUIRE_GPU=1 but no adapter: {e}")
-        }
-        Err(e) => {
-            eprintln!("SKIPPED: no GPU adapter ({e})");
-            return;
-        }
+    let Some(engine) = common::gpu_engine() else {
+        return;
     };
     capped_points_end_bit_for_bit_as_brute_force(&engine, "f32");
 }

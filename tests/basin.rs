@@ -4,13 +4,12 @@
 use rattle::basin::{Basin, compute};
 use rattle::config::{Config, Precision};
 use rattle::engine::Engine;
-use rattle::gpu::Gpu;
 use rattle::progress::Silent;
 use serde_json::Value;
 use std::path::Path;
 
 mod common;
-use common::{config, json, npy, rattle, scratch};
+use common::{config, gpu_engine, json, npy, rattle, scratch};
 
 /// `configs/basin.toml` on a 15 x 15 grid (odd, so that the centre cell starts at rest) with
 /// shorter runs.
@@ -163,16 +162,7 @@ fn relabelling_is_detected() {
 /// cells. Needs an adapter; with RATTLE_REQUIRE_GPU=1 a missing one fails the test.
 #[test]
 fn gpu_and_cpu_find_the_same_basins() {
-    let gpu = match Gpu::new() {
-        Ok(g) => Engine::Gpu(Box::new(g)),
-        Err(e) => {
-            if std::env::var("RATTLE_REQUIRE_GPU").is_ok_and(|v| v == "1") {
-                panic!("RATTLE_REQUIRE_GPU=1 but no adapter: {e}");
-            }
-            eprintln!("SKIPPED: no GPU adapter ({e})");
-            return;
-        }
-    };
+    let Some(gpu) = gpu_engine() else { return };
     let sets: Vec<String> = SMALL.chunks(2).map(|c| c[1].to_string()).collect();
     for precision in [Precision::F64, Precision::F32] {
         let mut cfg = Config::load(&config("basin.toml"), &sets).unwrap();

@@ -45,3 +45,18 @@ pub fn npy<T: npyz::Deserialize>(path: &Path) -> Vec<T> {
 pub fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
+
+/// A GPU engine, or None (the test then reports SKIPPED) when no adapter is found. With
+/// RATTLE_REQUIRE_GPU=1 (set by CI) a missing adapter fails the test instead.
+pub fn gpu_engine() -> Option<rattle::engine::Engine> {
+    match rattle::gpu::Gpu::new() {
+        Ok(g) => Some(rattle::engine::Engine::Gpu(Box::new(g))),
+        Err(e) => {
+            if std::env::var("RATTLE_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+                panic!("RATTLE_REQUIRE_GPU=1 but no adapter: {e}");
+            }
+            eprintln!("SKIPPED: no GPU adapter ({e})");
+            None
+        }
+    }
+}
