@@ -2,7 +2,7 @@
 //! machine's cores (rayon), in f32 or f64.
 
 use crate::config::Precision;
-use crate::method::{Integrator, RunResult};
+use crate::method::{Integrator, LANES, RunResult, run_lanes};
 use crate::progress::Progress;
 use crate::real::Real;
 use crate::spec::{Points, RunSpec};
@@ -17,16 +17,18 @@ pub fn run(spec: &RunSpec, points: &Points, progress: &dyn Progress) -> Vec<RunR
 }
 
 fn run_typed<F: Real>(spec: &RunSpec, points: &Points, progress: &dyn Progress) -> Vec<RunResult> {
-    (0..points.len())
-        .into_par_iter()
-        .map(|i| {
-            let p = points.params(&spec.params, i);
-            let r = Integrator::<F>::new(&p, &spec.settings).run(
-                points.y0(spec, i),
-                spec.transient,
-                spec.samples,
-            );
-            progress.advance(1);
+    // Batches of LANES points share each grid step (method::lanes); rayon spreads the batches
+    // over the cores.
+    let idx: Vec<usize> = (0..points.len()).collect();
+    idx.par_chunks(LANES)
+        .flat_map_iter(|chunk| {
+            let its: Vec<Integrator<F>> = chunk
+                .iter()
+                .map(|&i| Integrator::<F>::new(&points.params(&spec.params, i), &spec.settings))
+                .collect();
+            let y0s: Vec<[f64; 4]> = chunk.iter().map(|&i| points.y0(spec, i)).collect();
+            let r = run_lanes(&its, &y0s, spec.transient, spec.samples);
+            progress.advance(chunk.len() as u64);
             r
         })
         .collect()

@@ -16,9 +16,11 @@ use crate::real::Real;
 use serde::{Deserialize, Serialize};
 
 mod events;
+mod lanes;
 
 use events::finite_state;
 pub use events::{Bracket, bracket, clear_of, cos_sin_small, forcing_table, illinois};
+pub use lanes::{LANES, run_lanes};
 
 /// How impacts are handled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -587,34 +589,53 @@ impl<F: Real> Integrator<F> {
 
     /// [`Integrator::period`] with an observer of its sub-steps and events.
     pub fn period_observed<O: StepObserver<F>>(&self, st: &mut PointState<F>, obs: &mut O) {
-        let (c0, _) = self.forcing(0, F::zero());
-        let mut f0 = field(&self.p, &st.y, st.mode, c0);
-        let mut stages = [[F::zero(); 4]; 4];
+        let mut f0 = self.period_start(st);
         for k in 0..self.n {
-            // A quiet step (no guard near zero: almost all) is its trial step; the shader runs
-            // these in a loop of their own so that its event code runs only where needed. An
-            // observer sees it as the one sub-step `step_observed` would report.
-            let (z, o) = (F::zero(), F::one());
-            let y1 = self.rk4_stages(&st.y, st.mode, k, z, o, &f0, &mut stages, O::ACTIVE);
-            let (c1, _) = self.forcing(k, F::one());
-            let f1 = field(&self.p, &y1, st.mode, c1);
-            if self.quiet(&st.y, &y1, &f0, &f1, st.mode, k) {
-                if O::ACTIVE {
-                    obs.substep(&self.p, &stages, st.mode, self.h);
-                }
-                st.y = y1;
-                f0 = f1;
-                if !finite_state(&st.y) {
-                    st.diag.nonfinite = true;
-                    return;
-                }
-                continue;
-            }
-            self.step_observed(st, k, &mut f0, obs);
-            if st.diag.nonfinite {
+            if !self.grid_step(st, k, &mut f0, obs) {
                 return;
             }
         }
+    }
+
+    /// The field at the start of a period (phase 0), the first stage of its first step.
+    #[inline(always)]
+    pub fn period_start(&self, st: &PointState<F>) -> [F; 4] {
+        let (c0, _) = self.forcing(0, F::zero());
+        field(&self.p, &st.y, st.mode, c0)
+    }
+
+    /// Grid step k of a period, `f0` the field at its start; false when the state left the
+    /// finite range (the period ends there).
+    #[inline(always)]
+    pub fn grid_step<O: StepObserver<F>>(
+        &self,
+        st: &mut PointState<F>,
+        k: u32,
+        f0: &mut [F; 4],
+        obs: &mut O,
+    ) -> bool {
+        // A quiet step (no guard near zero: almost all) is its trial step; the shader runs
+        // these in a loop of their own so that its event code runs only where needed. An
+        // observer sees it as the one sub-step `step_observed` would report.
+        let mut stages = [[F::zero(); 4]; 4];
+        let (z, o) = (F::zero(), F::one());
+        let y1 = self.rk4_stages(&st.y, st.mode, k, z, o, f0, &mut stages, O::ACTIVE);
+        let (c1, _) = self.forcing(k, F::one());
+        let f1 = field(&self.p, &y1, st.mode, c1);
+        if self.quiet(&st.y, &y1, f0, &f1, st.mode, k) {
+            if O::ACTIVE {
+                obs.substep(&self.p, &stages, st.mode, self.h);
+            }
+            st.y = y1;
+            *f0 = f1;
+            if !finite_state(&st.y) {
+                st.diag.nonfinite = true;
+                return false;
+            }
+            return true;
+        }
+        self.step_observed(st, k, f0, obs);
+        !st.diag.nonfinite
     }
 
     /// Start state (mode from the at-rest rule when v = 0).
@@ -645,6 +666,12 @@ impl<F: Real> Integrator<F> {
             }
             self.period(st);
         }
+        self.sample(st, samples)
+    }
+
+    /// The sampled part of [`Integrator::run_from`]: `samples` periods, each ending in a
+    /// stroboscopic sample, with the exponent when the settings ask for it.
+    pub fn sample(&self, st: &mut PointState<F>, samples: u32) -> RunResult {
         let before = st.diag.impacts;
         let mut out = Vec::with_capacity(samples as usize);
         // The Lyapunov estimate: a tangent vector along y1 at the start of sampling, carried
@@ -679,8 +706,13 @@ impl<F: Real> Integrator<F> {
         } else {
             f64::NAN
         };
+        Self::result(st, out, before, lyapunov)
+    }
+
+    /// The result of a run whose sampling started with `before` impacts.
+    fn result(st: &PointState<F>, samples: Vec<[f64; 4]>, before: u64, lyapunov: f64) -> RunResult {
         RunResult {
-            samples: out,
+            samples,
             sample_impacts: st.diag.impacts - before,
             diag: st.diag,
             final_y: st.y.map(|v| v.to_f64()),
