@@ -93,6 +93,31 @@ pub fn bench(
             rows.push(res);
         }
     }
+    if backends.contains(&Backend::Cpu) {
+        // The CPU twin one point at a time (the schedule before the lanes): the reference of
+        // the kernel's speed target.
+        spec.precision = Precision::F64;
+        spec.settings.lyapunov = false;
+        let t0 = std::time::Instant::now();
+        crate::cpu::run_scalar(&spec, &Points::along(&[Param::Eta], &values));
+        let secs = t0.elapsed().as_secs_f64();
+        let steps = points as f64 * periods as f64 * n_steps as f64;
+        rows.push(Ok(BenchRow {
+            backend: "cpu-1".into(),
+            device: format!("{}, one point per task", Engine::Cpu.device()),
+            precision: "f64".into(),
+            points,
+            periods,
+            steps_per_period: n_steps,
+            rk4_steps: steps,
+            timings: Timings {
+                integration_s: secs,
+                ..Timings::default()
+            },
+            steps_per_s: steps / secs,
+            lyapunov: false,
+        }));
+    }
     Ok(rows)
 }
 
@@ -151,12 +176,14 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
             .find(|r| r.backend == b && r.precision == p && r.lyapunov == l)
     };
     for p in ["f32", "f64"] {
-        if let (Some(g), Some(c)) = (row("gpu", p, false), row("cpu", "f64", false)) {
-            let _ = writeln!(
-                s,
-                "ratio gpu {p} / cpu f64: {:.2}",
-                g.steps_per_s / c.steps_per_s
-            );
+        for c in ["cpu", "cpu-1"] {
+            if let (Some(g), Some(r)) = (row("gpu", p, false), row(c, "f64", false)) {
+                let _ = writeln!(
+                    s,
+                    "ratio gpu {p} / {c} f64: {:.2}",
+                    g.steps_per_s / r.steps_per_s
+                );
+            }
         }
     }
     // The exponent's extra cost, in integration seconds of the same sweep.

@@ -1,5 +1,5 @@
 //! The CPU backend: the integrator of [`crate::method`] over many points, in parallel on the
-//! machine's cores (rayon), in f32 or f64.
+//! machine's cores (rayon), in f32 or f64, [`LANES`] points per batch.
 
 use crate::config::Precision;
 use crate::method::{Integrator, LANES, RunResult, run_lanes};
@@ -32,4 +32,25 @@ fn run_typed<F: Real>(spec: &RunSpec, points: &Points, progress: &dyn Progress) 
             r
         })
         .collect()
+}
+
+/// Every point by the scalar `Integrator::run`, one point per task: the schedule the batches
+/// replaced, with the same results; `rattle bench` measures it as the twin's scalar speed.
+pub fn run_scalar(spec: &RunSpec, points: &Points) -> Vec<RunResult> {
+    fn typed<F: Real>(spec: &RunSpec, points: &Points) -> Vec<RunResult> {
+        (0..points.len())
+            .into_par_iter()
+            .map(|i| {
+                Integrator::<F>::new(&points.params(&spec.params, i), &spec.settings).run(
+                    points.y0(spec, i),
+                    spec.transient,
+                    spec.samples,
+                )
+            })
+            .collect()
+    }
+    match spec.precision {
+        Precision::F32 => typed::<f32>(spec, points),
+        Precision::F64 => typed::<f64>(spec, points),
+    }
 }

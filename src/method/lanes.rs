@@ -1,8 +1,9 @@
 //! The CPU backend's lane-batched schedule of the method: [`LANES`] points take each grid step
 //! together. Their quiet steps in slip (almost all steps: an event may fall in about 1% of them)
 //! are computed as arrays over the lanes, which the compiler turns into SIMD instructions;
-//! everything else (stick and lock, steps that may hold an event, the sampled periods of a run
-//! with the Lyapunov exponent) goes through the scalar [`Integrator::grid_step`] of that lane.
+//! so are the quiet steps of the tangent vector of the Lyapunov exponent; everything else (stick
+//! and lock, steps that may hold an event) goes through the scalar [`Integrator::grid_step`] of
+//! that lane.
 //! Every lane does the arithmetic of [`Integrator::run`] operation for operation, so the
 //! results are the same bit for bit (tested); only the order in which the work is done changes.
 
@@ -10,6 +11,7 @@ use super::events::finite_state;
 use super::{Integrator, PointState, RunResult};
 use crate::model::Mode;
 use crate::real::Real;
+use crate::tangent::Leading;
 
 /// Points per batch: 8 f32 or f64 values fill two 128-bit or one 256-bit vector per operation
 /// and keep the per-lane state in registers and L1.
@@ -83,6 +85,8 @@ struct Trial<F> {
     y1: [Lanes<F>; 4],
     f1: [Lanes<F>; 4],
     quiet: [bool; LANES],
+    /// Stage points 2-4 of the step (the first is its start), for the tangent.
+    stages: [[Lanes<F>; 4]; 3],
 }
 
 #[inline(always)]
@@ -106,9 +110,12 @@ fn trial<F: Real>(
     let at = |a: &Lanes<F>, k: &[Lanes<F>; 4]| -> [Lanes<F>; 4] {
         std::array::from_fn(|i| std::array::from_fn(|l| y[i][l] + a[l] * k[i][l]))
     };
-    let k2 = slip_field(q, s, &at(&half, f0), c2);
-    let k3 = slip_field(q, s, &at(&half, &k2), c2);
-    let k4 = slip_field(q, s, &at(&dt, &k3), c4);
+    let s1 = at(&half, f0);
+    let k2 = slip_field(q, s, &s1, c2);
+    let s2 = at(&half, &k2);
+    let k3 = slip_field(q, s, &s2, c2);
+    let s3 = at(&dt, &k3);
+    let k4 = slip_field(q, s, &s3, c4);
     let two = F::of(2.0);
     let y1: [Lanes<F>; 4] = std::array::from_fn(|i| {
         std::array::from_fn(|l| {
@@ -131,7 +138,67 @@ fn trial<F: Real>(
                 s[l] * (f1[1][l] - f1[3][l]) * h,
             )
     });
-    Trial { y1, f1, quiet }
+    Trial {
+        y1,
+        f1,
+        quiet,
+        stages: [s1, s2, s3],
+    }
+}
+
+/// `model::jacobian_times` in slip on every lane.
+#[inline(always)]
+fn slip_jacobian_times<F: Real>(
+    q: &LaneParams<F>,
+    s: &Lanes<F>,
+    y: &[Lanes<F>; 4],
+    x: &[Lanes<F>; 4],
+) -> [Lanes<F>; 4] {
+    let mut out = [[F::zero(); LANES]; 4];
+    for l in 0..LANES {
+        // model::friction_slope at w = s v.
+        let w = s[l] * (y[1][l] - y[3][l]);
+        let qd = F::one() + q.l1[l] * w;
+        let decay = if qd > F::of(0.5) {
+            -(q.fs[l] - q.fk[l]) * q.l1[l] / (qd * qd)
+        } else {
+            F::zero()
+        };
+        let e = q.b1[l] * q.delta[l] + (decay + F::of(2.0) * q.l2[l] * w);
+        let rel = e * (x[1][l] - x[3][l]);
+        out[0][l] = x[1][l];
+        out[1][l] = -x[0][l] - q.b1[l] * x[1][l] - rel;
+        out[2][l] = x[3][l];
+        out[3][l] = rel / q.mu[l];
+    }
+    out
+}
+
+/// `tangent::tangent_substep` of a whole quiet step (dt = h) on every lane.
+#[inline(always)]
+fn tangent_substep<F: Real>(
+    q: &LaneParams<F>,
+    s: &Lanes<F>,
+    y: &[Lanes<F>; 4],
+    stages: &[[Lanes<F>; 4]; 3],
+    x: &[Lanes<F>; 4],
+) -> [Lanes<F>; 4] {
+    let dt = q.h;
+    let half: Lanes<F> = std::array::from_fn(|l| F::of(0.5) * dt[l]);
+    let at = |a: &Lanes<F>, k: &[Lanes<F>; 4]| -> [Lanes<F>; 4] {
+        std::array::from_fn(|i| std::array::from_fn(|l| x[i][l] + a[l] * k[i][l]))
+    };
+    let k1 = slip_jacobian_times(q, s, y, x);
+    let k2 = slip_jacobian_times(q, s, &stages[0], &at(&half, &k1));
+    let k3 = slip_jacobian_times(q, s, &stages[1], &at(&half, &k2));
+    let k4 = slip_jacobian_times(q, s, &stages[2], &at(&dt, &k3));
+    let two = F::of(2.0);
+    std::array::from_fn(|i| {
+        std::array::from_fn(|l| {
+            let sixth = dt[l] / F::of(6.0);
+            x[i][l] + sixth * (k1[i][l] + two * (k2[i][l] + k3[i][l]) + k4[i][l])
+        })
+    })
 }
 
 /// Up to [`LANES`] points of one run: the states, the fields at their step starts, and which
@@ -142,10 +209,15 @@ struct Batch<'a, F: Real> {
     st: [PointState<F>; LANES],
     /// The lane holds a point (the last batch of a run may be short) that has not failed.
     live: [bool; LANES],
+    /// The tangent vector of each lane's exponent, while sampling with it.
+    tan: [Lanes<F>; 4],
+    /// The lane's tangent vector runs (as `tangent_ok` of `Integrator::sample`).
+    tan_ok: [bool; LANES],
 }
 
 impl<F: Real> Batch<'_, F> {
-    /// One forcing period of every live lane, as `Integrator::period` on each.
+    /// One forcing period of every live lane, as `Integrator::period_observed` on each, with
+    /// the tangent vector of the lanes in `tan_ok`.
     fn period(&mut self) {
         let it0 = self.its[0];
         let mut y: [Lanes<F>; 4] =
@@ -158,6 +230,7 @@ impl<F: Real> Batch<'_, F> {
             }
         }
         let mut running = self.live;
+        let tangent = self.tan_ok.iter().zip(&running).any(|(&t, &r)| t && r);
         for k in 0..it0.n {
             let s: Lanes<F> = std::array::from_fn(|l| match self.st[l].mode {
                 Mode::SlipNeg => -F::one(),
@@ -166,6 +239,7 @@ impl<F: Real> Batch<'_, F> {
             let c2 = it0.forcing(k, F::of(0.5)).0;
             let c4 = it0.forcing(k, F::one()).0;
             let t = trial(&self.q, &s, &y, &f0, (c2, c4));
+            let tan1 = tangent.then(|| tangent_substep(&self.q, &s, &y, &t.stages, &self.tan));
             for l in 0..LANES {
                 if !running[l] {
                     continue;
@@ -176,6 +250,11 @@ impl<F: Real> Batch<'_, F> {
                         y[i][l] = t.y1[i][l];
                         f0[i][l] = t.f1[i][l];
                     }
+                    if let (Some(x), true) = (&tan1, self.tan_ok[l]) {
+                        for (t, x) in self.tan.iter_mut().zip(x) {
+                            t[l] = x[l];
+                        }
+                    }
                     st.y = [y[0][l], y[1][l], y[2][l], y[3][l]];
                     if !finite_state(&st.y) {
                         st.diag.nonfinite = true;
@@ -185,7 +264,18 @@ impl<F: Real> Batch<'_, F> {
                 }
                 // Stick, lock, or a step that may hold an event: the scalar step.
                 let mut f = [f0[0][l], f0[1][l], f0[2][l], f0[3][l]];
-                running[l] = self.its[l].grid_step(st, k, &mut f, &mut ());
+                running[l] = if self.tan_ok[l] {
+                    let mut lead = Leading {
+                        x: std::array::from_fn(|i| self.tan[i][l]),
+                    };
+                    let go = self.its[l].grid_step(st, k, &mut f, &mut lead);
+                    for i in 0..4 {
+                        self.tan[i][l] = lead.x[i];
+                    }
+                    go
+                } else {
+                    self.its[l].grid_step(st, k, &mut f, &mut ())
+                };
                 for i in 0..4 {
                     y[i][l] = st.y[i];
                     f0[i][l] = f[i];
@@ -232,6 +322,8 @@ pub fn run_lanes<F: Real>(
             its,
             st,
             live,
+            tan: [[F::zero(); LANES]; 4],
+            tan_ok: [false; LANES],
         };
         for _ in 0..transient {
             if !b.live.iter().any(|&x| x) {
@@ -239,15 +331,12 @@ pub fn run_lanes<F: Real>(
             }
             b.period();
         }
-        let lyapunov = chunk.iter().any(|it| it.lyapunov);
-        if lyapunov {
-            // The tangent vector follows each lane's events: the scalar path.
-            for l in 0..chunk.len() {
-                out.push(b.its[l].sample(&mut b.st[l], samples));
-            }
-            continue;
-        }
+        // Sampling, as `Integrator::sample`: the tangent vector starts along y1.
         let before: [u64; LANES] = std::array::from_fn(|l| b.st[l].diag.impacts);
+        let start = Leading::<F>::default().x;
+        b.tan = std::array::from_fn(|i| [start[i]; LANES]);
+        b.tan_ok = std::array::from_fn(|l| b.its[l].lyapunov);
+        let mut log_sum = [0.0f64; LANES];
         let mut taken: Vec<Vec<[f64; 4]>> = (0..LANES)
             .map(|_| Vec::with_capacity(samples as usize))
             .collect();
@@ -258,10 +347,24 @@ pub fn run_lanes<F: Real>(
             b.period();
             for l in (0..LANES).filter(|&l| b.live[l]) {
                 taken[l].push(b.st[l].y.map(|v| v.to_f64()));
+                if b.tan_ok[l] {
+                    let mut lead = Leading {
+                        x: std::array::from_fn(|i| b.tan[i][l]),
+                    };
+                    b.tan_ok[l] = lead.is_finite();
+                    if b.tan_ok[l] {
+                        log_sum[l] += lead.renormalize();
+                    }
+                    for i in 0..4 {
+                        b.tan[i][l] = lead.x[i];
+                    }
+                }
             }
         }
         for (l, samples) in taken.into_iter().enumerate().take(chunk.len()) {
-            out.push(Integrator::result(&b.st[l], samples, before[l], f64::NAN));
+            let it = b.its[l];
+            let lyapunov = it.exponent(b.tan_ok[l], log_sum[l], samples.len());
+            out.push(Integrator::result(&b.st[l], samples, before[l], lyapunov));
         }
     }
     out

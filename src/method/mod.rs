@@ -700,13 +700,19 @@ impl<F: Real> Integrator<F> {
                 }
             }
         }
+        let lyapunov = self.exponent(tangent_ok, log_sum, out.len());
+        Self::result(st, out, before, lyapunov)
+    }
+
+    /// The largest exponent per unit time from the log growth over `n` sampled periods; NaN
+    /// without a running tangent or samples.
+    fn exponent(&self, tangent_ok: bool, log_sum: f64, n: usize) -> f64 {
         let period = 2.0 * std::f64::consts::PI / self.p.eta.to_f64();
-        let lyapunov = if tangent_ok && !out.is_empty() {
-            log_sum / (out.len() as f64 * period)
+        if tangent_ok && n > 0 {
+            log_sum / (n as f64 * period)
         } else {
             f64::NAN
-        };
-        Self::result(st, out, before, lyapunov)
+        }
     }
 
     /// The result of a run whose sampling started with `before` impacts.
