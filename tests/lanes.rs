@@ -3,7 +3,9 @@
 //! of the scalar `Integrator::run`, bit for bit, whatever the mix of modes, events and failures
 //! in its batch.
 
-use rattle::method::{ImpactMethod, Integrator, LANES, RunResult, Settings, run_lanes};
+use rattle::method::{
+    ImpactMethod, Integrator, LANES, RunResult, Settings, run_lanes, run_lanes_portable,
+};
 use rattle::model::Params;
 use rattle::real::Real;
 
@@ -64,11 +66,19 @@ fn check<F: Real>(settings: &Settings, n_points: usize) {
         .collect();
     let y0s: Vec<[f64; 4]> = pts.iter().map(|(_, y)| *y).collect();
     let (transient, samples) = (40, 12);
+    // The build chosen at run time (AVX2 where the CPU has it) and the baseline one.
     let batched = run_lanes(&its, &y0s, transient, samples);
+    let portable = run_lanes_portable(&its, &y0s, transient, samples);
     assert_eq!(batched.len(), pts.len());
+    assert_eq!(portable.len(), pts.len());
     let mut kinds = [0usize; 4];
     for (i, (it, y0)) in its.iter().zip(&y0s).enumerate() {
         let scalar = it.run(*y0, transient, samples);
+        assert!(
+            same(&portable[i], &scalar),
+            "{} point {i}: the baseline build differs from the scalar run",
+            F::NAME
+        );
         assert!(
             same(&batched[i], &scalar),
             "{} point {i} ({:?}): batched {:?} vs scalar {:?}",

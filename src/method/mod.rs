@@ -20,7 +20,7 @@ mod lanes;
 
 use events::finite_state;
 pub use events::{Bracket, bracket, clear_of, cos_sin_small, forcing_table, illinois};
-pub use lanes::{LANES, run_lanes};
+pub use lanes::{LANES, run_lanes, run_lanes_portable};
 
 /// How impacts are handled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
