@@ -34,9 +34,23 @@ fn dot<F: Real>(a: &[F; 4], b: &[F; 4]) -> F {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
 }
 
+/// `J x` for a [`jacobian`] of a mode in slip (`slip`) or not: the dense product with the terms
+/// of its structural zeros left out. Adding 0 * x changes no non-zero sum, so the result is the
+/// dense product's (the sign of an exact zero aside), at a third of the operations.
 #[inline(always)]
-fn mul<F: Real>(j: &[[F; 4]; 4], x: &[F; 4]) -> [F; 4] {
-    [dot(&j[0], x), dot(&j[1], x), dot(&j[2], x), dot(&j[3], x)]
+fn mul<F: Real>(j: &[[F; 4]; 4], x: &[F; 4], slip: bool) -> [F; 4] {
+    // Rows 0 and 2 are unit rows (the positions' derivatives are the velocities).
+    let r1 = j[1][0] * x[0] + j[1][1] * x[1];
+    if slip {
+        [
+            x[1],
+            r1 + j[1][3] * x[3],
+            x[3],
+            j[3][1] * x[1] + j[3][3] * x[3],
+        ]
+    } else {
+        [x[1], r1, x[3], r1]
+    }
 }
 
 /// The jump of the state at an event; each is linear in the velocities, so its Jacobian acts on
@@ -204,6 +218,7 @@ impl<F: Real> StepObserver<F> for Tangent<F> {
         let half = F::of(0.5) * dt;
         let sixth = dt / F::of(6.0);
         let two = F::of(2.0);
+        let slip = mode.is_slip();
         for x in self.v[..self.m].iter_mut() {
             let at = |a: F, k: &[F; 4]| {
                 [
@@ -213,10 +228,10 @@ impl<F: Real> StepObserver<F> for Tangent<F> {
                     x[3] + a * k[3],
                 ]
             };
-            let k1 = mul(&j[0], x);
-            let k2 = mul(&j[1], &at(half, &k1));
-            let k3 = mul(&j[2], &at(half, &k2));
-            let k4 = mul(&j[3], &at(dt, &k3));
+            let k1 = mul(&j[0], x, slip);
+            let k2 = mul(&j[1], &at(half, &k1), slip);
+            let k3 = mul(&j[2], &at(half, &k2), slip);
+            let k4 = mul(&j[3], &at(dt, &k3), slip);
             for i in 0..4 {
                 x[i] += sixth * (k1[i] + two * (k2[i] + k3[i]) + k4[i]);
             }
