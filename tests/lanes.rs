@@ -4,7 +4,7 @@
 //! in its batch.
 
 use rattle::method::{
-    ImpactMethod, Integrator, LANES, RunResult, Settings, run_lanes, run_lanes_portable,
+    ImpactMethod, Integrator, LANES, RunResult, Settings, batches, run_lanes, run_lanes_portable,
 };
 use rattle::model::Params;
 use rattle::real::Real;
@@ -65,6 +65,10 @@ fn check<F: Real>(settings: &Settings, n_points: usize) {
         .map(|(p, _)| Integrator::new(p, settings))
         .collect();
     let y0s: Vec<[f64; 4]> = pts.iter().map(|(_, y)| *y).collect();
+    // The batched path is the one under test (the scalar path would pass trivially): full
+    // batches of located impacts take it, two points or naive impacts do not.
+    let batched_path = n_points > 2 && settings.impacts == ImpactMethod::Located;
+    assert_eq!(batches(&its[..n_points.min(LANES)]), batched_path);
     let (transient, samples) = (40, 12);
     // The build chosen at run time (AVX2 where the CPU has it) and the baseline one.
     let batched = run_lanes(&its, &y0s, transient, samples);

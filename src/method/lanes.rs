@@ -7,7 +7,7 @@
 //! Every lane does the arithmetic of [`Integrator::run`] operation for operation, so the
 //! results are the same bit for bit (tested); only the order in which the work is done changes.
 
-use super::events::finite_state;
+use super::events::{clear_of, finite_state};
 use super::{Integrator, PointState, RunResult};
 use crate::model::Mode;
 use crate::real::Real;
@@ -94,14 +94,6 @@ fn slip_field<F: Real>(q: &LaneParams<F>, s: &Lanes<F>, y: &[Lanes<F>; 4], c: F)
         out[3][l] = (d + t) / q.mu[l];
     }
     out
-}
-
-/// `events::clear_of` on every lane.
-#[inline(always)]
-fn clear_of<F: Real>(g0: F, g1: F, m0: F, m1: F) -> bool {
-    let d = g1 - g0;
-    let bound = F::of(0.25) * (m0 - d).abs().max((m1 - d).abs());
-    g0.min(g1) > bound
 }
 
 /// The trial step of `Integrator::grid_step` (a whole step from theta = 0) in slip, its end
@@ -330,6 +322,13 @@ fn run_lanes_avx2<F: Real>(
     run_lanes_portable(its, y0s, transient, samples)
 }
 
+/// Whether [`run_lanes`] batches these points (one chunk of at most [`LANES`]). Naive impacts
+/// (a comparison method) and one or two points (continuation runs such jobs; a batch costs
+/// about as much as three scalar points) take the scalar path.
+pub fn batches<F: Real>(chunk: &[Integrator<F>]) -> bool {
+    3 * chunk.len() >= LANES && chunk.iter().all(|it| it.n == chunk[0].n && !it.naive)
+}
+
 /// [`run_lanes`] for the compilation target's baseline instruction set only.
 #[inline(always)]
 pub fn run_lanes_portable<F: Real>(
@@ -341,9 +340,7 @@ pub fn run_lanes_portable<F: Real>(
     assert_eq!(its.len(), y0s.len());
     let mut out = Vec::with_capacity(its.len());
     for (chunk, y0) in its.chunks(LANES).zip(y0s.chunks(LANES)) {
-        // Naive impacts (a comparison method) and one or two points (continuation runs such
-        // jobs; a batch costs about as much as three scalar points) take the scalar path.
-        if 3 * chunk.len() < LANES || chunk.iter().any(|it| it.n != chunk[0].n || it.naive) {
+        if !batches(chunk) {
             out.extend(
                 chunk
                     .iter()

@@ -20,7 +20,7 @@ mod lanes;
 
 use events::finite_state;
 pub use events::{Bracket, bracket, clear_of, cos_sin_small, forcing_table, illinois};
-pub use lanes::{LANES, run_lanes, run_lanes_portable};
+pub use lanes::{LANES, batches, run_lanes, run_lanes_portable};
 
 /// How impacts are handled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -605,7 +605,8 @@ impl<F: Real> Integrator<F> {
     }
 
     /// Grid step k of a period, `f0` the field at its start; false when the state left the
-    /// finite range (the period ends there).
+    /// finite range (the period ends there). The shader's `period` holds this inline: its
+    /// quiet loop, then `step` for a step that may hold an event.
     #[inline(always)]
     pub fn grid_step<O: StepObserver<F>>(
         &self,
