@@ -1,11 +1,36 @@
 //! Cost of the tangent dynamics on the CPU: steps/s of one thread integrating a Fig. 2 point
-//! plainly, with one tangent vector (largest exponent) and with four (monodromy, spectrum).
+//! plainly, with one tangent vector (largest exponent) and with four (monodromy, spectrum),
+//! and of 8 such points with four vectors each on the lanes of `method::run_flows` (the
+//! schedule of Newton's method in `stability`), per point-step.
 //! `cargo run --release --example tangent_cost`; best of three runs of 2000 periods each.
 
-use rattle::method::{Integrator, Settings};
+use rattle::method::{FlowTask, Integrator, LANES, PointState, Settings, run_flows};
 use rattle::model::Params;
 use rattle::tangent::Tangent;
 use std::time::Instant;
+
+/// One flow of `n` periods with four tangent vectors.
+struct Flow {
+    it: Integrator<f64>,
+    st: PointState<f64>,
+    n: u32,
+    done: bool,
+}
+
+impl FlowTask for Flow {
+    fn flow(&self) -> Option<(PointState<f64>, u32)> {
+        (!self.done).then_some((self.st, self.n))
+    }
+
+    fn integrator(&self) -> &Integrator<f64> {
+        &self.it
+    }
+
+    fn ended(&mut self, end: &PointState<f64>, _: &Tangent<f64>) {
+        self.st = *end;
+        self.done = true;
+    }
+}
 
 fn main() {
     let periods = 2000;
@@ -31,5 +56,31 @@ fn main() {
                 steps / best
             );
         }
+        // Neighbouring values of eta on the lanes, as the Newton trials of a sweep.
+        let mut best = f64::MAX;
+        for _ in 0..3 {
+            let mut tasks: Vec<Flow> = (0..LANES)
+                .map(|l| {
+                    let it = Integrator::<f64>::new(
+                        &Params::paper(eta + 1e-4 * l as f64),
+                        &Settings::default(),
+                    );
+                    Flow {
+                        st: it.start([0.0; 4]),
+                        it,
+                        n: periods,
+                        done: false,
+                    }
+                })
+                .collect();
+            let t = Instant::now();
+            run_flows(&mut tasks);
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        let steps = f64::from(periods * it.steps_per_period()) * LANES as f64;
+        println!(
+            "eta {eta}: 4 tangent vectors, {LANES} points on the lanes: {:.3e} steps/s (f64, one thread)",
+            steps / best
+        );
     }
 }

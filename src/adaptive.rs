@@ -20,8 +20,7 @@ use crate::gpu::{GpuError, Timings};
 use crate::method::{Diagnostics, RunResult};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
-use crate::stability::{Verdict, confirm};
-use rayon::prelude::*;
+use crate::stability::{Proposal, Verdict, confirm_many};
 
 /// Sampled periods of a round's window (periods up to WINDOW / 2 can be decided in a round).
 pub const WINDOW: u32 = 32;
@@ -121,10 +120,29 @@ pub fn run(
         let (rs, tm) = engine.run(&round, &sub, progress)?;
         timings.integration_s += tm.integration_s;
         elapsed += t + w;
-        let decided: Vec<Option<(RunResult, Verdict)>> = rs
-            .par_iter()
+        // The proposed periods of the window, confirmed all at once.
+        let proposals: Vec<Proposal> = rs
+            .iter()
             .zip(&live)
-            .map(|(r, &i)| decide(spec, &params(i), r))
+            .filter_map(|(r, &i)| {
+                let class = r.class(spec.period_tol);
+                matches!(class, Class::Periodic(_)).then(|| Proposal {
+                    params: params(i),
+                    run: r,
+                    use_samples: true,
+                    class,
+                })
+            })
+            .collect();
+        let mut verdicts = confirm_many(&spec.settings, &proposals, spec.lyapunov_tol).into_iter();
+        let decided: Vec<Option<(RunResult, Verdict)>> = rs
+            .iter()
+            .zip(&live)
+            .map(|(r, &i)| {
+                let class = r.class(spec.period_tol);
+                let v = matches!(class, Class::Periodic(_)).then(|| verdicts.next().unwrap());
+                decide(spec, &params(i), r, class, v)
+            })
             .collect();
         let mut next = Vec::with_capacity(live.len());
         for ((r, &i), d) in rs.iter().zip(&live).zip(decided) {
@@ -153,23 +171,19 @@ pub fn run(
         };
         let (rs, tm) = engine.run(&last, &sub, progress)?;
         timings.integration_s += tm.integration_s;
-        let verdicts: Vec<Verdict> = rs
-            .par_iter()
+        let proposals: Vec<Proposal> = rs
+            .iter()
             .zip(&live)
-            .map(|(r, &i)| {
-                let proposal = r
+            .map(|(r, &i)| Proposal {
+                params: params(i),
+                run: r,
+                use_samples: true,
+                class: r
                     .class(spec.period_tol)
-                    .with_lyapunov(r.lyapunov, spec.lyapunov_tol);
-                confirm(
-                    &params(i),
-                    &spec.settings,
-                    r,
-                    true,
-                    proposal,
-                    spec.lyapunov_tol,
-                )
+                    .with_lyapunov(r.lyapunov, spec.lyapunov_tol),
             })
             .collect();
+        let verdicts = confirm_many(&spec.settings, &proposals, spec.lyapunov_tol);
         for ((mut r, v), &i) in rs.into_iter().zip(verdicts).zip(&live) {
             add(&mut diag[i], &r.diag);
             r.diag = diag[i];
@@ -201,11 +215,12 @@ fn decide(
     spec: &RunSpec,
     p: &crate::model::Params<f64>,
     r: &RunResult,
+    proposal: Class,
+    verdict: Option<Verdict>,
 ) -> Option<(RunResult, Verdict)> {
-    let proposal = r.class(spec.period_tol);
     match proposal {
         Class::Periodic(_) => {
-            let v = confirm(p, &spec.settings, r, true, proposal, spec.lyapunov_tol);
+            let v = verdict.expect("a proposed period has its verdict");
             let Class::Periodic(n) = v.class else {
                 return None;
             };

@@ -7,8 +7,7 @@ use crate::gpu::{Gpu, GpuError, Job, Timings};
 use crate::method::{Diagnostics, RunResult};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
-use crate::stability::confirm;
-use rayon::prelude::*;
+use crate::stability::{Proposal, Verdict, confirm, confirm_many};
 use std::time::Instant;
 
 /// An opened backend.
@@ -53,6 +52,38 @@ impl Summary {
             proposal,
             spec.lyapunov_tol,
         );
+        Summary::of(v, r, samples, spec)
+    }
+
+    /// [`Summary::new`] of every point of a run (`classes[i]` for `results[i]`, which kept
+    /// `samples(r)` samples), the same summaries bit for bit, with the Newton trials on the
+    /// lanes ([`confirm_many`]).
+    pub fn many(
+        classes: &[Class],
+        results: &[RunResult],
+        samples: impl Fn(&RunResult) -> usize,
+        spec: &RunSpec,
+        points: &Points,
+    ) -> Vec<Summary> {
+        let proposals: Vec<Proposal> = results
+            .iter()
+            .zip(classes)
+            .enumerate()
+            .map(|(i, (r, c))| Proposal {
+                params: points.params(&spec.params, i),
+                run: r,
+                use_samples: false,
+                class: c.with_lyapunov(r.lyapunov, spec.lyapunov_tol),
+            })
+            .collect();
+        confirm_many(&spec.settings, &proposals, spec.lyapunov_tol)
+            .into_iter()
+            .zip(results)
+            .map(|(v, r)| Summary::of(v, r, samples(r), spec))
+            .collect()
+    }
+
+    fn of(v: Verdict, r: &RunResult, samples: usize, spec: &RunSpec) -> Summary {
         let multiplier = match (v.class, &v.cycle) {
             (Class::Periodic(_), Some(c)) => c.leading_modulus(),
             _ => f64::NAN,
@@ -159,18 +190,17 @@ impl Engine {
             Engine::Gpu(g) => {
                 let mut out = g.run(&Job::new(spec, *points, false), progress)?;
                 rerun_on_cpu(spec, points, &mut out);
-                let s = out
+                let classes: Vec<Class> = out
                     .results
-                    .par_iter_mut()
+                    .iter_mut()
                     .zip(&out.classes)
-                    .enumerate()
-                    .map(|(i, (r, c))| {
+                    .map(|(r, c)| {
                         r.enforce_failure_rule();
-                        let c = if r.diag.nonfinite { Class::Failed } else { *c };
-                        let p = points.params(&spec.params, i);
-                        Summary::new(c, r, spec.samples as usize, spec, &p)
+                        if r.diag.nonfinite { Class::Failed } else { *c }
                     })
                     .collect();
+                let samples = spec.samples as usize;
+                let s = Summary::many(&classes, &out.results, |_| samples, spec, points);
                 Ok((s, out.timings))
             }
             Engine::Cpu => {
@@ -180,14 +210,8 @@ impl Engine {
                 for start in (0..n).step_by(CPU_BLOCK) {
                     let block = points.slice(start, (start + CPU_BLOCK).min(n));
                     let (rs, _) = self.run(spec, &block, progress)?;
-                    let sums: Vec<Summary> = rs
-                        .par_iter()
-                        .enumerate()
-                        .map(|(i, r)| {
-                            let p = block.params(&spec.params, i);
-                            Summary::new(r.class(spec.period_tol), r, r.samples.len(), spec, &p)
-                        })
-                        .collect();
+                    let classes: Vec<Class> = rs.iter().map(|r| r.class(spec.period_tol)).collect();
+                    let sums = Summary::many(&classes, &rs, |r| r.samples.len(), spec, &block);
                     out.extend(sums);
                 }
                 let timings = Timings {

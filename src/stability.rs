@@ -8,10 +8,9 @@
 //! unstable orbit converges to that orbit, whose multipliers reject it).
 
 use crate::classify::Class;
-use crate::method::{Integrator, PointState, RunResult, Settings};
+use crate::method::{FlowTask, Integrator, PointState, RunResult, Settings};
 use crate::model::{Param, Params};
-use crate::tangent::{Cycle, modulus, refine};
-use rayon::prelude::*;
+use crate::tangent::{Cycle, Refine, Tangent, modulus, refine, run_parallel};
 use serde::Serialize;
 
 /// Longest period tried for a point the detector left without one.
@@ -43,28 +42,82 @@ pub fn confirm(
     proposal: Class,
     lyapunov_tol: f64,
 ) -> Verdict {
-    let keep = Verdict {
-        class: proposal,
-        cycle: None,
-    };
+    match trial(r, use_samples, proposal) {
+        None => Verdict {
+            class: proposal,
+            cycle: None,
+        },
+        Some((start, n)) => {
+            let c = refine(&Integrator::<f64>::new(p, settings), &start, n);
+            judge(r, proposal, c, lyapunov_tol)
+        }
+    }
+}
+
+/// A point for [`confirm_many`]: the arguments of [`confirm`] that differ between points.
+pub struct Proposal<'a> {
+    pub params: Params<f64>,
+    pub run: &'a RunResult,
+    pub use_samples: bool,
+    pub class: Class,
+}
+
+/// [`confirm`] of many points, the same verdicts bit for bit: their Newton trials run
+/// [`LANES`](crate::method::LANES) at a time on the lanes of [`run_flows`], in parallel.
+pub fn confirm_many(settings: &Settings, points: &[Proposal], lyapunov_tol: f64) -> Vec<Verdict> {
+    let (idx, tasks): (Vec<usize>, Vec<Refine>) = points
+        .iter()
+        .enumerate()
+        .filter_map(|(i, q)| {
+            let (start, n) = trial(q.run, q.use_samples, q.class)?;
+            let it = Integrator::<f64>::new(&q.params, settings);
+            Some((i, Refine::new(it, &start, n)))
+        })
+        .unzip();
+    let tasks = run_parallel(tasks, |t| u64::from(t.period()));
+    let mut cycles: Vec<Option<Cycle>> = vec![None; points.len()];
+    for (i, t) in idx.into_iter().zip(tasks) {
+        cycles[i] = Some(t.cycle());
+    }
+    points
+        .iter()
+        .zip(cycles)
+        .map(|(q, c)| match c {
+            Some(c) => judge(q.run, q.class, c, lyapunov_tol),
+            None => Verdict {
+                class: q.class,
+                cycle: None,
+            },
+        })
+        .collect()
+}
+
+/// The Newton trial [`confirm`] makes (start state and period), `None` where the proposal
+/// stands as it is.
+fn trial(r: &RunResult, use_samples: bool, proposal: Class) -> Option<(PointState<f64>, u32)> {
     let tried = match proposal {
-        Class::Failed | Class::NoImpact | Class::Chaotic => return keep,
+        Class::Failed | Class::NoImpact | Class::Chaotic => return None,
         Class::Periodic(n) => n,
         _ if use_samples => trailing_lag(&r.samples).unwrap_or(1),
         // Without samples and without an exponent nothing suggests a cycle nearby.
-        Class::Aperiodic => return keep,
+        Class::Aperiodic => return None,
         _ => 1,
     };
     if r.diag.nonfinite || !r.final_y.iter().all(|v| v.is_finite()) {
-        return keep;
+        return None;
     }
-    let it = Integrator::<f64>::new(p, settings);
-    let start = PointState {
-        y: r.final_y,
-        mode: r.final_mode,
-        diag: Default::default(),
-    };
-    let c = refine(&it, &start, tried);
+    Some((
+        PointState {
+            y: r.final_y,
+            mode: r.final_mode,
+            diag: Default::default(),
+        },
+        tried,
+    ))
+}
+
+/// The verdict on `proposal` once its Newton trial gave `c`.
+fn judge(r: &RunResult, proposal: Class, c: Cycle, lyapunov_tol: f64) -> Verdict {
     let class = if c.is_stable() {
         Class::Periodic(c.period)
     } else if let Class::Periodic(_) = proposal {
@@ -105,12 +158,18 @@ pub fn confirm_all(
     proposals: &[Class],
     lyapunov_tol: f64,
 ) -> Vec<Verdict> {
-    results
-        .par_iter()
+    let points: Vec<Proposal> = results
+        .iter()
         .zip(proposals)
         .enumerate()
-        .map(|(i, (r, c))| confirm(&params(i), settings, r, true, *c, lyapunov_tol))
-        .collect()
+        .map(|(i, (r, c))| Proposal {
+            params: params(i),
+            run: r,
+            use_samples: true,
+            class: *c,
+        })
+        .collect();
+    confirm_many(settings, &points, lyapunov_tol)
 }
 
 /// Kind of a bifurcation point along a sweep.
@@ -181,16 +240,21 @@ pub fn bifurcation_points(
             (None, None) => None,
         })
         .collect();
-    let mut found: Vec<(usize, BifurcationPoint)> = pairs
-        .par_iter()
+    let tasks: Vec<Locate> = pairs
+        .iter()
         .filter_map(|&(i, up)| {
             let (from, to) = if up {
                 (&points[i], &points[i + 1])
             } else {
                 (&points[i + 1], &points[i])
             };
-            locate(base, param, settings, from, to.value).map(|b| (i, b))
+            Locate::new(base, param, settings, from, to.value, i)
         })
+        .collect();
+    let tasks = run_parallel(tasks, |t| u64::from(t.start.period));
+    let mut found: Vec<(usize, BifurcationPoint)> = tasks
+        .into_iter()
+        .filter_map(|t| Some((t.pair, t.found?)))
         .collect();
     // A pair seen from both sides (e.g. period-1 stable below, period-2 stable above) is one
     // bifurcation: keep the first found per interval.
@@ -199,58 +263,129 @@ pub fn bifurcation_points(
     found.into_iter().map(|(_, b)| b).collect()
 }
 
-/// Continues the stable cycle of `from` towards `to` and bisects where it stops being stable.
-fn locate(
-    base: &Params<f64>,
+/// Continues the stable cycle of `from` towards `to` and bisects where it stops being stable:
+/// a sequence of Newton solutions, each from the last stable cycle, as a task for the lanes.
+struct Locate<'a> {
+    base: &'a Params<f64>,
     param: Param,
-    settings: &Settings,
-    from: &Branch,
-    to: f64,
-) -> Option<BifurcationPoint> {
-    let start = from.cycle?;
-    let at = |v: f64, c: &Cycle| {
+    settings: &'a Settings,
+    /// Index of the pair of sweep points.
+    pair: usize,
+    start: Cycle,
+    /// 0: the Newton solution at `to`; k: bisection k.
+    step: u32,
+    good: f64,
+    bad: f64,
+    mid: f64,
+    last: Cycle,
+    newton: Refine,
+    done: bool,
+    found: Option<BifurcationPoint>,
+}
+
+impl<'a> Locate<'a> {
+    fn new(
+        base: &'a Params<f64>,
+        param: Param,
+        settings: &'a Settings,
+        from: &Branch,
+        to: f64,
+        pair: usize,
+    ) -> Option<Locate<'a>> {
+        let start = from.cycle?.clone();
+        let newton = Self::at(base, param, settings, to, &start);
+        Some(Locate {
+            base,
+            param,
+            settings,
+            pair,
+            step: 0,
+            good: from.value,
+            bad: to,
+            mid: to,
+            last: start.clone(),
+            start,
+            newton,
+            done: false,
+            found: None,
+        })
+    }
+
+    /// Newton at parameter value `v` from the cycle `c`.
+    fn at(base: &Params<f64>, param: Param, settings: &Settings, v: f64, c: &Cycle) -> Refine {
         let mut p = *base;
         param.set(&mut p, v);
-        let it = Integrator::<f64>::new(&p, settings);
         let st = PointState {
             y: c.point,
             mode: c.mode,
             diag: Default::default(),
         };
-        refine(&it, &st, c.period)
-    };
-    let (mut good, mut bad) = (from.value, to);
-    let mut last = start.clone();
-    let end = at(bad, &last);
-    if end.is_stable() && end.period == start.period {
-        // Still stable at the neighbour (a different attractor was reached from rest there).
-        return None;
+        Refine::new(Integrator::<f64>::new(&p, settings), &st, c.period)
     }
-    for _ in 0..BISECTIONS {
-        let mid = 0.5 * (good + bad);
-        let c = at(mid, &last);
-        if c.is_stable() && c.period == start.period {
-            good = mid;
-            last = c;
+
+    /// The next step once the Newton solution `c` at `self.mid` is known.
+    fn solved(&mut self, c: Cycle) {
+        let stable = c.is_stable() && c.period == self.start.period;
+        if self.step == 0 {
+            if stable {
+                // Still stable at the neighbour (a different attractor was reached from rest
+                // there).
+                self.done = true;
+                return;
+            }
+        } else if stable {
+            self.good = self.mid;
+            self.last = c;
         } else {
-            bad = mid;
+            self.bad = self.mid;
+        }
+        if self.step == BISECTIONS {
+            self.done = true;
+            self.found = Some(self.point());
+            return;
+        }
+        self.step += 1;
+        self.mid = 0.5 * (self.good + self.bad);
+        self.newton = Self::at(self.base, self.param, self.settings, self.mid, &self.last);
+    }
+
+    /// The located point, its kind from the last stable cycle's critical multiplier.
+    fn point(&self) -> BifurcationPoint {
+        let (good, bad, last) = (self.good, self.bad, &self.last);
+        let lead = last.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
+        let kind = if 1.0 - modulus(&lead) > CRITICAL {
+            Kind::NonSmooth
+        } else if lead[1].abs() > 1e-6 {
+            Kind::NeimarkSacker
+        } else if lead[0] < 0.0 {
+            Kind::PeriodDoubling
+        } else {
+            Kind::Fold
+        };
+        BifurcationPoint {
+            kind,
+            value: 0.5 * (good + bad),
+            uncertainty: 0.5 * (good - bad).abs(),
+            period: self.start.period,
+            multipliers: last.multipliers.clone(),
         }
     }
-    let lead = last.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
-    let kind = if 1.0 - modulus(&lead) > CRITICAL {
-        Kind::NonSmooth
-    } else if lead[1].abs() > 1e-6 {
-        Kind::NeimarkSacker
-    } else if lead[0] < 0.0 {
-        Kind::PeriodDoubling
-    } else {
-        Kind::Fold
-    };
-    Some(BifurcationPoint {
-        kind,
-        value: 0.5 * (good + bad),
-        uncertainty: 0.5 * (good - bad).abs(),
-        period: start.period,
-        multipliers: last.multipliers,
-    })
+}
+
+impl FlowTask for Locate<'_> {
+    fn flow(&self) -> Option<(PointState<f64>, u32)> {
+        if self.done { None } else { self.newton.flow() }
+    }
+
+    fn integrator(&self) -> &Integrator<f64> {
+        self.newton.integrator()
+    }
+
+    fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
+        self.newton.ended(end, tan);
+        if let Some(c) = self.newton.result() {
+            let c = c.clone();
+            self.solved(c);
+        }
+    }
 }

@@ -21,12 +21,13 @@
 //! their Floquet multipliers ([`refine`]) and the Lyapunov spectrum ([`spectrum`]).
 
 use crate::method::{
-    EV_IMPACT_NEG, EV_IMPACT_POS, EV_RELEASE_NEG, EV_RELEASE_POS, EV_REVERSAL, Event, Integrator,
-    PointState, StepObserver,
+    EV_IMPACT_NEG, EV_IMPACT_POS, EV_RELEASE_NEG, EV_RELEASE_POS, EV_REVERSAL, Event, FlowTask,
+    Integrator, PointState, StepObserver, run_flows,
 };
 use crate::model::{Mode, Params, co_move, field, impact, initial_mode, jacobian, jacobian_times};
 use crate::real::Real;
 use nalgebra::{Matrix4, Vector4};
+use rayon::prelude::*;
 use serde::Serialize;
 
 #[inline(always)]
@@ -418,24 +419,73 @@ impl Cycle {
 /// Refines a cycle of period `n` of the stroboscopic map from `start` by Newton's method,
 /// `x <- x - (M - I)^-1 (P^n(x) - x)` with the monodromy matrix `M` from the tangent dynamics,
 /// and returns it with its multipliers. The mode is kept along the iteration (a slip whose
-/// velocity changes sign, or a rest mode, is re-derived from the state).
+/// velocity changes sign, or a rest mode, is re-derived from the state). [`Refine`] is the
+/// same iteration as a task for the lanes of [`run_flows`](crate::method::run_flows).
 pub fn refine(it: &Integrator<f64>, start: &PointState<f64>, n: u32) -> Cycle {
-    let mut st = *start;
-    st.diag = Default::default();
-    let mut out = Cycle {
-        period: n,
-        point: st.y,
-        mode: st.mode,
-        residual: f64::NAN,
-        iterations: 0,
-        converged: false,
-        multipliers: Vec::new(),
-    };
-    for iter in 0..NEWTON_ITERS {
+    let mut r = Refine::new(it.clone(), start, n);
+    while let Some((st, n)) = r.flow() {
         let (end, tan) = flow(it, &st, n);
-        out.iterations = iter + 1;
+        r.ended(&end, &tan);
+    }
+    r.out
+}
+
+/// Newton's method of [`refine`], one flow of `n` periods per iteration.
+#[derive(Clone, Debug)]
+pub struct Refine {
+    it: Integrator<f64>,
+    /// The current iterate.
+    st: PointState<f64>,
+    n: u32,
+    out: Cycle,
+    done: bool,
+}
+
+impl Refine {
+    pub fn new(it: Integrator<f64>, start: &PointState<f64>, n: u32) -> Refine {
+        let mut st = *start;
+        st.diag = Default::default();
+        Refine {
+            it,
+            st,
+            n,
+            out: Cycle {
+                period: n,
+                point: st.y,
+                mode: st.mode,
+                residual: f64::NAN,
+                iterations: 0,
+                converged: false,
+                multipliers: Vec::new(),
+            },
+            done: NEWTON_ITERS == 0,
+        }
+    }
+
+    /// The answer, once the task is done.
+    pub fn cycle(self) -> Cycle {
+        debug_assert!(self.done);
+        self.out
+    }
+
+    /// The answer, `None` while the iteration runs.
+    pub fn result(&self) -> Option<&Cycle> {
+        self.done.then_some(&self.out)
+    }
+
+    /// Flows of periods one iteration integrates.
+    pub fn period(&self) -> u32 {
+        self.n
+    }
+
+    /// The iteration after the flow from the current iterate: false where it stops.
+    fn step(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) -> bool {
+        let (it, out) = (&self.it, &mut self.out);
+        let st = &mut self.st;
+        let n = self.n;
+        out.iterations += 1;
         if end.diag.nonfinite || !tan.is_finite() {
-            break;
+            return false;
         }
         let r = Vector4::from_fn(|i, _| end.y[i] - st.y[i]);
         out.point = st.y;
@@ -444,34 +494,98 @@ pub fn refine(it: &Integrator<f64>, start: &PointState<f64>, n: u32) -> Cycle {
         out.residual = r.amax();
         // Newton near a cycle shrinks the residual; a growing one means no cycle nearby.
         if out.residual > 1e3 * previous {
-            break;
+            return false;
         }
         let scale = st.y.iter().fold(1.0f64, |a, v| a.max(v.abs()));
         let m = tan.matrix();
         if out.residual <= NEWTON_TOL * scale {
             // A fixed point of P^n may be a cycle of a divisor of n: report the least period.
-            if let Some(d) = (1..n).find(|d| n.is_multiple_of(*d) && returns(it, &st, *d, scale)) {
-                return refine(it, &st, d);
+            if let Some(d) = (1..n).find(|d| n.is_multiple_of(*d) && returns(it, st, *d, scale)) {
+                *out = refine(it, st, d);
+                return false;
             }
             out.converged = true;
             out.multipliers = eigenvalues(&m);
-            break;
+            return false;
         }
         let Some(dx) = (m - Matrix4::identity()).lu().solve(&(-r)) else {
-            break;
+            return false;
         };
         if !dx.iter().all(|v| v.is_finite()) {
-            break;
+            return false;
         }
         for i in 0..4 {
             st.y[i] += dx[i];
         }
-        st.mode = mode_after_update(it, &st);
+        st.mode = mode_after_update(it, st);
         if let Mode::Stick | Mode::LockPos | Mode::LockNeg = st.mode {
             co_move(&it.p, &mut st.y);
         }
+        out.iterations < NEWTON_ITERS
     }
-    out
+}
+
+impl FlowTask for Refine {
+    fn flow(&self) -> Option<(PointState<f64>, u32)> {
+        (!self.done).then_some((self.st, self.n))
+    }
+
+    fn integrator(&self) -> &Integrator<f64> {
+        &self.it
+    }
+
+    fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
+        self.done = !self.step(end, tan);
+    }
+}
+
+/// Runs `tasks` on the lanes of [`run_flows`](crate::method::run_flows), one queue per thread,
+/// and returns them in their order. `cost` estimates a task's work: the tasks are dealt to the
+/// queues costliest first, round robin, so that the queues carry similar work and each ends
+/// with its cheapest tasks (lanes run idle only at the very end).
+pub fn run_parallel<T: FlowTask + Send>(tasks: Vec<T>, cost: impl Fn(&T) -> u64) -> Vec<T> {
+    let len = tasks.len();
+    let queues = rayon::current_num_threads()
+        .min(len.div_ceil(crate::method::LANES))
+        .max(1);
+    let mut work: Vec<Indexed<T>> = tasks
+        .into_iter()
+        .enumerate()
+        .map(|(i, t)| Indexed(i, t))
+        .collect();
+    work.sort_by_key(|w| std::cmp::Reverse(cost(&w.1)));
+    // Sorted position q goes to queue q % queues; a queue keeps the sorted order.
+    let mut dealt: Vec<(usize, Indexed<T>)> = work.into_iter().enumerate().collect();
+    dealt.sort_by_key(|(q, _)| (q % queues, *q));
+    let mut work: Vec<Indexed<T>> = dealt.into_iter().map(|(_, w)| w).collect();
+    let mut rest: &mut [Indexed<T>] = &mut work;
+    let mut parts = Vec::with_capacity(queues);
+    for k in 0..queues {
+        let n = (len - k).div_ceil(queues);
+        let (part, tail) = rest.split_at_mut(n);
+        parts.push(part);
+        rest = tail;
+    }
+    parts.into_par_iter().for_each(run_flows);
+    work.sort_by_key(|w| w.0);
+    work.into_iter().map(|w| w.1).collect()
+}
+
+/// A task and its place in the caller's order.
+struct Indexed<T>(usize, T);
+
+impl<T: FlowTask> FlowTask for Indexed<T> {
+    fn flow(&self) -> Option<(PointState<f64>, u32)> {
+        self.1.flow()
+    }
+
+    fn integrator(&self) -> &Integrator<f64> {
+        self.1.integrator()
+    }
+
+    fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
+        self.1.ended(end, tan)
+    }
 }
 
 /// Whether `d` periods from `st` return to it within the Newton tolerance.

@@ -1,13 +1,18 @@
 //! The CPU backend's lane-batched schedule (`method::run_lanes`) is a reordering of work, not a
 //! different method: every point's samples, diagnostics, final state and exponent must be those
 //! of the scalar `Integrator::run`, bit for bit, whatever the mix of modes, events and failures
-//! in its batch.
+//! in its batch. The same holds for Newton's method on the lanes (`method::run_flows`): every
+//! refined cycle is that of the scalar `tangent::refine`.
 
+use rattle::classify::Class;
 use rattle::method::{
-    ImpactMethod, Integrator, LANES, RunResult, Settings, batches, run_lanes, run_lanes_portable,
+    FlowTask, ImpactMethod, Integrator, LANES, PointState, RunResult, Settings, batches, run_flows,
+    run_flows_portable, run_lanes, run_lanes_portable,
 };
 use rattle::model::Params;
 use rattle::real::Real;
+use rattle::stability::{Proposal, confirm, confirm_many};
+use rattle::tangent::{Cycle, Refine, refine};
 
 /// Points that between them stick, lock after chattering, impact, slip with Stribeck friction,
 /// never touch the stops, and fail (a Stribeck l2 that f32 overflows).
@@ -132,4 +137,130 @@ fn batched_runs_with_the_exponent_or_naive_impacts_equal_scalar_runs() {
         ..Settings::default()
     };
     check::<f64>(&naive, 23);
+}
+
+fn same_cycle(a: &Cycle, b: &Cycle) -> bool {
+    let bits = |c: &Cycle| {
+        (
+            c.period,
+            c.point.map(f64::to_bits),
+            c.mode,
+            c.residual.to_bits(),
+            c.iterations,
+            c.converged,
+            c.multipliers
+                .iter()
+                .flat_map(|m| m.map(f64::to_bits))
+                .collect::<Vec<_>>(),
+        )
+    };
+    bits(a) == bits(b)
+}
+
+/// Newton trials at periods 1 to 4 from the states of the mixed points after 40 periods.
+fn trials(settings: &Settings) -> Vec<(Integrator<f64>, PointState<f64>, u32)> {
+    mixed_points()
+        .into_iter()
+        .enumerate()
+        .flat_map(|(i, (p, y0))| {
+            let it = Integrator::<f64>::new(&p, settings);
+            let r = it.run(y0, 40, 1);
+            let st = PointState {
+                y: r.final_y,
+                mode: r.final_mode,
+                diag: Default::default(),
+            };
+            (1..=4).map(move |n| (it.clone(), st, 1 + (n + i as u32) % 4))
+        })
+        .collect()
+}
+
+fn check_flows(settings: &Settings) {
+    let jobs = trials(settings);
+    let scalar: Vec<Cycle> = jobs.iter().map(|(it, st, n)| refine(it, st, *n)).collect();
+    let tasks = || -> Vec<Refine> {
+        jobs.iter()
+            .map(|(it, st, n)| Refine::new(it.clone(), st, *n))
+            .collect()
+    };
+    // The build chosen at run time (AVX2 where the CPU has it) and the baseline one.
+    let mut batched = tasks();
+    run_flows(&mut batched);
+    let mut portable = tasks();
+    run_flows_portable(&mut portable);
+    for (i, ((s, b), p)) in scalar.iter().zip(batched).zip(portable).enumerate() {
+        assert!(
+            b.flow().is_none() && p.flow().is_none(),
+            "task {i} not done"
+        );
+        assert!(
+            same_cycle(&p.cycle(), s),
+            "trial {i}: the baseline build differs"
+        );
+        assert!(
+            same_cycle(&b.cycle(), s),
+            "trial {i}: batched differs from {s:?}"
+        );
+    }
+    // Trials that converge to stable and to unstable cycles, and trials that fail.
+    let stable = scalar.iter().filter(|c| c.is_stable()).count();
+    let unstable = scalar
+        .iter()
+        .filter(|c| c.converged && !c.is_stable())
+        .count();
+    let failed = scalar.iter().filter(|c| !c.converged).count();
+    assert!(
+        stable > 0 && unstable > 0 && failed > 0,
+        "stable {stable}, unstable {unstable}, failed {failed}"
+    );
+}
+
+#[test]
+fn newton_on_the_lanes_equals_scalar_newton_bit_for_bit() {
+    check_flows(&Settings::default());
+    // Naive impacts take the scalar path of run_flows.
+    check_flows(&Settings {
+        impacts: ImpactMethod::Naive,
+        steps_per_period: 64,
+        ..Settings::default()
+    });
+}
+
+#[test]
+fn confirm_many_equals_confirm_point_by_point() {
+    let s = Settings::default();
+    let runs: Vec<(rattle::model::Params<f64>, RunResult)> = mixed_points()
+        .into_iter()
+        .map(|(p, y0)| {
+            let r = Integrator::<f64>::new(&p, &s).run(y0, 60, 40);
+            (p, r)
+        })
+        .collect();
+    let proposals: Vec<Proposal> = runs
+        .iter()
+        .enumerate()
+        .map(|(i, (p, r))| Proposal {
+            params: *p,
+            run: r,
+            // With samples (bifurcation diagrams) and without (maps).
+            use_samples: i % 2 == 0,
+            class: r.class(1e-4),
+        })
+        .collect();
+    let many = confirm_many(&s, &proposals, 0.01);
+    let mut tried = 0;
+    for (q, v) in proposals.iter().zip(&many) {
+        let one = confirm(&q.params, &s, q.run, q.use_samples, q.class, 0.01);
+        assert_eq!(one.class, v.class);
+        match (&one.cycle, &v.cycle) {
+            (Some(a), Some(b)) => {
+                tried += 1;
+                assert!(same_cycle(a, b));
+            }
+            (None, None) => {}
+            _ => panic!("one verdict has a cycle, the other not"),
+        }
+    }
+    assert!(tried > LANES, "{tried} Newton trials");
+    assert!(many.iter().any(|v| matches!(v.class, Class::Periodic(_))));
 }

@@ -7,11 +7,11 @@
 //! Every lane does the arithmetic of [`Integrator::run`] operation for operation, so the
 //! results are the same bit for bit (tested); only the order in which the work is done changes.
 
-use super::events::{clear_of, finite_state};
+use super::events::clear_of;
 use super::{Integrator, PointState, RunResult};
 use crate::model::Mode;
 use crate::real::Real;
-use crate::tangent::Leading;
+use crate::tangent::{Leading, Tangent};
 
 /// Points per batch: 8 f32 or f64 values fill two 128-bit or one 256-bit vector per operation
 /// and keep the per-lane state in registers and L1.
@@ -58,6 +58,19 @@ struct LaneParams<F> {
 }
 
 impl<F: Real> LaneParams<F> {
+    /// Lane `l`'s values from `it`.
+    fn set(&mut self, l: usize, it: &Integrator<F>) {
+        self.fs[l] = it.p.fs;
+        self.fk[l] = it.p.fk;
+        self.l1[l] = it.p.l1;
+        self.l2[l] = it.p.l2;
+        self.b1[l] = it.p.b1;
+        self.delta[l] = it.p.delta;
+        self.mu[l] = it.p.mu;
+        self.r[l] = it.p.r;
+        self.h[l] = it.h;
+    }
+
     fn new(its: &[&Integrator<F>; LANES]) -> Self {
         let of = |g: &dyn Fn(&Integrator<F>) -> F| std::array::from_fn(|l| g(its[l]));
         LaneParams {
@@ -163,15 +176,7 @@ fn slip_jacobian_times<F: Real>(
 ) -> [Lanes<F>; 4] {
     let mut out = [[F::zero(); LANES]; 4];
     for l in 0..LANES {
-        // model::friction_slope at w = s v.
-        let w = s[l] * (y[1][l] - y[3][l]);
-        let qd = F::one() + q.l1[l] * w;
-        let decay = if qd > F::of(0.5) {
-            -(q.fs[l] - q.fk[l]) * q.l1[l] / (qd * qd)
-        } else {
-            F::zero()
-        };
-        let e = q.b1[l] * q.delta[l] + (decay + F::of(2.0) * q.l2[l] * w);
+        let e = q.b1[l] * q.delta[l] + friction_slope(q, l, s[l] * (y[1][l] - y[3][l]));
         let rel = e * (x[1][l] - x[3][l]);
         out[0][l] = x[1][l];
         out[1][l] = -x[0][l] - q.b1[l] * x[1][l] - rel;
@@ -204,30 +209,186 @@ fn tangent_substep<F: Real>(
     })
 }
 
-/// Up to [`LANES`] points of one run: the states, the fields at their step starts, and which
-/// lanes still run.
-struct Batch<'a, F: Real> {
-    its: [&'a Integrator<F>; LANES],
+/// Tangent vectors a [`Batch`] carries along: their quiet step as arrays over the lanes, and
+/// the scalar grid step of one lane with them as its observer.
+trait LaneTangent<F: Real>: Sized {
+    /// The quiet step (dt = h, slip) of the lanes in `keep`; the others stay as they are.
+    fn quiet(
+        &mut self,
+        q: &LaneParams<F>,
+        s: &Lanes<F>,
+        y: &[Lanes<F>; 4],
+        stages: &[[Lanes<F>; 4]; 3],
+        keep: &[bool; LANES],
+    );
+    /// `Integrator::grid_step` of lane `l` with its vectors as the observer.
+    fn grid_step(
+        &mut self,
+        it: &Integrator<F>,
+        st: &mut PointState<F>,
+        k: u32,
+        f: &mut [F; 4],
+        l: usize,
+    ) -> bool;
+}
+
+/// The Lyapunov exponent's vector ([`Leading`]) of every lane.
+struct One<F>([Lanes<F>; 4]);
+
+impl<F: Real> LaneTangent<F> for One<F> {
+    #[inline(always)]
+    fn quiet(
+        &mut self,
+        q: &LaneParams<F>,
+        s: &Lanes<F>,
+        y: &[Lanes<F>; 4],
+        stages: &[[Lanes<F>; 4]; 3],
+        keep: &[bool; LANES],
+    ) {
+        let x = tangent_substep(q, s, y, stages, &self.0);
+        for (t, x) in self.0.iter_mut().zip(&x) {
+            for l in 0..LANES {
+                // A select, not a branch: it compiles to a blend.
+                t[l] = if keep[l] { x[l] } else { t[l] };
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn grid_step(
+        &mut self,
+        it: &Integrator<F>,
+        st: &mut PointState<F>,
+        k: u32,
+        f: &mut [F; 4],
+        l: usize,
+    ) -> bool {
+        let mut lead = Leading {
+            x: std::array::from_fn(|i| self.0[i][l]),
+        };
+        let go = it.grid_step(st, k, f, &mut lead);
+        for i in 0..4 {
+            self.0[i][l] = lead.x[i];
+        }
+        go
+    }
+}
+
+/// The four vectors of the flow's derivative ([`Tangent`] with m = 4) of every lane: vector
+/// `v`, component `i`, lane `l` at `[v][i][l]`.
+struct Four<F>([[Lanes<F>; 4]; 4]);
+
+impl<F: Real> LaneTangent<F> for Four<F> {
+    /// `Tangent::substep` of a whole quiet step on every lane: one loop over the lanes with
+    /// each lane's whole step inside, so that the compiler vectorises it over the lanes with
+    /// the temporaries in registers.
+    #[inline(always)]
+    fn quiet(
+        &mut self,
+        q: &LaneParams<F>,
+        s: &Lanes<F>,
+        y: &[Lanes<F>; 4],
+        stages: &[[Lanes<F>; 4]; 3],
+        keep: &[bool; LANES],
+    ) {
+        let two = F::of(2.0);
+        for l in 0..LANES {
+            // model::jacobian in slip at a stage point: (J11, J13, J31, J33).
+            let jac = |p: &[Lanes<F>; 4]| {
+                let e = q.b1[l] * q.delta[l] + friction_slope(q, l, s[l] * (p[1][l] - p[3][l]));
+                // -e / mu is -(e / mu) exactly (rounding is symmetric): one division.
+                let em = e / q.mu[l];
+                (-q.b1[l] - e, e, em, -em)
+            };
+            let j = [jac(y), jac(&stages[0]), jac(&stages[1]), jac(&stages[2])];
+            // tangent::mul.
+            let mul = |(j11, j13, j31, j33): (F, F, F, F), x: [F; 4]| {
+                let r1 = -F::one() * x[0] + j11 * x[1];
+                [x[1], r1 + j13 * x[3], x[3], j31 * x[1] + j33 * x[3]]
+            };
+            let dt = q.h[l];
+            let half = F::of(0.5) * dt;
+            let sixth = dt / F::of(6.0);
+            for v in self.0.iter_mut() {
+                let x = [v[0][l], v[1][l], v[2][l], v[3][l]];
+                let at = |a: F, k: &[F; 4]| {
+                    [
+                        x[0] + a * k[0],
+                        x[1] + a * k[1],
+                        x[2] + a * k[2],
+                        x[3] + a * k[3],
+                    ]
+                };
+                let k1 = mul(j[0], x);
+                let k2 = mul(j[1], at(half, &k1));
+                let k3 = mul(j[2], at(half, &k2));
+                let k4 = mul(j[3], at(dt, &k3));
+                for i in 0..4 {
+                    let new = x[i] + sixth * (k1[i] + two * (k2[i] + k3[i]) + k4[i]);
+                    v[i][l] = if keep[l] { new } else { x[i] };
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn grid_step(
+        &mut self,
+        it: &Integrator<F>,
+        st: &mut PointState<F>,
+        k: u32,
+        f: &mut [F; 4],
+        l: usize,
+    ) -> bool {
+        let mut tan = Tangent::identity(4);
+        for (v, x) in tan.v.iter_mut().zip(&self.0) {
+            *v = std::array::from_fn(|i| x[i][l]);
+        }
+        let go = it.grid_step(st, k, f, &mut tan);
+        for (v, x) in tan.v.iter().zip(self.0.iter_mut()) {
+            for i in 0..4 {
+                x[i][l] = v[i];
+            }
+        }
+        go
+    }
+}
+
+/// `model::friction_slope` of lane `l` at `w`.
+#[inline(always)]
+fn friction_slope<F: Real>(q: &LaneParams<F>, l: usize, w: F) -> F {
+    let qd = F::one() + q.l1[l] * w;
+    let decay = if qd > F::of(0.5) {
+        -(q.fs[l] - q.fk[l]) * q.l1[l] / (qd * qd)
+    } else {
+        F::zero()
+    };
+    decay + F::of(2.0) * q.l2[l] * w
+}
+
+/// Up to [`LANES`] points: their states, their tangent vectors, and which lanes still run.
+struct Batch<F: Real, T> {
     q: LaneParams<F>,
     st: [PointState<F>; LANES],
     /// The lane holds a point (the last batch of a run may be short) that has not failed.
     live: [bool; LANES],
-    /// The tangent vector of each lane's exponent, while sampling with it.
-    tan: [Lanes<F>; 4],
-    /// The lane's tangent vector runs (as `tangent_ok` of `Integrator::sample`).
+    /// The tangent vectors of each lane, while they run.
+    tan: T,
+    /// The lane's tangent vectors run (as `tangent_ok` of `Integrator::sample`).
     tan_ok: [bool; LANES],
 }
 
-impl<F: Real> Batch<'_, F> {
+impl<F: Real, T: LaneTangent<F>> Batch<F, T> {
     /// One forcing period of every live lane, as `Integrator::period_observed` on each, with
-    /// the tangent vector of the lanes in `tan_ok`.
+    /// the tangent vectors of the lanes in `tan_ok`. `its[l]` integrates lane l; all share
+    /// their steps per period.
     #[inline(always)]
-    fn period(&mut self) {
-        let it0 = self.its[0];
+    fn period(&mut self, its: &[&Integrator<F>; LANES]) {
+        let it0 = its[0];
         let mut y = vectors(|i, l| self.st[l].y[i]);
         let mut f0 = [[F::zero(); LANES]; 4];
         for l in (0..LANES).filter(|&l| self.live[l]) {
-            let f = self.its[l].period_start(&self.st[l]);
+            let f = its[l].period_start(&self.st[l]);
             for i in 0..4 {
                 f0[i][l] = f[i];
             }
@@ -242,47 +403,50 @@ impl<F: Real> Batch<'_, F> {
             let c2 = it0.forcing(k, F::of(0.5)).0;
             let c4 = it0.forcing(k, F::one()).0;
             let t = trial(&self.q, &s, &y, &f0, (c2, c4));
-            let tan1 = tangent.then(|| tangent_substep(&self.q, &s, &y, &t.stages, &self.tan));
+            // The lanes that take the trial step: running, in slip, and quiet.
+            let take = lanes(false, |l| {
+                running[l] && self.st[l].mode.is_slip() && t.quiet[l]
+            });
+            if tangent {
+                let keep = lanes(false, |l| take[l] && self.tan_ok[l]);
+                self.tan.quiet(&self.q, &s, &y, &t.stages, &keep);
+            }
+            for i in 0..4 {
+                for l in 0..LANES {
+                    y[i][l] = if take[l] { t.y1[i][l] } else { y[i][l] };
+                    f0[i][l] = if take[l] { t.f1[i][l] } else { f0[i][l] };
+                }
+            }
+            // A lane's `st.y` is brought up to date where the lane leaves the arrays: at a
+            // scalar step, where it fails, and at the end of the period.
+            let failed = lanes(false, |l| take[l] && !(0..4).all(|i| y[i][l].is_finite()));
             for l in 0..LANES {
-                if !running[l] {
+                if !running[l] || (take[l] && !failed[l]) {
                     continue;
                 }
                 let st = &mut self.st[l];
-                if st.mode.is_slip() && t.quiet[l] {
-                    for i in 0..4 {
-                        y[i][l] = t.y1[i][l];
-                        f0[i][l] = t.f1[i][l];
-                    }
-                    if let (Some(x), true) = (&tan1, self.tan_ok[l]) {
-                        for (t, x) in self.tan.iter_mut().zip(x) {
-                            t[l] = x[l];
-                        }
-                    }
-                    st.y = [y[0][l], y[1][l], y[2][l], y[3][l]];
-                    if !finite_state(&st.y) {
-                        st.diag.nonfinite = true;
-                        running[l] = false;
-                    }
+                st.y = [y[0][l], y[1][l], y[2][l], y[3][l]];
+                if take[l] {
+                    st.diag.nonfinite = true;
+                    running[l] = false;
                     continue;
                 }
                 // Stick, lock, or a step that may hold an event: the scalar step.
                 let mut f = [f0[0][l], f0[1][l], f0[2][l], f0[3][l]];
                 running[l] = if self.tan_ok[l] {
-                    let mut lead = Leading {
-                        x: std::array::from_fn(|i| self.tan[i][l]),
-                    };
-                    let go = self.its[l].grid_step(st, k, &mut f, &mut lead);
-                    for i in 0..4 {
-                        self.tan[i][l] = lead.x[i];
-                    }
-                    go
+                    self.tan.grid_step(its[l], st, k, &mut f, l)
                 } else {
-                    self.its[l].grid_step(st, k, &mut f, &mut ())
+                    its[l].grid_step(st, k, &mut f, &mut ())
                 };
                 for i in 0..4 {
                     y[i][l] = st.y[i];
                     f0[i][l] = f[i];
                 }
+            }
+        }
+        for l in 0..LANES {
+            if running[l] {
+                self.st[l].y = [y[0][l], y[1][l], y[2][l], y[3][l]];
             }
         }
         for l in 0..LANES {
@@ -357,23 +521,22 @@ pub fn run_lanes_portable<F: Real>(
         let live = std::array::from_fn(|l| l < chunk.len() && !st[l].diag.nonfinite);
         let mut b = Batch {
             q: LaneParams::new(&its),
-            its,
             st,
             live,
-            tan: [[F::zero(); LANES]; 4],
+            tan: One([[F::zero(); LANES]; 4]),
             tan_ok: [false; LANES],
         };
         for _ in 0..transient {
             if !b.live.iter().any(|&x| x) {
                 break;
             }
-            b.period();
+            b.period(&its);
         }
         // Sampling, as `Integrator::sample`: the tangent vector starts along y1.
         let before: [u64; LANES] = std::array::from_fn(|l| b.st[l].diag.impacts);
         let start = Leading::<F>::default().x;
-        b.tan = std::array::from_fn(|i| [start[i]; LANES]);
-        b.tan_ok = std::array::from_fn(|l| b.its[l].lyapunov);
+        b.tan = One(std::array::from_fn(|i| [start[i]; LANES]));
+        b.tan_ok = std::array::from_fn(|l| its[l].lyapunov);
         let mut log_sum = [0.0f64; LANES];
         let mut taken: Vec<Vec<[f64; 4]>> = (0..LANES)
             .map(|_| Vec::with_capacity(samples as usize))
@@ -382,28 +545,177 @@ pub fn run_lanes_portable<F: Real>(
             if !b.live.iter().any(|&x| x) {
                 break;
             }
-            b.period();
+            b.period(&its);
             for l in (0..LANES).filter(|&l| b.live[l]) {
                 taken[l].push(b.st[l].y.map(|v| v.to_f64()));
                 if b.tan_ok[l] {
                     let mut lead = Leading {
-                        x: std::array::from_fn(|i| b.tan[i][l]),
+                        x: std::array::from_fn(|i| b.tan.0[i][l]),
                     };
                     b.tan_ok[l] = lead.is_finite();
                     if b.tan_ok[l] {
                         log_sum[l] += lead.renormalize();
                     }
                     for i in 0..4 {
-                        b.tan[i][l] = lead.x[i];
+                        b.tan.0[i][l] = lead.x[i];
                     }
                 }
             }
         }
         for (l, samples) in taken.into_iter().enumerate().take(chunk.len()) {
-            let it = b.its[l];
+            let it = its[l];
             let lyapunov = it.exponent(b.tan_ok[l], log_sum[l], samples.len());
             out.push(Integrator::result(&b.st[l], samples, before[l], lyapunov));
         }
     }
     out
+}
+
+/// Work for the lanes of [`run_flows`]: a sequence of flows (`tangent::flow`: periods of the
+/// state with the four tangent vectors from the identity), each asked for when the previous
+/// one has ended. Newton's method is one such task, a bisection of Newton solutions another.
+pub trait FlowTask {
+    /// The flow the task needs now (start state and periods), `None` when it is done.
+    fn flow(&self) -> Option<(PointState<f64>, u32)>;
+    /// The integrator of that flow.
+    fn integrator(&self) -> &Integrator<f64>;
+    /// The end of the flow asked for, as `tangent::flow` returns it (the tangent's
+    /// `log_volume` and `events` are not kept).
+    fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>);
+}
+
+/// Runs `tasks` to their end, each as `while let Some((st, n)) = t.flow() { t.ended(flow(..)) }`
+/// with the same results bit for bit, [`LANES`] flows at a time: a lane whose flow ends takes
+/// the task's next flow or the next task. The tasks' integrators must share their settings.
+pub fn run_flows<T: FlowTask>(tasks: &mut [T]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { run_flows_avx2(tasks) };
+    }
+    run_flows_portable(tasks)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn run_flows_avx2<T: FlowTask>(tasks: &mut [T]) {
+    run_flows_portable(tasks)
+}
+
+/// [`run_flows`] for the compilation target's baseline instruction set only.
+#[inline(always)]
+pub fn run_flows_portable<T: FlowTask>(tasks: &mut [T]) {
+    let Some(first) = tasks.first() else {
+        return;
+    };
+    if first.integrator().naive {
+        for t in tasks.iter_mut() {
+            while let Some((st, n)) = t.flow() {
+                let (end, tan) = crate::tangent::flow(t.integrator(), &st, n);
+                t.ended(&end, &tan);
+            }
+        }
+        return;
+    }
+    // Idle lanes hold a copy of a state and are never run.
+    let idle = PointState {
+        y: [0.0; 4],
+        mode: Mode::SlipPos,
+        diag: Default::default(),
+    };
+    let mut b = Batch {
+        q: LaneParams::new(&[first.integrator(); LANES]),
+        st: [idle; LANES],
+        live: [false; LANES],
+        tan: Four([[[0.0; LANES]; 4]; 4]),
+        tan_ok: [true; LANES],
+    };
+    // The task of each lane and the periods left of its flow.
+    let mut slot: [Option<usize>; LANES] = [None; LANES];
+    let mut left = [0u32; LANES];
+    let mut next = 0;
+    // Starts task `i`'s next flow on lane `l` (flows of no period end at once); false when
+    // the task is done.
+    let load = |b: &mut Batch<f64, Four<f64>>, t: &mut T, l: usize, left: &mut u32| -> bool {
+        while let Some((st, n)) = t.flow() {
+            if n == 0 {
+                t.ended(&st, &Tangent::identity(4));
+                continue;
+            }
+            b.q.set(l, t.integrator());
+            b.st[l] = st;
+            b.live[l] = true;
+            for (v, x) in b.tan.0.iter_mut().enumerate() {
+                for (i, xi) in x.iter_mut().enumerate() {
+                    xi[l] = if i == v { 1.0 } else { 0.0 };
+                }
+            }
+            *left = n;
+            return true;
+        }
+        false
+    };
+    loop {
+        for l in 0..LANES {
+            while slot[l].is_none() && next < tasks.len() {
+                if load(&mut b, &mut tasks[next], l, &mut left[l]) {
+                    slot[l] = Some(next);
+                }
+                next += 1;
+            }
+        }
+        let busy = slot.iter().filter(|s| s.is_some()).count();
+        if busy == 0 {
+            return;
+        }
+        if next == tasks.len() && 3 * busy < LANES {
+            // A few long tasks left: a batch costs about three scalar flows.
+            for l in 0..LANES {
+                let Some(i) = slot[l] else { continue };
+                let t = &mut tasks[i];
+                let (mut st, mut tan) = (b.st[l], lane_tangent(&b.tan, l));
+                for _ in 0..left[l] {
+                    t.integrator().period_observed(&mut st, &mut tan);
+                    if st.diag.nonfinite {
+                        break;
+                    }
+                }
+                t.ended(&st, &tan);
+                while let Some((st, n)) = t.flow() {
+                    let (end, tan) = crate::tangent::flow(t.integrator(), &st, n);
+                    t.ended(&end, &tan);
+                }
+            }
+            return;
+        }
+        {
+            let its: [&Integrator<f64>; LANES] = std::array::from_fn(|l| {
+                slot[l].map_or(tasks[0].integrator(), |i| tasks[i].integrator())
+            });
+            b.period(&its);
+        }
+        for l in 0..LANES {
+            let Some(i) = slot[l] else { continue };
+            left[l] -= 1;
+            if left[l] > 0 && b.live[l] {
+                continue;
+            }
+            b.live[l] = false;
+            let st = b.st[l];
+            tasks[i].ended(&st, &lane_tangent(&b.tan, l));
+            if !load(&mut b, &mut tasks[i], l, &mut left[l]) {
+                slot[l] = None;
+            }
+        }
+    }
+}
+
+/// The tangent vectors of lane `l`.
+#[inline(always)]
+fn lane_tangent(t: &Four<f64>, l: usize) -> Tangent<f64> {
+    let mut tan = Tangent::identity(4);
+    for (v, x) in tan.v.iter_mut().zip(&t.0) {
+        *v = std::array::from_fn(|c| x[c][l]);
+    }
+    tan
 }

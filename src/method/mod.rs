@@ -20,7 +20,9 @@ mod lanes;
 
 use events::finite_state;
 pub use events::{Bracket, bracket, clear_of, cos_sin_small, forcing_table, illinois};
-pub use lanes::{LANES, batches, run_lanes, run_lanes_portable};
+pub use lanes::{
+    FlowTask, LANES, batches, run_flows, run_flows_portable, run_lanes, run_lanes_portable,
+};
 
 /// How impacts are handled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -169,6 +171,7 @@ impl<F: Real> StepObserver<F> for () {
 }
 
 /// The CPU integrator for one parameter point.
+#[derive(Clone, Debug)]
 pub struct Integrator<F> {
     pub p: Params<F>,
     /// cos/sin at phases 2*pi*j/(2N).
