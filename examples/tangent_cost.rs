@@ -1,10 +1,10 @@
 //! Cost of the tangent dynamics on the CPU: steps/s of one thread integrating a Fig. 2 point
 //! plainly, with one tangent vector (largest exponent) and with four (monodromy, spectrum),
-//! and of 8 such points with four vectors each on the lanes of `method::run_flows` (the
+//! and of 4 such points with four vectors each on the lanes of `method::run_flows` (the
 //! schedule of Newton's method in `stability`), per point-step.
 //! `cargo run --release --example tangent_cost`; best of three runs of 2000 periods each.
 
-use rattle::method::{FlowTask, Integrator, LANES, PointState, Settings, run_flows};
+use rattle::method::{FlowTask, Integrator, NEWTON_LANES, PointState, Settings, run_flows};
 use rattle::model::Params;
 use rattle::tangent::Tangent;
 use std::time::Instant;
@@ -59,7 +59,7 @@ fn main() {
         // Neighbouring values of eta on the lanes, as the Newton trials of a sweep.
         let mut best = f64::MAX;
         for _ in 0..3 {
-            let mut tasks: Vec<Flow> = (0..LANES)
+            let mut tasks: Vec<Flow> = (0..NEWTON_LANES)
                 .map(|l| {
                     let it = Integrator::<f64>::new(
                         &Params::paper(eta + 1e-4 * l as f64),
@@ -77,9 +77,9 @@ fn main() {
             run_flows(&mut tasks);
             best = best.min(t.elapsed().as_secs_f64());
         }
-        let steps = f64::from(periods * it.steps_per_period()) * LANES as f64;
+        let steps = f64::from(periods * it.steps_per_period()) * NEWTON_LANES as f64;
         println!(
-            "eta {eta}: 4 tangent vectors, {LANES} points on the lanes: {:.3e} steps/s (f64, one thread)",
+            "eta {eta}: 4 tangent vectors, {NEWTON_LANES} points on the lanes: {:.3e} steps/s (f64, one thread)",
             steps / best
         );
     }

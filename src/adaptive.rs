@@ -21,6 +21,7 @@ use crate::method::{Diagnostics, RunResult};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
 use crate::stability::{Proposal, Verdict, confirm_many};
+use std::time::Instant;
 
 /// Sampled periods of a round's window (periods up to WINDOW / 2 can be decided in a round).
 pub const WINDOW: u32 = 32;
@@ -47,6 +48,8 @@ pub struct Adaptive {
     /// Forcing periods each point was integrated for.
     pub periods: Vec<u32>,
     pub timings: Timings,
+    /// Wall time of the Newton confirmations (CPU, f64).
+    pub newton_s: f64,
 }
 
 fn add(d: &mut Diagnostics, o: &Diagnostics) {
@@ -104,6 +107,7 @@ pub fn run(
     let mut done: Vec<Option<(RunResult, Verdict)>> = vec![None; n];
     let mut periods = vec![0u32; n];
     let mut timings = Timings::default();
+    let mut newton_s = 0.0;
     let mut elapsed = 0u32;
     let params = |i: usize| points.params(&spec.params, i);
     for (t, w) in rounds(spec.transient) {
@@ -134,7 +138,9 @@ pub fn run(
                 })
             })
             .collect();
+        let tn = Instant::now();
         let mut verdicts = confirm_many(&spec.settings, &proposals, spec.lyapunov_tol).into_iter();
+        newton_s += tn.elapsed().as_secs_f64();
         let decided: Vec<Option<(RunResult, Verdict)>> = rs
             .iter()
             .zip(&live)
@@ -183,7 +189,9 @@ pub fn run(
                     .with_lyapunov(r.lyapunov, spec.lyapunov_tol),
             })
             .collect();
+        let tn = Instant::now();
         let verdicts = confirm_many(&spec.settings, &proposals, spec.lyapunov_tol);
+        newton_s += tn.elapsed().as_secs_f64();
         for ((mut r, v), &i) in rs.into_iter().zip(verdicts).zip(&live) {
             add(&mut diag[i], &r.diag);
             r.diag = diag[i];
@@ -200,6 +208,7 @@ pub fn run(
         verdicts,
         periods,
         timings,
+        newton_s,
     })
 }
 

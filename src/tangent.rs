@@ -22,7 +22,7 @@
 
 use crate::method::{
     EV_IMPACT_NEG, EV_IMPACT_POS, EV_RELEASE_NEG, EV_RELEASE_POS, EV_REVERSAL, Event, FlowTask,
-    Integrator, PointState, StepObserver, run_flows,
+    Integrator, NEWTON_LANES, PointState, Queue, StepObserver, run_queue,
 };
 use crate::model::{Mode, Params, co_move, field, impact, initial_mode, jacobian, jacobian_times};
 use crate::real::Real;
@@ -539,34 +539,22 @@ impl FlowTask for Refine {
     }
 }
 
-/// Runs `tasks` on the lanes of [`run_flows`](crate::method::run_flows), one queue per thread,
-/// and returns them in their order. `cost` estimates a task's work: the tasks are dealt to the
-/// queues costliest first, round robin, so that the queues carry similar work and each ends
-/// with its cheapest tasks (lanes run idle only at the very end).
+/// Runs `tasks` on the lanes of every thread ([`run_queue`]), costliest first by `cost`, and
+/// returns them in their order: the long tasks start together (their lanes stay busy
+/// together) and the cheap ones fill the lanes that free up; a thread's last few long tasks
+/// finish without lanes, where idle threads can take them.
 pub fn run_parallel<T: FlowTask + Send>(tasks: Vec<T>, cost: impl Fn(&T) -> u64) -> Vec<T> {
-    let len = tasks.len();
-    let queues = rayon::current_num_threads()
-        .min(len.div_ceil(crate::method::LANES))
-        .max(1);
     let mut work: Vec<Indexed<T>> = tasks
         .into_iter()
         .enumerate()
         .map(|(i, t)| Indexed(i, t))
         .collect();
     work.sort_by_key(|w| std::cmp::Reverse(cost(&w.1)));
-    // Sorted position q goes to queue q % queues; a queue keeps the sorted order.
-    let mut dealt: Vec<(usize, Indexed<T>)> = work.into_iter().enumerate().collect();
-    dealt.sort_by_key(|(q, _)| (q % queues, *q));
-    let mut work: Vec<Indexed<T>> = dealt.into_iter().map(|(_, w)| w).collect();
-    let mut rest: &mut [Indexed<T>] = &mut work;
-    let mut parts = Vec::with_capacity(queues);
-    for k in 0..queues {
-        let n = (len - k).div_ceil(queues);
-        let (part, tail) = rest.split_at_mut(n);
-        parts.push(part);
-        rest = tail;
-    }
-    parts.into_par_iter().for_each(run_flows);
+    let threads = rayon::current_num_threads().min(work.len().div_ceil(NEWTON_LANES));
+    let queue = Queue::new(&mut work);
+    (0..threads.max(1))
+        .into_par_iter()
+        .for_each(|_| run_queue(&queue));
     work.sort_by_key(|w| w.0);
     work.into_iter().map(|w| w.1).collect()
 }

@@ -157,9 +157,12 @@ fn same_cycle(a: &Cycle, b: &Cycle) -> bool {
     bits(a) == bits(b)
 }
 
-/// Newton trials at periods 1 to 4 from the states of the mixed points after 40 periods.
-fn trials(settings: &Settings) -> Vec<(Integrator<f64>, PointState<f64>, u32)> {
-    mixed_points()
+/// Newton trials at periods 1 to 4 from the states of `points` after 40 periods.
+fn trials(
+    settings: &Settings,
+    points: Vec<(Params<f64>, [f64; 4])>,
+) -> Vec<(Integrator<f64>, PointState<f64>, u32)> {
+    points
         .into_iter()
         .enumerate()
         .flat_map(|(i, (p, y0))| {
@@ -175,8 +178,8 @@ fn trials(settings: &Settings) -> Vec<(Integrator<f64>, PointState<f64>, u32)> {
         .collect()
 }
 
-fn check_flows(settings: &Settings) {
-    let jobs = trials(settings);
+fn check_flows(settings: &Settings, points: Vec<(Params<f64>, [f64; 4])>) {
+    let jobs = trials(settings, points);
     let scalar: Vec<Cycle> = jobs.iter().map(|(it, st, n)| refine(it, st, *n)).collect();
     let tasks = || -> Vec<Refine> {
         jobs.iter()
@@ -217,13 +220,19 @@ fn check_flows(settings: &Settings) {
 
 #[test]
 fn newton_on_the_lanes_equals_scalar_newton_bit_for_bit() {
-    check_flows(&Settings::default());
+    check_flows(&Settings::default(), mixed_points());
+    // Coulomb friction on every lane of a batch (a Jacobian without the friction slope).
+    let coulomb = (0..24)
+        .map(|i| (Params::paper(1.0 + 0.04 * i as f64), [0.0; 4]))
+        .collect();
+    check_flows(&Settings::default(), coulomb);
     // Naive impacts take the scalar path of run_flows.
-    check_flows(&Settings {
+    let naive = Settings {
         impacts: ImpactMethod::Naive,
         steps_per_period: 64,
         ..Settings::default()
-    });
+    };
+    check_flows(&naive, mixed_points());
 }
 
 #[test]

@@ -181,6 +181,10 @@ pub struct Bifurcation {
     /// Backend timings (not for continuation, which runs many small jobs).
     pub timings: Option<Timings>,
     pub integration_s: f64,
+    /// Wall time of the Newton confirmations of the classes (CPU, f64).
+    pub newton_s: f64,
+    /// Wall time of the search for bifurcation points (CPU, f64).
+    pub bifurcations_s: f64,
     pub total_s: f64,
 }
 
@@ -205,10 +209,12 @@ pub fn run(
     let t0 = Instant::now();
     let values = cfg.sweep_values();
     let spec = RunSpec::new(cfg);
+    let newton_s;
     let (runs, timings): (Vec<(Option<Direction>, Vec<SweepPoint>)>, _) = match continuation {
         None if cfg.run.early_stop => {
             let vary = [cfg.sweep.param];
             let a = crate::adaptive::run(engine, &spec, &Points::along(&vary, &values), progress)?;
+            newton_s = a.newton_s;
             let points = values
                 .iter()
                 .zip(a.results)
@@ -227,24 +233,30 @@ pub fn run(
         None => {
             let vary = [cfg.sweep.param];
             let (r, t) = engine.run(&spec, &Points::along(&vary, &values), progress)?;
-            (vec![(None, finish(cfg, r))], Some(t))
+            let tn = Instant::now();
+            let points = finish(cfg, r);
+            newton_s = tn.elapsed().as_secs_f64();
+            (vec![(None, points)], Some(t))
         }
         Some(c) => {
             let dirs = c.directions();
             let r = continuation_chains(engine, cfg, &dirs, progress)?;
-            (
-                dirs.into_iter()
-                    .map(Some)
-                    .zip(r.into_iter().map(|r| finish(cfg, r)))
-                    .collect(),
-                None,
-            )
+            let tn = Instant::now();
+            let chains = dirs
+                .into_iter()
+                .map(Some)
+                .zip(r.into_iter().map(|r| finish(cfg, r)))
+                .collect();
+            newton_s = tn.elapsed().as_secs_f64();
+            (chains, None)
         }
     };
+    let tb = Instant::now();
     let bifurcations = runs
         .iter()
         .map(|(_, pts)| find_bifurcations(cfg, pts))
         .collect();
+    let bifurcations_s = tb.elapsed().as_secs_f64();
     Ok(Bifurcation {
         cfg: cfg.clone(),
         continuation,
@@ -254,6 +266,8 @@ pub fn run(
         device: engine.device(),
         timings,
         integration_s: timings.map_or(t0.elapsed().as_secs_f64(), |t| t.integration_s),
+        newton_s,
+        bifurcations_s,
         total_s: t0.elapsed().as_secs_f64(),
     })
 }

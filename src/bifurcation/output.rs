@@ -245,6 +245,10 @@ struct PointJson {
 #[derive(Serialize)]
 struct TimingsJson {
     integration_s: f64,
+    /// Newton confirmation of the classes (CPU, f64).
+    newton_s: f64,
+    /// Search for the bifurcation points (CPU, f64).
+    bifurcations_s: f64,
     kernel_s: Option<f64>,
     readback_s: Option<f64>,
     rk4_steps: f64,
@@ -393,6 +397,8 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         timings: TimingsJson {
             setup_s: b.timings.map(|t| t.setup_s),
             integration_s: b.integration_s,
+            newton_s: b.newton_s,
+            bifurcations_s: b.bifurcations_s,
             readback_s: b.timings.map(|t| t.readback_s),
             kernel_s: b.timings.and_then(|t| t.kernel_s),
             total_s: b.total_s,

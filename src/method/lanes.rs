@@ -12,20 +12,27 @@ use super::{Integrator, PointState, RunResult};
 use crate::model::Mode;
 use crate::real::Real;
 use crate::tangent::{Leading, Tangent};
+use rayon::prelude::*;
+use std::sync::Mutex;
 
 /// Points per batch: 8 f32 or f64 values fill two 128-bit or one 256-bit vector per operation
 /// and keep the per-lane state in registers and L1.
 pub const LANES: usize = 8;
 
-type Lanes<F> = [F; LANES];
+/// Flows per batch of Newton's method ([`run_flows`]): its tasks are chains of flows whose
+/// latency is one batch period per period, and a batch of 4 costs half of one of 8 at about
+/// the same cost per flow (4 f64 values fill one 256-bit vector).
+pub const NEWTON_LANES: usize = 4;
+
+type Lanes<F, const N: usize> = [F; N];
 
 // The lane loops below are plain index loops over arrays filled in place: `array::from_fn`
 // was not inlined into the AVX2 build and cost a tenth of the run in calls and copies.
 
 /// `f(l)` on every lane.
 #[inline(always)]
-fn lanes<F: Copy, G: Fn(usize) -> F>(init: F, f: G) -> Lanes<F> {
-    let mut out = [init; LANES];
+fn lanes<F: Copy, G: Fn(usize) -> F, const N: usize>(init: F, f: G) -> Lanes<F, N> {
+    let mut out = [init; N];
     for (l, o) in out.iter_mut().enumerate() {
         *o = f(l);
     }
@@ -34,8 +41,8 @@ fn lanes<F: Copy, G: Fn(usize) -> F>(init: F, f: G) -> Lanes<F> {
 
 /// `f(i, l)` on every component i of every lane l.
 #[inline(always)]
-fn vectors<F: Real, G: Fn(usize, usize) -> F>(f: G) -> [Lanes<F>; 4] {
-    let mut out = [[F::zero(); LANES]; 4];
+fn vectors<F: Real, G: Fn(usize, usize) -> F, const N: usize>(f: G) -> [Lanes<F, N>; 4] {
+    let mut out = [[F::zero(); N]; 4];
     for (i, row) in out.iter_mut().enumerate() {
         for (l, o) in row.iter_mut().enumerate() {
             *o = f(i, l);
@@ -45,19 +52,19 @@ fn vectors<F: Real, G: Fn(usize, usize) -> F>(f: G) -> [Lanes<F>; 4] {
 }
 
 /// The parameters of the slip field and its guards, one value per lane.
-struct LaneParams<F> {
-    fs: Lanes<F>,
-    fk: Lanes<F>,
-    l1: Lanes<F>,
-    l2: Lanes<F>,
-    b1: Lanes<F>,
-    delta: Lanes<F>,
-    mu: Lanes<F>,
-    r: Lanes<F>,
-    h: Lanes<F>,
+struct LaneParams<F, const N: usize> {
+    fs: Lanes<F, N>,
+    fk: Lanes<F, N>,
+    l1: Lanes<F, N>,
+    l2: Lanes<F, N>,
+    b1: Lanes<F, N>,
+    delta: Lanes<F, N>,
+    mu: Lanes<F, N>,
+    r: Lanes<F, N>,
+    h: Lanes<F, N>,
 }
 
-impl<F: Real> LaneParams<F> {
+impl<F: Real, const N: usize> LaneParams<F, N> {
     /// Lane `l`'s values from `it`.
     fn set(&mut self, l: usize, it: &Integrator<F>) {
         self.fs[l] = it.p.fs;
@@ -71,7 +78,7 @@ impl<F: Real> LaneParams<F> {
         self.h[l] = it.h;
     }
 
-    fn new(its: &[&Integrator<F>; LANES]) -> Self {
+    fn new(its: &[&Integrator<F>; N]) -> Self {
         let of = |g: &dyn Fn(&Integrator<F>) -> F| std::array::from_fn(|l| g(its[l]));
         LaneParams {
             fs: of(&|it| it.p.fs),
@@ -90,9 +97,14 @@ impl<F: Real> LaneParams<F> {
 /// `model::field` in slip with direction `s` (+1 or -1) on every lane, the same operations in
 /// the same order.
 #[inline(always)]
-fn slip_field<F: Real>(q: &LaneParams<F>, s: &Lanes<F>, y: &[Lanes<F>; 4], c: F) -> [Lanes<F>; 4] {
-    let mut out = [[F::zero(); LANES]; 4];
-    for l in 0..LANES {
+fn slip_field<F: Real, const N: usize>(
+    q: &LaneParams<F, N>,
+    s: &Lanes<F, N>,
+    y: &[Lanes<F, N>; 4],
+    c: F,
+) -> [Lanes<F, N>; 4] {
+    let mut out = [[F::zero(); N]; 4];
+    for l in 0..N {
         let v = y[1][l] - y[3][l];
         let w = s[l] * v;
         // model::friction at w.
@@ -111,28 +123,28 @@ fn slip_field<F: Real>(q: &LaneParams<F>, s: &Lanes<F>, y: &[Lanes<F>; 4], c: F)
 
 /// The trial step of `Integrator::grid_step` (a whole step from theta = 0) in slip, its end
 /// field, and the slip branch of `Integrator::quiet`, for every lane.
-struct Trial<F> {
-    y1: [Lanes<F>; 4],
-    f1: [Lanes<F>; 4],
-    quiet: [bool; LANES],
+struct Trial<F, const N: usize> {
+    y1: [Lanes<F, N>; 4],
+    f1: [Lanes<F, N>; 4],
+    quiet: [bool; N],
     /// Stage points 2-4 of the step (the first is its start), for the tangent.
-    stages: [[Lanes<F>; 4]; 3],
+    stages: [[Lanes<F, N>; 4]; 3],
 }
 
 #[inline(always)]
-fn trial<F: Real>(
-    q: &LaneParams<F>,
-    s: &Lanes<F>,
-    y: &[Lanes<F>; 4],
-    f0: &[Lanes<F>; 4],
+fn trial<F: Real, const N: usize>(
+    q: &LaneParams<F, N>,
+    s: &Lanes<F, N>,
+    y: &[Lanes<F, N>; 4],
+    f0: &[Lanes<F, N>; 4],
     (c2, c4): (F, F),
-) -> Trial<F> {
+) -> Trial<F, N> {
     // rk4_stages with theta0 = 0, dtheta = 1: dt = 1 * h, forcing from the table at the
     // middle (c2) and the end (c4) of the step.
-    let dt = lanes(F::zero(), |l| F::one() * q.h[l]);
-    let half = lanes(F::zero(), |l| F::of(0.5) * dt[l]);
-    let sixth = lanes(F::zero(), |l| dt[l] / F::of(6.0));
-    let at = |a: &Lanes<F>, k: &[Lanes<F>; 4]| vectors(|i, l| y[i][l] + a[l] * k[i][l]);
+    let dt: [_; N] = lanes(F::zero(), |l| F::one() * q.h[l]);
+    let half: [_; N] = lanes(F::zero(), |l| F::of(0.5) * dt[l]);
+    let sixth: [_; N] = lanes(F::zero(), |l| dt[l] / F::of(6.0));
+    let at = |a: &Lanes<F, N>, k: &[Lanes<F, N>; 4]| vectors(|i, l| y[i][l] + a[l] * k[i][l]);
     let s1 = at(&half, f0);
     let k2 = slip_field(q, s, &s1, c2);
     let s2 = at(&half, &k2);
@@ -143,7 +155,7 @@ fn trial<F: Real>(
     let y1 =
         vectors(|i, l| y[i][l] + sixth[l] * (f0[i][l] + two * (k2[i][l] + k3[i][l]) + k4[i][l]));
     let f1 = slip_field(q, s, &y1, c4);
-    let quiet = lanes(false, |l| {
+    let quiet: [_; N] = lanes(false, |l| {
         let (r, h) = (q.r[l], q.h[l]);
         let z0 = y[2][l] - y[0][l];
         let z1 = y1[2][l] - y1[0][l];
@@ -168,14 +180,14 @@ fn trial<F: Real>(
 
 /// `model::jacobian_times` in slip on every lane.
 #[inline(always)]
-fn slip_jacobian_times<F: Real>(
-    q: &LaneParams<F>,
-    s: &Lanes<F>,
-    y: &[Lanes<F>; 4],
-    x: &[Lanes<F>; 4],
-) -> [Lanes<F>; 4] {
-    let mut out = [[F::zero(); LANES]; 4];
-    for l in 0..LANES {
+fn slip_jacobian_times<F: Real, const N: usize>(
+    q: &LaneParams<F, N>,
+    s: &Lanes<F, N>,
+    y: &[Lanes<F, N>; 4],
+    x: &[Lanes<F, N>; 4],
+) -> [Lanes<F, N>; 4] {
+    let mut out = [[F::zero(); N]; 4];
+    for l in 0..N {
         let e = q.b1[l] * q.delta[l] + friction_slope(q, l, s[l] * (y[1][l] - y[3][l]));
         let rel = e * (x[1][l] - x[3][l]);
         out[0][l] = x[1][l];
@@ -188,16 +200,16 @@ fn slip_jacobian_times<F: Real>(
 
 /// `tangent::tangent_substep` of a whole quiet step (dt = h) on every lane.
 #[inline(always)]
-fn tangent_substep<F: Real>(
-    q: &LaneParams<F>,
-    s: &Lanes<F>,
-    y: &[Lanes<F>; 4],
-    stages: &[[Lanes<F>; 4]; 3],
-    x: &[Lanes<F>; 4],
-) -> [Lanes<F>; 4] {
+fn tangent_substep<F: Real, const N: usize>(
+    q: &LaneParams<F, N>,
+    s: &Lanes<F, N>,
+    y: &[Lanes<F, N>; 4],
+    stages: &[[Lanes<F, N>; 4]; 3],
+    x: &[Lanes<F, N>; 4],
+) -> [Lanes<F, N>; 4] {
     let dt = q.h;
-    let half = lanes(F::zero(), |l| F::of(0.5) * dt[l]);
-    let at = |a: &Lanes<F>, k: &[Lanes<F>; 4]| vectors(|i, l| x[i][l] + a[l] * k[i][l]);
+    let half: [_; N] = lanes(F::zero(), |l| F::of(0.5) * dt[l]);
+    let at = |a: &Lanes<F, N>, k: &[Lanes<F, N>; 4]| vectors(|i, l| x[i][l] + a[l] * k[i][l]);
     let k1 = slip_jacobian_times(q, s, y, x);
     let k2 = slip_jacobian_times(q, s, &stages[0], &at(&half, &k1));
     let k3 = slip_jacobian_times(q, s, &stages[1], &at(&half, &k2));
@@ -211,15 +223,15 @@ fn tangent_substep<F: Real>(
 
 /// Tangent vectors a [`Batch`] carries along: their quiet step as arrays over the lanes, and
 /// the scalar grid step of one lane with them as its observer.
-trait LaneTangent<F: Real>: Sized {
+trait LaneTangent<F: Real, const N: usize>: Sized {
     /// The quiet step (dt = h, slip) of the lanes in `keep`; the others stay as they are.
     fn quiet(
         &mut self,
-        q: &LaneParams<F>,
-        s: &Lanes<F>,
-        y: &[Lanes<F>; 4],
-        stages: &[[Lanes<F>; 4]; 3],
-        keep: &[bool; LANES],
+        q: &LaneParams<F, N>,
+        s: &Lanes<F, N>,
+        y: &[Lanes<F, N>; 4],
+        stages: &[[Lanes<F, N>; 4]; 3],
+        keep: &[bool; N],
     );
     /// `Integrator::grid_step` of lane `l` with its vectors as the observer.
     fn grid_step(
@@ -233,21 +245,21 @@ trait LaneTangent<F: Real>: Sized {
 }
 
 /// The Lyapunov exponent's vector ([`Leading`]) of every lane.
-struct One<F>([Lanes<F>; 4]);
+struct One<F, const N: usize>([Lanes<F, N>; 4]);
 
-impl<F: Real> LaneTangent<F> for One<F> {
+impl<F: Real, const N: usize> LaneTangent<F, N> for One<F, N> {
     #[inline(always)]
     fn quiet(
         &mut self,
-        q: &LaneParams<F>,
-        s: &Lanes<F>,
-        y: &[Lanes<F>; 4],
-        stages: &[[Lanes<F>; 4]; 3],
-        keep: &[bool; LANES],
+        q: &LaneParams<F, N>,
+        s: &Lanes<F, N>,
+        y: &[Lanes<F, N>; 4],
+        stages: &[[Lanes<F, N>; 4]; 3],
+        keep: &[bool; N],
     ) {
         let x = tangent_substep(q, s, y, stages, &self.0);
         for (t, x) in self.0.iter_mut().zip(&x) {
-            for l in 0..LANES {
+            for l in 0..N {
                 // A select, not a branch: it compiles to a blend.
                 t[l] = if keep[l] { x[l] } else { t[l] };
             }
@@ -276,31 +288,52 @@ impl<F: Real> LaneTangent<F> for One<F> {
 
 /// The four vectors of the flow's derivative ([`Tangent`] with m = 4) of every lane: vector
 /// `v`, component `i`, lane `l` at `[v][i][l]`.
-struct Four<F>([[Lanes<F>; 4]; 4]);
+struct Four<F, const N: usize>([[Lanes<F, N>; 4]; 4]);
 
-impl<F: Real> LaneTangent<F> for Four<F> {
+impl<F: Real, const N: usize> LaneTangent<F, N> for Four<F, N> {
     /// `Tangent::substep` of a whole quiet step on every lane: one loop over the lanes with
     /// each lane's whole step inside, so that the compiler vectorises it over the lanes with
     /// the temporaries in registers.
     #[inline(always)]
     fn quiet(
         &mut self,
-        q: &LaneParams<F>,
-        s: &Lanes<F>,
-        y: &[Lanes<F>; 4],
-        stages: &[[Lanes<F>; 4]; 3],
-        keep: &[bool; LANES],
+        q: &LaneParams<F, N>,
+        s: &Lanes<F, N>,
+        y: &[Lanes<F, N>; 4],
+        stages: &[[Lanes<F, N>; 4]; 3],
+        keep: &[bool; N],
     ) {
         let two = F::of(2.0);
-        for l in 0..LANES {
+        // Coulomb friction (l1 = l2 = 0) on every lane: the friction slope is a signed zero
+        // wherever w is finite, so e = b1 delta exactly when b1 delta > 0 (adding a zero
+        // changes no non-zero value), and the Jacobian is the same at every stage point.
+        let coulomb = (0..N).all(|l| {
+            q.l1[l] == F::zero() && q.l2[l] == F::zero() && q.b1[l] * q.delta[l] > F::zero()
+        });
+        for l in 0..N {
             // model::jacobian in slip at a stage point: (J11, J13, J31, J33).
-            let jac = |p: &[Lanes<F>; 4]| {
+            let jac = |p: &[Lanes<F, N>; 4]| {
                 let e = q.b1[l] * q.delta[l] + friction_slope(q, l, s[l] * (p[1][l] - p[3][l]));
                 // -e / mu is -(e / mu) exactly (rounding is symmetric): one division.
                 let em = e / q.mu[l];
                 (-q.b1[l] - e, e, em, -em)
             };
-            let j = [jac(y), jac(&stages[0]), jac(&stages[1]), jac(&stages[2])];
+            let j = if coulomb {
+                let e = q.b1[l] * q.delta[l];
+                let em = e / q.mu[l];
+                let nan = F::of(f64::NAN);
+                // A non-finite w makes the slope NaN.
+                let c = |p: &[Lanes<F, N>; 4]| {
+                    if (p[1][l] - p[3][l]).is_finite() {
+                        (-q.b1[l] - e, e, em, -em)
+                    } else {
+                        (nan, nan, nan, nan)
+                    }
+                };
+                [c(y), c(&stages[0]), c(&stages[1]), c(&stages[2])]
+            } else {
+                [jac(y), jac(&stages[0]), jac(&stages[1]), jac(&stages[2])]
+            };
             // tangent::mul.
             let mul = |(j11, j13, j31, j33): (F, F, F, F), x: [F; 4]| {
                 let r1 = -F::one() * x[0] + j11 * x[1];
@@ -356,7 +389,7 @@ impl<F: Real> LaneTangent<F> for Four<F> {
 
 /// `model::friction_slope` of lane `l` at `w`.
 #[inline(always)]
-fn friction_slope<F: Real>(q: &LaneParams<F>, l: usize, w: F) -> F {
+fn friction_slope<F: Real, const N: usize>(q: &LaneParams<F, N>, l: usize, w: F) -> F {
     let qd = F::one() + q.l1[l] * w;
     let decay = if qd > F::of(0.5) {
         -(q.fs[l] - q.fk[l]) * q.l1[l] / (qd * qd)
@@ -367,27 +400,27 @@ fn friction_slope<F: Real>(q: &LaneParams<F>, l: usize, w: F) -> F {
 }
 
 /// Up to [`LANES`] points: their states, their tangent vectors, and which lanes still run.
-struct Batch<F: Real, T> {
-    q: LaneParams<F>,
-    st: [PointState<F>; LANES],
+struct Batch<F: Real, T, const N: usize> {
+    q: LaneParams<F, N>,
+    st: [PointState<F>; N],
     /// The lane holds a point (the last batch of a run may be short) that has not failed.
-    live: [bool; LANES],
+    live: [bool; N],
     /// The tangent vectors of each lane, while they run.
     tan: T,
     /// The lane's tangent vectors run (as `tangent_ok` of `Integrator::sample`).
-    tan_ok: [bool; LANES],
+    tan_ok: [bool; N],
 }
 
-impl<F: Real, T: LaneTangent<F>> Batch<F, T> {
+impl<F: Real, T: LaneTangent<F, N>, const N: usize> Batch<F, T, N> {
     /// One forcing period of every live lane, as `Integrator::period_observed` on each, with
     /// the tangent vectors of the lanes in `tan_ok`. `its[l]` integrates lane l; all share
     /// their steps per period.
     #[inline(always)]
-    fn period(&mut self, its: &[&Integrator<F>; LANES]) {
+    fn period(&mut self, its: &[&Integrator<F>; N]) {
         let it0 = its[0];
         let mut y = vectors(|i, l| self.st[l].y[i]);
-        let mut f0 = [[F::zero(); LANES]; 4];
-        for l in (0..LANES).filter(|&l| self.live[l]) {
+        let mut f0 = [[F::zero(); N]; 4];
+        for l in (0..N).filter(|&l| self.live[l]) {
             let f = its[l].period_start(&self.st[l]);
             for i in 0..4 {
                 f0[i][l] = f[i];
@@ -396,7 +429,7 @@ impl<F: Real, T: LaneTangent<F>> Batch<F, T> {
         let mut running = self.live;
         let tangent = self.tan_ok.iter().zip(&running).any(|(&t, &r)| t && r);
         for k in 0..it0.n {
-            let s = lanes(F::one(), |l| match self.st[l].mode {
+            let s: [_; N] = lanes(F::one(), |l| match self.st[l].mode {
                 Mode::SlipNeg => -F::one(),
                 _ => F::one(),
             });
@@ -404,23 +437,23 @@ impl<F: Real, T: LaneTangent<F>> Batch<F, T> {
             let c4 = it0.forcing(k, F::one()).0;
             let t = trial(&self.q, &s, &y, &f0, (c2, c4));
             // The lanes that take the trial step: running, in slip, and quiet.
-            let take = lanes(false, |l| {
+            let take: [_; N] = lanes(false, |l| {
                 running[l] && self.st[l].mode.is_slip() && t.quiet[l]
             });
             if tangent {
-                let keep = lanes(false, |l| take[l] && self.tan_ok[l]);
+                let keep: [_; N] = lanes(false, |l| take[l] && self.tan_ok[l]);
                 self.tan.quiet(&self.q, &s, &y, &t.stages, &keep);
             }
             for i in 0..4 {
-                for l in 0..LANES {
+                for l in 0..N {
                     y[i][l] = if take[l] { t.y1[i][l] } else { y[i][l] };
                     f0[i][l] = if take[l] { t.f1[i][l] } else { f0[i][l] };
                 }
             }
             // A lane's `st.y` is brought up to date where the lane leaves the arrays: at a
             // scalar step, where it fails, and at the end of the period.
-            let failed = lanes(false, |l| take[l] && !(0..4).all(|i| y[i][l].is_finite()));
-            for l in 0..LANES {
+            let failed: [_; N] = lanes(false, |l| take[l] && !(0..4).all(|i| y[i][l].is_finite()));
+            for l in 0..N {
                 if !running[l] || (take[l] && !failed[l]) {
                     continue;
                 }
@@ -444,12 +477,12 @@ impl<F: Real, T: LaneTangent<F>> Batch<F, T> {
                 }
             }
         }
-        for l in 0..LANES {
+        for l in 0..N {
             if running[l] {
                 self.st[l].y = [y[0][l], y[1][l], y[2][l], y[3][l]];
             }
         }
-        for l in 0..LANES {
+        for l in 0..N {
             self.live[l] &= !self.st[l].diag.nonfinite;
         }
     }
@@ -584,59 +617,119 @@ pub trait FlowTask {
     fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>);
 }
 
+/// Tasks that the lanes of several threads take from, one at a time, in their order.
+pub struct Queue<'a, T>(Mutex<std::slice::IterMut<'a, T>>);
+
+impl<'a, T> Queue<'a, T> {
+    pub fn new(tasks: &'a mut [T]) -> Self {
+        Queue(Mutex::new(tasks.iter_mut()))
+    }
+
+    fn take(&self) -> Option<&'a mut T> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).next()
+    }
+
+    /// The next `n` tasks (fewer at the end), under one lock: a thread that starts takes a
+    /// whole batch of neighbours in the queue's order.
+    fn take_many(&self, n: usize) -> Vec<&'a mut T> {
+        let mut q = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        q.by_ref().take(n).collect()
+    }
+}
+
 /// Runs `tasks` to their end, each as `while let Some((st, n)) = t.flow() { t.ended(flow(..)) }`
-/// with the same results bit for bit, [`LANES`] flows at a time: a lane whose flow ends takes
+/// with the same results bit for bit, [`NEWTON_LANES`] flows at a time: a lane whose flow ends takes
 /// the task's next flow or the next task. The tasks' integrators must share their settings.
-pub fn run_flows<T: FlowTask>(tasks: &mut [T]) {
+pub fn run_flows<T: FlowTask + Send>(tasks: &mut [T]) {
+    run_queue(&Queue::new(tasks))
+}
+
+/// [`run_flows`] for the compilation target's baseline instruction set only.
+pub fn run_flows_portable<T: FlowTask + Send>(tasks: &mut [T]) {
+    run_queue_portable(&Queue::new(tasks))
+}
+
+/// [`run_flows`] of the tasks of a queue that other threads may take from too (each thread
+/// runs its own lanes).
+pub fn run_queue<T: FlowTask + Send>(queue: &Queue<T>) {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { run_flows_avx2(tasks) };
+        return unsafe { run_queue_avx2(queue) };
     }
-    run_flows_portable(tasks)
+    run_queue_portable(queue)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn run_flows_avx2<T: FlowTask>(tasks: &mut [T]) {
-    run_flows_portable(tasks)
+fn run_queue_avx2<T: FlowTask + Send>(queue: &Queue<T>) {
+    run_queue_portable(queue)
 }
 
-/// [`run_flows`] for the compilation target's baseline instruction set only.
+/// The rest of a task on its own: the `left` periods of its current flow from `st` with `tan`,
+/// then its next flows.
+fn finish_scalar<T: FlowTask>(
+    t: &mut T,
+    mut st: PointState<f64>,
+    mut tan: Tangent<f64>,
+    left: u32,
+) {
+    for _ in 0..left {
+        t.integrator().period_observed(&mut st, &mut tan);
+        if st.diag.nonfinite {
+            break;
+        }
+    }
+    t.ended(&st, &tan);
+    while let Some((st, n)) = t.flow() {
+        let (end, tan) = crate::tangent::flow(t.integrator(), &st, n);
+        t.ended(&end, &tan);
+    }
+}
+
 #[inline(always)]
-pub fn run_flows_portable<T: FlowTask>(tasks: &mut [T]) {
-    let Some(first) = tasks.first() else {
+fn run_queue_portable<T: FlowTask + Send>(queue: &Queue<T>) {
+    let mut start = queue.take_many(NEWTON_LANES).into_iter();
+    let Some(first) = start.next() else {
         return;
     };
     if first.integrator().naive {
-        for t in tasks.iter_mut() {
-            while let Some((st, n)) = t.flow() {
-                let (end, tan) = crate::tangent::flow(t.integrator(), &st, n);
-                t.ended(&end, &tan);
+        let mut t = Some(first);
+        while let Some(task) = t {
+            while let Some((st, n)) = task.flow() {
+                let (end, tan) = crate::tangent::flow(task.integrator(), &st, n);
+                task.ended(&end, &tan);
             }
+            t = start.next().or_else(|| queue.take());
         }
         return;
     }
-    // Idle lanes hold a copy of a state and are never run.
+    // Idle lanes hold a copy of a state and an integrator and are never run.
+    let pad = first.integrator().clone();
     let idle = PointState {
         y: [0.0; 4],
         mode: Mode::SlipPos,
         diag: Default::default(),
     };
     let mut b = Batch {
-        q: LaneParams::new(&[first.integrator(); LANES]),
-        st: [idle; LANES],
-        live: [false; LANES],
-        tan: Four([[[0.0; LANES]; 4]; 4]),
-        tan_ok: [true; LANES],
+        q: LaneParams::new(&[&pad; NEWTON_LANES]),
+        st: [idle; NEWTON_LANES],
+        live: [false; NEWTON_LANES],
+        tan: Four([[[0.0; NEWTON_LANES]; 4]; 4]),
+        tan_ok: [true; NEWTON_LANES],
     };
     // The task of each lane and the periods left of its flow.
-    let mut slot: [Option<usize>; LANES] = [None; LANES];
-    let mut left = [0u32; LANES];
-    let mut next = 0;
-    // Starts task `i`'s next flow on lane `l` (flows of no period end at once); false when
+    let mut slot: [Option<&mut T>; NEWTON_LANES] = std::array::from_fn(|_| None);
+    let mut left = [0u32; NEWTON_LANES];
+    let mut waiting = std::iter::once(first).chain(start);
+    let mut drained = false;
+    // Starts the task's next flow on lane `l` (flows of no period end at once); false when
     // the task is done.
-    let load = |b: &mut Batch<f64, Four<f64>>, t: &mut T, l: usize, left: &mut u32| -> bool {
+    let load = |b: &mut Batch<f64, Four<f64, NEWTON_LANES>, NEWTON_LANES>,
+                t: &mut T,
+                l: usize,
+                left: &mut u32|
+     -> bool {
         while let Some((st, n)) = t.flow() {
             if n == 0 {
                 t.ended(&st, &Tangent::identity(4));
@@ -656,54 +749,52 @@ pub fn run_flows_portable<T: FlowTask>(tasks: &mut [T]) {
         false
     };
     loop {
-        for l in 0..LANES {
-            while slot[l].is_none() && next < tasks.len() {
-                if load(&mut b, &mut tasks[next], l, &mut left[l]) {
-                    slot[l] = Some(next);
+        for l in 0..NEWTON_LANES {
+            while slot[l].is_none() && !drained {
+                let Some(t) = waiting.next().or_else(|| queue.take()) else {
+                    drained = true;
+                    break;
+                };
+                if load(&mut b, t, l, &mut left[l]) {
+                    slot[l] = Some(t);
                 }
-                next += 1;
             }
         }
         let busy = slot.iter().filter(|s| s.is_some()).count();
         if busy == 0 {
             return;
         }
-        if next == tasks.len() && 3 * busy < LANES {
-            // A few long tasks left: a batch costs about three scalar flows.
-            for l in 0..LANES {
-                let Some(i) = slot[l] else { continue };
-                let t = &mut tasks[i];
-                let (mut st, mut tan) = (b.st[l], lane_tangent(&b.tan, l));
-                for _ in 0..left[l] {
-                    t.integrator().period_observed(&mut st, &mut tan);
-                    if st.diag.nonfinite {
-                        break;
-                    }
-                }
-                t.ended(&st, &tan);
-                while let Some((st, n)) = t.flow() {
-                    let (end, tan) = crate::tangent::flow(t.integrator(), &st, n);
-                    t.ended(&end, &tan);
-                }
-            }
+        if drained && 3 * busy < NEWTON_LANES {
+            // One long task left (a batch costs more than a scalar flow): it finishes on its
+            // own, on another thread where one is idle.
+
+            let rest: Vec<(&mut T, PointState<f64>, Tangent<f64>, u32)> = (0..NEWTON_LANES)
+                .filter_map(|l| {
+                    let t = slot[l].take()?;
+                    Some((t, b.st[l], lane_tangent(&b.tan, l), left[l]))
+                })
+                .collect();
+            rest.into_par_iter()
+                .for_each(|(t, st, tan, left)| finish_scalar(t, st, tan, left));
             return;
         }
         {
-            let its: [&Integrator<f64>; LANES] = std::array::from_fn(|l| {
-                slot[l].map_or(tasks[0].integrator(), |i| tasks[i].integrator())
-            });
+            let its: [&Integrator<f64>; NEWTON_LANES] =
+                std::array::from_fn(|l| slot[l].as_deref().map_or(&pad, |t| t.integrator()));
             b.period(&its);
         }
-        for l in 0..LANES {
-            let Some(i) = slot[l] else { continue };
+        for l in 0..NEWTON_LANES {
+            let Some(t) = slot[l].as_deref_mut() else {
+                continue;
+            };
             left[l] -= 1;
             if left[l] > 0 && b.live[l] {
                 continue;
             }
             b.live[l] = false;
             let st = b.st[l];
-            tasks[i].ended(&st, &lane_tangent(&b.tan, l));
-            if !load(&mut b, &mut tasks[i], l, &mut left[l]) {
+            t.ended(&st, &lane_tangent(&b.tan, l));
+            if !load(&mut b, t, l, &mut left[l]) {
                 slot[l] = None;
             }
         }
@@ -712,7 +803,7 @@ pub fn run_flows_portable<T: FlowTask>(tasks: &mut [T]) {
 
 /// The tangent vectors of lane `l`.
 #[inline(always)]
-fn lane_tangent(t: &Four<f64>, l: usize) -> Tangent<f64> {
+fn lane_tangent<const N: usize>(t: &Four<f64, N>, l: usize) -> Tangent<f64> {
     let mut tan = Tangent::identity(4);
     for (v, x) in tan.v.iter_mut().zip(&t.0) {
         *v = std::array::from_fn(|c| x[c][l]);

@@ -21,7 +21,8 @@ mod lanes;
 use events::finite_state;
 pub use events::{Bracket, bracket, clear_of, cos_sin_small, forcing_table, illinois};
 pub use lanes::{
-    FlowTask, LANES, batches, run_flows, run_flows_portable, run_lanes, run_lanes_portable,
+    FlowTask, LANES, NEWTON_LANES, Queue, batches, run_flows, run_flows_portable, run_lanes,
+    run_lanes_portable, run_queue,
 };
 
 /// How impacts are handled.
