@@ -63,8 +63,8 @@ fn same(a: &RunResult, b: &RunResult) -> bool {
         && a.lyapunov.to_bits() == b.lyapunov.to_bits()
 }
 
-fn check<F: Real>(settings: &Settings, n_points: usize) {
-    let pts = &mixed_points()[..n_points];
+fn check<F: Real>(settings: &Settings, n_points: usize, points: Vec<(Params<f64>, [f64; 4])>) {
+    let pts = &points[..n_points];
     let its: Vec<Integrator<F>> = pts
         .iter()
         .map(|(p, _)| Integrator::new(p, settings))
@@ -118,9 +118,44 @@ fn batched_runs_equal_scalar_runs_bit_for_bit() {
     let s = Settings::default();
     // 23 points: two full batches and a short one; 2 points: the scalar path.
     for n in [23, 2] {
-        check::<f64>(&s, n);
-        check::<f32>(&s, n);
+        check::<f64>(&s, n, mixed_points());
+        check::<f32>(&s, n, mixed_points());
     }
+    // Coulomb friction on every lane (the friction law without its division), with
+    // impacts, sticks and a lane that fails.
+    check::<f64>(&s, 24, coulomb_points());
+    check::<f32>(&s, 24, coulomb_points());
+}
+
+/// Coulomb points of Fig. 2 and neighbours: impacts, sticks (lambda 0.3), locks (R = 0.3) and a
+/// failure (an infinite start).
+fn coulomb_points() -> Vec<(Params<f64>, [f64; 4])> {
+    (0..24)
+        .map(|i| {
+            let mut p = Params::paper(1.0 + 0.04 * i as f64);
+            match i % 3 {
+                1 => {
+                    p.fs = 0.3;
+                    p.fk = 0.3;
+                }
+                2 => {
+                    // Chatter into lock (as the first of the mixed points).
+                    p = Params::paper(0.8 + 0.01 * i as f64);
+                    p.delta = 0.45;
+                    p.restitution = 0.3;
+                    p.fs = 0.1;
+                    p.fk = 0.1;
+                }
+                _ => {}
+            }
+            let y0 = if i == 13 {
+                [f64::INFINITY, 0.0, 0.0, 0.0]
+            } else {
+                [0.01 * i as f64, 0.0, -0.02 * i as f64, 0.1]
+            };
+            (p, y0)
+        })
+        .collect()
 }
 
 #[test]
@@ -129,14 +164,15 @@ fn batched_runs_with_the_exponent_or_naive_impacts_equal_scalar_runs() {
         lyapunov: true,
         ..Settings::default()
     };
-    check::<f64>(&lyapunov, 23);
-    check::<f32>(&lyapunov, 23);
+    check::<f64>(&lyapunov, 23, mixed_points());
+    check::<f32>(&lyapunov, 23, mixed_points());
+    check::<f64>(&lyapunov, 24, coulomb_points());
     let naive = Settings {
         impacts: ImpactMethod::Naive,
         steps_per_period: 64,
         ..Settings::default()
     };
-    check::<f64>(&naive, 23);
+    check::<f64>(&naive, 23, mixed_points());
 }
 
 fn same_cycle(a: &Cycle, b: &Cycle) -> bool {

@@ -304,12 +304,16 @@ impl<F: Real, const N: usize> LaneTangent<F, N> for Four<F, N> {
         keep: &[bool; N],
     ) {
         let two = F::of(2.0);
-        // Coulomb friction (l1 = l2 = 0) on every lane: the friction slope is a signed zero
-        // wherever w is finite, so e = b1 delta exactly when b1 delta > 0 (adding a zero
-        // changes no non-zero value), and the Jacobian is the same at every stage point.
+        // Coulomb friction (l1 = l2 = 0) on every lane and a finite slip speed w at every
+        // stage point: the friction slope is a signed zero, so e = b1 delta exactly when
+        // b1 delta > 0 (adding a zero changes no non-zero value), and the Jacobian is the
+        // same at every stage point. (A non-finite w makes the slope NaN: the general path
+        // keeps that NaN as it is.)
+        let finite = |p: &[Lanes<F, N>; 4]| (0..N).all(|l| (p[1][l] - p[3][l]).is_finite());
         let coulomb = (0..N).all(|l| {
             q.l1[l] == F::zero() && q.l2[l] == F::zero() && q.b1[l] * q.delta[l] > F::zero()
-        });
+        }) && finite(y)
+            && stages.iter().all(finite);
         for l in 0..N {
             // model::jacobian in slip at a stage point: (J11, J13, J31, J33).
             let jac = |p: &[Lanes<F, N>; 4]| {
@@ -321,16 +325,7 @@ impl<F: Real, const N: usize> LaneTangent<F, N> for Four<F, N> {
             let j = if coulomb {
                 let e = q.b1[l] * q.delta[l];
                 let em = e / q.mu[l];
-                let nan = F::of(f64::NAN);
-                // A non-finite w makes the slope NaN.
-                let c = |p: &[Lanes<F, N>; 4]| {
-                    if (p[1][l] - p[3][l]).is_finite() {
-                        (-q.b1[l] - e, e, em, -em)
-                    } else {
-                        (nan, nan, nan, nan)
-                    }
-                };
-                [c(y), c(&stages[0]), c(&stages[1]), c(&stages[2])]
+                [(-q.b1[l] - e, e, em, -em); 4]
             } else {
                 [jac(y), jac(&stages[0]), jac(&stages[1]), jac(&stages[2])]
             };
