@@ -125,17 +125,17 @@ pub fn run(
         timings.integration_s += tm.integration_s;
         elapsed += t + w;
         // The proposed periods of the window, confirmed all at once.
+        let classes: Vec<Class> = rs.iter().map(|r| r.class(spec.period_tol)).collect();
         let proposals: Vec<Proposal> = rs
             .iter()
             .zip(&live)
-            .filter_map(|(r, &i)| {
-                let class = r.class(spec.period_tol);
-                matches!(class, Class::Periodic(_)).then(|| Proposal {
-                    params: params(i),
-                    run: r,
-                    use_samples: true,
-                    class,
-                })
+            .zip(&classes)
+            .filter(|(_, class)| matches!(class, Class::Periodic(_)))
+            .map(|((r, &i), &class)| Proposal {
+                params: params(i),
+                run: r,
+                use_samples: true,
+                class,
             })
             .collect();
         let tn = Instant::now();
@@ -144,8 +144,8 @@ pub fn run(
         let decided: Vec<Option<(RunResult, Verdict)>> = rs
             .iter()
             .zip(&live)
-            .map(|(r, &i)| {
-                let class = r.class(spec.period_tol);
+            .zip(classes)
+            .map(|((r, &i), class)| {
                 let v = matches!(class, Class::Periodic(_)).then(|| verdicts.next().unwrap());
                 decide(spec, &params(i), r, class, v)
             })

@@ -423,10 +423,7 @@ impl Cycle {
 /// same iteration as a task for the lanes of [`run_flows`](crate::method::run_flows).
 pub fn refine(it: &Integrator<f64>, start: &PointState<f64>, n: u32) -> Cycle {
     let mut r = Refine::new(it.clone(), start, n);
-    while let Some((st, n)) = r.flow() {
-        let (end, tan) = flow(it, &st, n);
-        r.ended(&end, &tan);
-    }
+    r.finish();
     r.out
 }
 

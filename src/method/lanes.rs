@@ -79,18 +79,22 @@ impl<F: Real, const N: usize> LaneParams<F, N> {
     }
 
     fn new(its: &[&Integrator<F>; N]) -> Self {
-        let of = |g: &dyn Fn(&Integrator<F>) -> F| std::array::from_fn(|l| g(its[l]));
-        LaneParams {
-            fs: of(&|it| it.p.fs),
-            fk: of(&|it| it.p.fk),
-            l1: of(&|it| it.p.l1),
-            l2: of(&|it| it.p.l2),
-            b1: of(&|it| it.p.b1),
-            delta: of(&|it| it.p.delta),
-            mu: of(&|it| it.p.mu),
-            r: of(&|it| it.p.r),
-            h: of(&|it| it.h),
+        let z = [F::zero(); N];
+        let mut q = LaneParams {
+            fs: z,
+            fk: z,
+            l1: z,
+            l2: z,
+            b1: z,
+            delta: z,
+            mu: z,
+            r: z,
+            h: z,
+        };
+        for (l, it) in its.iter().enumerate() {
+            q.set(l, it);
         }
+        q
     }
 }
 
@@ -610,6 +614,14 @@ pub trait FlowTask {
     /// The end of the flow asked for, as `tangent::flow` returns it (the tangent's
     /// `log_volume` and `events` are not kept).
     fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>);
+
+    /// The task's remaining flows, one at a time without lanes.
+    fn finish(&mut self) {
+        while let Some((st, n)) = self.flow() {
+            let (end, tan) = crate::tangent::flow(self.integrator(), &st, n);
+            self.ended(&end, &tan);
+        }
+    }
 }
 
 /// Tasks that the lanes of several threads take from, one at a time, in their order.
@@ -676,10 +688,7 @@ fn finish_scalar<T: FlowTask>(
         }
     }
     t.ended(&st, &tan);
-    while let Some((st, n)) = t.flow() {
-        let (end, tan) = crate::tangent::flow(t.integrator(), &st, n);
-        t.ended(&end, &tan);
-    }
+    t.finish();
 }
 
 #[inline(always)]
@@ -691,10 +700,7 @@ fn run_queue_portable<T: FlowTask + Send>(queue: &Queue<T>) {
     if first.integrator().naive {
         let mut t = Some(first);
         while let Some(task) = t {
-            while let Some((st, n)) = task.flow() {
-                let (end, tan) = crate::tangent::flow(task.integrator(), &st, n);
-                task.ended(&end, &tan);
-            }
+            task.finish();
             t = start.next().or_else(|| queue.take());
         }
         return;
