@@ -78,6 +78,11 @@ pub enum Cmd {
         /// class, fill uniform blocks (flagged in PREFIX-inferred.npy).
         #[arg(long, value_name = "K")]
         refine: Option<usize>,
+        /// With --refine: a chaotic corner lets its block be filled only where its exponent
+        /// exceeds X times run.lyapunov_tol (default 3; lower is faster and misses more
+        /// quasi-periodic specks inside chaotic bands).
+        #[arg(long, value_name = "X")]
+        refine_clear: Option<f64>,
     },
     /// Basins of attraction at one parameter point: a grid of initial states, one colour per
     /// attractor (identified by its Newton-refined cycle).

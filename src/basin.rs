@@ -573,6 +573,7 @@ pub fn write_outputs(prefix: &Path, cfg: &Config, b: &Basin) -> Result<Vec<PathB
             categories: &cats,
             families: &[],
             member_label: &|c| c.to_string(),
+            note: None,
             width: WIDTH,
             height: HEIGHT,
         },

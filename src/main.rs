@@ -99,6 +99,7 @@ fn run(cli: Cli) -> Result<()> {
             starts,
             adapters,
             refine,
+            refine_clear,
         } => {
             let cfg = common.load_map(&common.config)?;
             check_prefix(&out, &["png", "json"])?;
@@ -114,6 +115,7 @@ fn run(cli: Cli) -> Result<()> {
                 checkpoint,
                 compare: other.as_ref(),
                 refine,
+                refine_clear,
             };
             map_cmd(&cfg, &out, &opts, adapters)?
         }

@@ -127,6 +127,7 @@ fn class_legend_explains_every_colour() {
         categories: &cat_refs,
         families: &fam_refs,
         member_label: &|c| (c + 1).to_string(),
+        note: None,
         width: 1100,
         height: 800,
     };

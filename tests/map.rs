@@ -341,6 +341,48 @@ fn refined_map_agrees_with_the_full_map_and_flags_inferred_cells() {
             .iter()
             .all(|&v| v == 0)
     );
+    // The JSON and the caption say how many cells were inferred, and how.
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("coarse.json")).unwrap()).unwrap();
+    assert_eq!(j["refine"]["spacing"], 8);
+    assert_eq!(j["refine"]["chaotic_clear"], 3.0);
+    assert_eq!(j["refine"]["cells_inferred"], n_inf);
+    assert_eq!(j["refine"]["cells_integrated"], a.len() - n_inf);
+    let caption = j["caption"].as_str().unwrap();
+    assert!(
+        caption.contains(&format!("{n_inf} of {} cells", a.len())),
+        "{caption}"
+    );
+    let full: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("full.json")).unwrap()).unwrap();
+    assert!(full.get("refine").is_none());
+    // --refine-clear: only with --refine, only 1 to 100.
+    for (args, what) in [
+        (
+            &["--refine", "8", "--refine-clear", "0.5"][..],
+            "allowed 1 to 100",
+        ),
+        (
+            &["--refine", "8", "--refine-clear", "NaN"][..],
+            "allowed 1 to 100",
+        ),
+        (&["--refine-clear", "2"][..], "--refine K only"),
+    ] {
+        let o = rattle()
+            .args(["map", "--backend", "cpu", "--config"])
+            .arg(&cfg)
+            .arg("--out")
+            .arg(d.join("bad-clear"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains(what),
+            "{args:?}"
+        );
+        assert!(!d.join("bad-clear.json").exists());
+    }
     // Refinement needs the whole grid.
     let o = rattle()
         .args([

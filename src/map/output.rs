@@ -6,7 +6,8 @@ use crate::config::{Config, FrictionLaw};
 use crate::model::Param;
 use crate::output::{Staged, with_ext};
 use crate::render::{
-    CategoryMap, ClassKind, PERIOD_FAMILIES, ScalarMap, category_map_png, scalar_map_png,
+    CategoryMap, ClassKind, PERIOD_FAMILIES, ScalarMap, category_map_png, grouped, percent,
+    scalar_map_png,
 };
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -119,6 +120,21 @@ pub struct MapReport {
     pub timings: MapTimings,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub compare: Option<CompareReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refine: Option<RefineReport>,
+}
+
+/// How a coarse-to-fine map (`--refine`) was computed.
+#[derive(Clone, Debug, Serialize)]
+pub struct RefineReport {
+    /// Coarse spacing K (`--refine K`).
+    pub spacing: usize,
+    /// A chaotic corner counted as clear above this multiple of `run.lyapunov_tol`
+    /// (`--refine-clear`).
+    pub chaotic_clear: f64,
+    pub cells_integrated: usize,
+    /// Cells filled with the class of their block's corners (`PREFIX-inferred.npy`).
+    pub cells_inferred: usize,
 }
 
 /// Seconds (and RK4 steps) of a map run; which fields exist depends on how it ran.
@@ -193,6 +209,21 @@ fn caption(
     } else {
         String::new()
     };
+    let refined = report.refine.as_ref().map_or(String::new(), |f| {
+        format!(
+            " Coarse-to-fine (--refine {k}): {inf} of {all} cells ({pct}) were not integrated \
+             but filled with the class shared by the corners of their block (PREFIX-inferred.npy; \
+             corners chaotic with an exponent above {c} x {ltol}, periodic with |mu_1| < 0.95, or \
+             without impact), and claim no exponent or multiplier; an island of another class \
+             smaller than its block that touches no corner is missed.",
+            k = f.spacing,
+            inf = f.cells_inferred,
+            all = f.cells_integrated + f.cells_inferred,
+            pct = percent(f.cells_inferred, f.cells_integrated + f.cells_inferred),
+            c = f.chaotic_clear,
+            ltol = r.lyapunov_tol,
+        )
+    });
     format!(
         "Class map of the attractor reached at each of {nx} x {ny} cell centres: {x} from \
          {x0} to {x1} (horizontal) and {y} from {y0} to {y1} (vertical); {title}. Each cell \
@@ -205,7 +236,7 @@ fn caption(
          computed); no impact, unresolved and failed as in the README. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64) with \
          lightness steps inside a family; chaotic near-black, quasi-periodic light green. The \
          legend gives the share and the count of every class shown. Most frequent: \
-         {top}.{coex} Raster image, 1100 x 800 px.",
+         {top}.{coex}{refined} Raster image, 1100 x 800 px.",
         nx = m.x_points,
         ny = m.y_points,
         x = m.x,
@@ -254,6 +285,14 @@ pub fn write_outputs(
         .collect();
     let (xr, yr) = ((m.x_from, m.x_to), (m.y_from, m.y_to));
     let ordered = |r: (f64, f64)| (r.0.min(r.1), r.0.max(r.1));
+    let note = report.refine.as_ref().map(|r| {
+        format!(
+            "cells inferred from block corners\n(coarse spacing {}): {} ({})",
+            r.spacing,
+            percent(r.cells_inferred, nx * ny),
+            grouped(r.cells_inferred)
+        )
+    });
     category_map_png(
         &st.path(&with_ext(prefix, "png")),
         &CategoryMap {
@@ -268,6 +307,7 @@ pub fn write_outputs(
             categories: &cat_refs,
             families: &fam_refs,
             member_label: &|c| c.to_string(),
+            note: note.as_deref(),
             width: 1100,
             height: 800,
         },
@@ -466,6 +506,7 @@ pub fn write_compare(
             categories: &cats,
             families: &[],
             member_label: &|c| c.to_string(),
+            note: None,
             width: 1100,
             height: 800,
         },

@@ -1,8 +1,8 @@
 //! Shards of a map: partial outputs, checkpoints that resume, one share per adapter, merging.
 
 use super::{
-    CompareReport, Fields, MapError, MapReport, MapTimings, cell_count, compute, shard_range,
-    write_compare, write_outputs,
+    CompareReport, Fields, MapError, MapReport, MapTimings, RefineReport, cell_count, compute,
+    shard_range, write_compare, write_outputs,
 };
 use crate::config::Config;
 use crate::engine::Engine;
@@ -184,10 +184,11 @@ fn refined_part(
     engine: &Engine,
     cfg: &Config,
     k: usize,
+    chaotic: f64,
     starts: usize,
     progress: &dyn Progress,
 ) -> Result<Part, MapError> {
-    let r = super::refine::compute_refined(engine, cfg, k, starts, progress)?;
+    let r = super::refine::compute_refined(engine, cfg, k, chaotic, starts, progress)?;
     let cells = cell_count(cfg);
     eprintln!(
         "refine: {} of {cells} cells integrated, {} inferred from uniform blocks",
@@ -302,6 +303,9 @@ pub struct MapOptions<'a> {
     pub compare: Option<&'a Config>,
     /// Coarse-to-fine with this coarse spacing (`--refine K`, see [`super::refine`]).
     pub refine: Option<usize>,
+    /// With `--refine`: a chaotic corner is clear above this multiple of `run.lyapunov_tol`
+    /// (`--refine-clear`; [`super::refine::CLEAR_CHAOTIC`] when not given).
+    pub refine_clear: Option<f64>,
 }
 
 /// Parses `--shard I/N`.
@@ -323,6 +327,11 @@ pub fn parse_shard(s: &str) -> Result<(usize, usize), MapError> {
 }
 
 impl MapOptions<'_> {
+    /// The chaotic corners' threshold of `--refine`, in units of `run.lyapunov_tol`.
+    pub fn clear_chaotic(&self) -> f64 {
+        self.refine_clear.unwrap_or(super::refine::CLEAR_CHAOTIC)
+    }
+
     /// Refuses splits that cannot work (more shards than cells, --shard with --checkpoint)
     /// and runs that do not fit in memory, before anything is computed.
     pub fn check(&self, cfg: &Config) -> Result<(), MapError> {
@@ -340,6 +349,16 @@ impl MapOptions<'_> {
             if !(2..=1024).contains(&k) {
                 return bad(format!(
                     "--refine {k}: allowed coarse spacing 2 to 1024 cells"
+                ));
+            }
+        }
+        if let Some(c) = self.refine_clear {
+            if self.refine.is_none() {
+                return bad("--refine-clear applies to --refine K only".into());
+            }
+            if !(c.is_finite() && (1.0..=100.0).contains(&c)) {
+                return bad(format!(
+                    "--refine-clear {c}: allowed 1 to 100 (times run.lyapunov_tol)"
                 ));
             }
         }
@@ -468,7 +487,7 @@ pub fn run(
             continue;
         }
         let p = match o.refine {
-            Some(k) => refined_part(engine, cfg, k, o.starts, progress)?,
+            Some(k) => refined_part(engine, cfg, k, o.clear_chaotic(), o.starts, progress)?,
             None => compute_part(engine, cfg, (i, n), o.starts, progress)?,
         };
         if n > 1 {
@@ -506,6 +525,12 @@ pub fn run(
             steps_per_s: Some(steps / secs),
             ..MapTimings::default()
         },
+        refine: o.refine.map(|k| RefineReport {
+            spacing: k,
+            chaotic_clear: o.clear_chaotic(),
+            cells_integrated: fields.inferred.iter().filter(|&&v| v == 0).count(),
+            cells_inferred: fields.inferred.iter().filter(|&&v| v == 1).count(),
+        }),
         ..MapReport::default()
     };
     if let Some(other) = o.compare {

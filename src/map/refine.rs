@@ -43,23 +43,29 @@ fn coarse(n: usize, k: usize) -> Vec<usize> {
     v
 }
 
+/// Default of `--refine-clear`: a chaotic corner is clear above 3 x `run.lyapunov_tol`.
+pub const CLEAR_CHAOTIC: f64 = 3.0;
+
 /// Whether a corner's class is clear of a threshold, so that a block of such corners may be
-/// filled: chaotic with an exponent well above the quasi-periodic band, a cycle well inside the
-/// unit circle, no impact. Quasi-periodic, unresolved and failed corners always refine.
-fn clear(s: &Summary, tol: f64) -> bool {
+/// filled: chaotic with an exponent above `chaotic` x the quasi-periodic band's half-width
+/// `tol`, a cycle well inside the unit circle, no impact. Quasi-periodic, unresolved and failed
+/// corners always refine.
+fn clear(s: &Summary, tol: f64, chaotic: f64) -> bool {
     match s.class {
-        Class::Chaotic => s.lyapunov > 3.0 * tol,
+        Class::Chaotic => s.lyapunov > chaotic * tol,
         Class::Periodic(_) => s.multiplier < 0.95,
         Class::NoImpact => true,
         _ => false,
     }
 }
 
-/// Computes the map of `cfg` coarse-to-fine with coarse spacing `k` (>= 2).
+/// Computes the map of `cfg` coarse-to-fine with coarse spacing `k` (>= 2); a chaotic corner
+/// is clear above `chaotic` x `run.lyapunov_tol` (`--refine-clear`).
 pub fn compute_refined(
     engine: &Engine,
     cfg: &Config,
     k: usize,
+    chaotic: f64,
     starts: usize,
     progress: &dyn Progress,
 ) -> Result<Refined, MapError> {
@@ -109,7 +115,7 @@ pub fn compute_refined(
             ];
             let uniform = cs
                 .iter()
-                .all(|c| c.0.class == cs[0].0.class && c.1 == 1 && clear(&c.0, tol));
+                .all(|c| c.0.class == cs[0].0.class && c.1 == 1 && clear(&c.0, tol, chaotic));
             if b.x1 - b.x0 <= 1 && b.y1 - b.y0 <= 1 {
                 continue;
             }

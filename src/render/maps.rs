@@ -71,6 +71,8 @@ pub struct CategoryMap<'a> {
     pub families: &'a [(&'a str, u16, u16)],
     /// Short name of each family member in a shared row (e.g. "12" for "period 12").
     pub member_label: &'a dyn Fn(u16) -> String,
+    /// Lines under the legend (e.g. how many cells a refined map inferred).
+    pub note: Option<&'a str>,
     pub width: u32,
     pub height: u32,
 }
@@ -91,7 +93,7 @@ enum LegendEntry {
 }
 
 /// "12.3%", "0.42%", or "<0.01%": always a share, never rounded to zero.
-fn percent(n: usize, total: usize) -> String {
+pub fn percent(n: usize, total: usize) -> String {
     let p = 100.0 * n as f64 / total as f64;
     if p >= 1.0 {
         format!("{p:.1}%")
@@ -103,7 +105,7 @@ fn percent(n: usize, total: usize) -> String {
 }
 
 /// Thousands separated by commas, for cell counts.
-fn grouped(n: usize) -> String {
+pub fn grouped(n: usize) -> String {
     let s = n.to_string();
     let mut out = String::new();
     for (i, ch) in s.chars().enumerate() {
@@ -285,6 +287,13 @@ pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderErro
                 }
             }
         }
+        if let Some(n) = map.note {
+            y += 0.3 * row_h;
+            for line in n.lines() {
+                text(line.to_string(), 4, y, &small)?;
+                y += 0.8 * row_h;
+            }
+        }
         Ok(())
     })
 }
@@ -392,6 +401,7 @@ mod tests {
             categories: &cats,
             families: &[],
             member_label: &|c| c.to_string(),
+            note: None,
             width: 800,
             height: 600,
         };

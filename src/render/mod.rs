@@ -18,7 +18,7 @@ pub use density::{
     DensityPlot, DensityStats, MARK_KINDS, Mark, density_panel, density_png, panels_png,
 };
 pub use lines::{LinePlot, Scale, Series, line_plot_png, line_plot_svg};
-pub use maps::{CategoryMap, ScalarMap, category_map_png, scalar_map_png};
+pub use maps::{CategoryMap, ScalarMap, category_map_png, grouped, percent, scalar_map_png};
 pub use palette::{ATTRACTOR_COLORS, ClassKind, MAX_PERIOD, PERIOD_FAMILIES, period_color};
 pub use point::{PointFigure, point_figure_png, point_figure_svg};
 
