@@ -422,3 +422,130 @@ fn map_titles_name_the_parameters_of_the_friction_law() {
     let t = rattle::map::model_title(&c, &["R", "eta"]);
     assert!(t.contains("lambda=0.02") && !t.contains("fs="), "{t}");
 }
+
+/// A synthetic cell: `class` with an exponent or multiplier that makes it clear of the
+/// refinement thresholds unless given otherwise.
+fn cell(class: Class, lyapunov: f64, multiplier: f64) -> (rattle::engine::Summary, u8) {
+    (
+        rattle::engine::Summary {
+            class,
+            impacts_per_period: 1.0,
+            lyapunov,
+            multiplier,
+            diag: Default::default(),
+            final_y: [0.0; 4],
+            periods: 400,
+        },
+        1,
+    )
+}
+
+/// Refines an `nx` x `ny` grid whose classes `truth` gives, counting the cells computed (each
+/// at most once); returns the refined classes, the inferred flags and the cells computed.
+fn refine_synthetic(
+    (nx, ny): (usize, usize),
+    k: usize,
+    chaotic: f64,
+    truth: &dyn Fn(usize, usize) -> (rattle::engine::Summary, u8),
+) -> (Vec<Class>, Vec<u8>, usize) {
+    let mut seen = vec![false; nx * ny];
+    let r = rattle::map::refine::refine_grid((nx, ny), k, 0.01, chaotic, |todo| {
+        assert!(todo.windows(2).all(|w| w[0] < w[1]), "ascending, each once");
+        Ok::<_, ()>(
+            todo.iter()
+                .map(|&c| {
+                    assert!(!seen[c], "cell {c} computed twice");
+                    seen[c] = true;
+                    truth(c % nx, c / nx)
+                })
+                .collect(),
+        )
+    })
+    .unwrap();
+    assert_eq!(r.computed, seen.iter().filter(|&&s| s).count());
+    (
+        r.cells.iter().map(|c| c.0.class).collect(),
+        r.inferred,
+        r.computed,
+    )
+}
+
+#[test]
+fn refinement_is_exact_across_a_straight_boundary_and_misses_only_what_its_rule_allows() {
+    let (nx, ny, k) = (101, 77, 8);
+    let p1 = cell(Class::Periodic(1), f64::NAN, 0.5);
+    let chaos = cell(Class::Chaotic, 0.1, f64::NAN);
+    // A half-plane: a line that crosses a block leaves corners on both sides, so no block is
+    // filled across it and the refined map is exact.
+    let line = |x: usize, y: usize| 3.0 * x as f64 - 2.0 * y as f64 > 100.0;
+    let truth = |x: usize, y: usize| if line(x, y) { p1 } else { chaos };
+    let (cls, inferred, computed) = refine_synthetic((nx, ny), k, 3.0, &truth);
+    for (i, c) in cls.iter().enumerate() {
+        assert_eq!(*c, truth(i % nx, i / nx).0.class, "cell {i}");
+    }
+    let n_inf = inferred.iter().filter(|&&v| v == 1).count();
+    eprintln!(
+        "half-plane: {computed} of {} computed, {n_inf} inferred",
+        nx * ny
+    );
+    assert!(computed < nx * ny / 3, "{computed}");
+    assert_eq!(computed + n_inf, nx * ny);
+
+    // A disk (convex): a block whose corners are all inside is inside, so the only cells it can
+    // get wrong are inside cells in a cap cut off between two outside corners.
+    let disk =
+        |x: usize, y: usize, cx: f64, cy: f64, r: f64| (x as f64 - cx).hypot(y as f64 - cy) < r;
+    let truth = |x: usize, y: usize| {
+        if disk(x, y, 50.0, 38.0, 30.0) {
+            p1
+        } else {
+            chaos
+        }
+    };
+    let (cls, _, _) = refine_synthetic((nx, ny), k, 3.0, &truth);
+    let wrong: Vec<usize> = (0..nx * ny)
+        .filter(|&i| cls[i] != truth(i % nx, i / nx).0.class)
+        .collect();
+    eprintln!("disk r = 30: {} cells wrong", wrong.len());
+    assert!(
+        wrong
+            .iter()
+            .all(|&i| disk(i % nx, i / nx, 50.0, 38.0, 30.0))
+    );
+    assert!(wrong.len() < 30, "{}", wrong.len());
+
+    // Where it fails, as stated: an island smaller than the spacing that touches no corner of
+    // its block is missed entirely.
+    let truth = |x: usize, y: usize| {
+        if disk(x, y, 12.0, 12.0, 2.5) {
+            p1
+        } else {
+            chaos
+        }
+    };
+    let (cls, _, _) = refine_synthetic((nx, ny), k, 3.0, &truth);
+    assert!(
+        cls.iter().all(|&c| c == Class::Chaotic),
+        "the island is missed"
+    );
+}
+
+#[test]
+fn refinement_fills_only_corners_clear_of_the_thresholds() {
+    let (nx, ny, k) = (65, 65, 8);
+    // Weak chaos (exponent 0.02, below 3 x 0.01): every block is refined to single cells by
+    // default; with --refine-clear 1.5 the corners are clear and the blocks are filled.
+    let weak = |_: usize, _: usize| cell(Class::Chaotic, 0.02, f64::NAN);
+    let (_, _, computed) = refine_synthetic((nx, ny), k, 3.0, &weak);
+    assert_eq!(computed, nx * ny);
+    let (cls, _, computed) = refine_synthetic((nx, ny), k, 1.5, &weak);
+    assert_eq!(computed, 9 * 9);
+    assert!(cls.iter().all(|&c| c == Class::Chaotic));
+    // Quasi-periodic corners and cycles near the unit circle always refine.
+    let qp = |_: usize, _: usize| cell(Class::QuasiPeriodic, 0.0, f64::NAN);
+    assert_eq!(refine_synthetic((nx, ny), k, 1.5, &qp).2, nx * ny);
+    let slow = |_: usize, _: usize| cell(Class::Periodic(2), f64::NAN, 0.97);
+    assert_eq!(refine_synthetic((nx, ny), k, 1.5, &slow).2, nx * ny);
+    let fast = |_: usize, _: usize| cell(Class::Periodic(2), f64::NAN, 0.9);
+    assert_eq!(refine_synthetic((nx, ny), k, 3.0, &fast).2, 9 * 9);
+}
