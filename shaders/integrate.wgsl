@@ -551,6 +551,14 @@ fn clear_of(g0: F, g1: F, m0: F, m1: F) -> bool {
     return fmin(g0, g1) > bound;
 }
 
+// events.rs `clear_of_stops`: both impact guards r -+ z stay above the bound of `bracket`
+// (their chords have opposite slopes and the same bound).
+fn clear_of_stops(z0: F, z1: F, zd0: F, zd1: F) -> bool {
+    let d = z1 - z0;
+    let bound = F(0.25) * fmax(fabs(zd0 - d), fabs(zd1 - d));
+    return r() - fmax(fabs(z0), fabs(z1)) > bound;
+}
+
 // method.rs `quiet`: no guard of the mode can reach zero in the full step from y0 to y1, so
 // `locate` would find no event and the trial step is the step. `&` rather than `&&`: no
 // branches on the hot path.
@@ -565,7 +573,7 @@ fn quiet(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, cs0: vec
         let zd0 = (y0.w - y0.y) * h;
         let zd1 = (y1.w - y1.y) * h;
         let s = select(F(-1.0), F(1.0), mode == MODE_SLIP_POS);
-        return clear_of(r() - z0, r() - z1, -zd0, -zd1) & clear_of(r() + z0, r() + z1, zd0, zd1)
+        return clear_of_stops(z0, z1, zd0, zd1)
             & clear_of(s * (y0.y - y0.w), s * (y1.y - y1.w), s * (f0.y - f0.w) * h,
                        s * (f1.y - f1.w) * h);
     }

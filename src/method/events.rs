@@ -152,6 +152,16 @@ pub fn clear_of<F: Real>(g0: F, g1: F, m0: F, m1: F) -> bool {
     g0.min(g1) > bound
 }
 
+/// Both impact guards `r - z` and `r + z` at once: their chords have opposite slopes and the
+/// same bound of [`clear_of`], so both stay above it when the distance to the nearer stop,
+/// `r - max(|z0|, |z1|)`, does (one bound and one comparison instead of two).
+#[inline(always)]
+pub fn clear_of_stops<F: Real>(r: F, z0: F, z1: F, zd0: F, zd1: F) -> bool {
+    let d = z1 - z0;
+    let bound = F::of(0.25) * (zd0 - d).abs().max((zd1 - d).abs());
+    r - z0.abs().max(z1.abs()) > bound
+}
+
 /// NaN, infinity, or a state beyond any physical scale fail the point (as in the shader).
 #[inline(always)]
 pub(crate) fn finite_state<F: Real>(y: &[F; 4]) -> bool {

@@ -7,7 +7,7 @@
 //! Every lane does the arithmetic of [`Integrator::run`] operation for operation, so the
 //! results are the same bit for bit (tested); only the order in which the work is done changes.
 
-use super::events::clear_of;
+use super::events::{clear_of, clear_of_stops};
 use super::{Integrator, PointState, RunResult};
 use crate::model::Mode;
 use crate::real::Real;
@@ -165,8 +165,7 @@ fn trial<F: Real, const N: usize>(
         let z1 = y1[2][l] - y1[0][l];
         let zd0 = (y[3][l] - y[1][l]) * h;
         let zd1 = (y1[3][l] - y1[1][l]) * h;
-        clear_of(r - z0, r - z1, -zd0, -zd1)
-            & clear_of(r + z0, r + z1, zd0, zd1)
+        clear_of_stops(r, z0, z1, zd0, zd1)
             & clear_of(
                 s[l] * (y[1][l] - y[3][l]),
                 s[l] * (y1[1][l] - y1[3][l]),

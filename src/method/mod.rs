@@ -19,7 +19,9 @@ mod events;
 mod lanes;
 
 use events::finite_state;
-pub use events::{Bracket, bracket, clear_of, cos_sin_small, forcing_table, illinois};
+pub use events::{
+    Bracket, bracket, clear_of, clear_of_stops, cos_sin_small, forcing_table, illinois,
+};
 pub use lanes::{
     FlowTask, LANES, NEWTON_LANES, Queue, batches, run_flows, run_flows_portable, run_lanes,
     run_lanes_portable, run_queue,
@@ -417,8 +419,7 @@ impl<F: Real> Integrator<F> {
             } else {
                 -F::one()
             };
-            return clear_of(p.r - z0, p.r - z1, -zd0, -zd1)
-                & clear_of(p.r + z0, p.r + z1, zd0, zd1)
+            return clear_of_stops(p.r, z0, z1, zd0, zd1)
                 & clear_of(
                     s * (y0[1] - y0[3]),
                     s * (y1[1] - y1[3]),
