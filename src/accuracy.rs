@@ -254,6 +254,7 @@ pub fn study(
                 };
                 // The ensemble repeats the point, to time a realistic batch.
                 let etas = vec![params.eta; o.ensemble];
+                let mut polish = None;
                 match engine.run(&spec, &Points::along(&[Param::Eta], &etas), &Silent) {
                     Ok((rs, t)) => {
                         let secs = t.kernel_s.unwrap_or(t.integration_s);
@@ -261,10 +262,16 @@ pub fn study(
                         row.error = Some(max_diff(&rs[0].final_y, &reference));
                         row.seconds_per_point = Some(secs / o.ensemble as f64);
                         row.steps_per_s = Some(steps / secs);
+                        let periodic = case == case_main && c_ref.period().is_some();
+                        if periodic && m == ImpactMethod::Located && prec == Precision::F32 {
+                            polish =
+                                Some(polished(&row, &rs[0], &params, &spec, c_ref, &reference));
+                        }
                     }
                     Err(e) => row.note = Some(e.to_string()),
                 }
                 rows.push(row);
+                rows.extend(polish);
             }
         }
         log(&format!(
@@ -378,6 +385,40 @@ pub fn study(
     Ok((rows, meta))
 }
 
+/// The f32 run's section point refined in f64 by Newton's method at the run's own N (the
+/// CPU's confirmation of every periodic point, `stability::confirm`): the f32 run finds the
+/// attractor, the f64 iteration removes its round-off. Its cost is the f32 run's plus the
+/// Newton iteration of one point on one thread.
+fn polished(
+    f32_row: &Row,
+    r: &RunResult,
+    params: &Params<f64>,
+    spec: &RunSpec,
+    c_ref: Class,
+    reference: &[f64; 4],
+) -> Row {
+    let t = std::time::Instant::now();
+    let it = Integrator::<f64>::new(params, &spec.settings);
+    let start = crate::method::PointState {
+        y: r.final_y,
+        mode: r.final_mode,
+        diag: Default::default(),
+    };
+    let c = crate::tangent::refine(&it, &start, c_ref.period().unwrap_or(1));
+    let newton_s = t.elapsed().as_secs_f64();
+    Row {
+        method: POLISHED.into(),
+        error: c.converged.then(|| max_diff(&c.point, reference)),
+        seconds_per_point: f32_row.seconds_per_point.map(|s| s + newton_s),
+        steps_per_s: None,
+        note: (!c.converged).then(|| "Newton did not converge".into()),
+        ..f32_row.clone()
+    }
+}
+
+/// Method name of the f32 runs polished by f64 Newton.
+const POLISHED: &str = "located+newton";
+
 /// The reference of the error rows.
 #[derive(Clone, Debug, Serialize)]
 pub struct ReferenceInfo {
@@ -468,8 +509,12 @@ pub fn write_outputs(
     combos.dedup();
     for &(m, p, b) in &keys {
         let main = line(true, (m, p, b));
-        // Order over the range above the precision's noise floor.
-        let floor = if p == "f32" { 1e-6 } else { 1e-12 };
+        // Order over the range above the precision's noise floor (f64's for the polished f32).
+        let floor = if p == "f32" && m != POLISHED {
+            1e-6
+        } else {
+            1e-12
+        };
         let q = observed_order(&err_n(&main), floor);
         let qx = observed_order(&err_n(&line(false, (m, p, b))), floor);
         orders.push(OrderJson {
@@ -488,7 +533,12 @@ pub fn write_outputs(
                 .iter()
                 .filter_map(|r| Some((r.seconds_per_point?, r.error?)))
                 .collect(),
-            color_index: combos.iter().position(|c| *c == (p, b)).unwrap_or(0),
+            // The polished lines take colours of their own after the precision/backend ones.
+            color_index: if m == POLISHED {
+                combos.len() + usize::from(b == "gpu")
+            } else {
+                combos.iter().position(|c| *c == (p, b)).unwrap_or(0)
+            },
             dashed: m == "naive",
         });
     }
@@ -624,6 +674,21 @@ fn work_precision_caption(rows: &[Row], r: &ReferenceInfo, orders: &[OrderJson])
     .map_or(String::new(), |(lo, _)| {
         format!(" The smallest located f32 error is {lo:.1e}: the f32 round-off floor.")
     });
+    let polish = min_max(
+        rows.iter()
+            .filter(|x| x.kind == "error" && x.case == r.case && x.method == POLISHED)
+            .filter(|x| x.n == 256)
+            .filter_map(|x| x.error),
+    )
+    .map_or(String::new(), |(lo, hi)| {
+        format!(
+            " Lines located+newton (own colours): the located f32 run's section point refined \
+             by Newton's method in f64 at the same N, as rattle confirms every periodic point; \
+             the cost includes the Newton iteration of one point on one thread. At N = 256 \
+             its error is {}: f64's, not the f32 floor.",
+            span(lo, hi, &|v| format!("{v:.1e}"))
+        )
+    });
     format!(
         "Work-precision chart at {case} ({class} attractor): max-norm error of the section \
          point (state at a multiple of the forcing period) after {t} transient periods from \
@@ -634,7 +699,7 @@ fn work_precision_caption(rows: &[Row], r: &ReferenceInfo, orders: &[OrderJson])
          dashed: naive RK4 (impacts applied at step ends), in the same colour for the same \
          precision (f32, f64) and backend ({backends}). Observed orders of convergence \
          (least-squares slope above the noise floor, 1e-6 in f32 and 1e-12 in f64): \
-         {orders_text}.{f32_floor}",
+         {orders_text}.{f32_floor}{polish}",
         case = r.case,
         class = r.class,
         t = r.transient_periods,
