@@ -7,7 +7,7 @@ use crate::gpu::{Gpu, GpuError, Job, Timings};
 use crate::method::{Diagnostics, RunResult};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
-use crate::stability::{Proposal, Verdict, confirm, confirm_many};
+use crate::stability::{Verdict, confirm, confirm_all};
 use std::time::Instant;
 
 /// An opened backend.
@@ -57,7 +57,7 @@ impl Summary {
 
     /// [`Summary::new`] of every point of a run (`classes[i]` for `results[i]`, which kept
     /// `samples(r)` samples), the same summaries bit for bit, with the Newton trials on the
-    /// lanes ([`confirm_many`]).
+    /// lanes ([`confirm_all`]).
     pub fn many(
         classes: &[Class],
         results: &[RunResult],
@@ -65,22 +65,23 @@ impl Summary {
         spec: &RunSpec,
         points: &Points,
     ) -> Vec<Summary> {
-        let proposals: Vec<Proposal> = results
+        let proposals: Vec<Class> = results
             .iter()
             .zip(classes)
-            .enumerate()
-            .map(|(i, (r, c))| Proposal {
-                params: points.params(&spec.params, i),
-                run: r,
-                use_samples: false,
-                class: c.with_lyapunov(r.lyapunov, spec.lyapunov_tol),
-            })
+            .map(|(r, c)| c.with_lyapunov(r.lyapunov, spec.lyapunov_tol))
             .collect();
-        confirm_many(&spec.settings, &proposals, spec.lyapunov_tol)
-            .into_iter()
-            .zip(results)
-            .map(|(v, r)| Summary::of(v, r, samples(r), spec))
-            .collect()
+        confirm_all(
+            |i| points.params(&spec.params, i),
+            &spec.settings,
+            results,
+            &proposals,
+            false,
+            spec.lyapunov_tol,
+        )
+        .into_iter()
+        .zip(results)
+        .map(|(v, r)| Summary::of(v, r, samples(r), spec))
+        .collect()
     }
 
     fn of(v: Verdict, r: &RunResult, samples: usize, spec: &RunSpec) -> Summary {

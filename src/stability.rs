@@ -150,12 +150,14 @@ pub fn trailing_lag(samples: &[[f64; 4]]) -> Option<u32> {
         .map(|(n, _)| n as u32)
 }
 
-/// [`confirm`] for every point of a run, in parallel.
+/// [`confirm`] for every point of a run (`params(i)` and `proposals[i]` for `results[i]`),
+/// the Newton trials on the lanes ([`confirm_many`]).
 pub fn confirm_all(
-    params: impl Fn(usize) -> Params<f64> + Sync,
+    params: impl Fn(usize) -> Params<f64>,
     settings: &Settings,
     results: &[RunResult],
     proposals: &[Class],
+    use_samples: bool,
     lyapunov_tol: f64,
 ) -> Vec<Verdict> {
     let points: Vec<Proposal> = results
@@ -165,7 +167,7 @@ pub fn confirm_all(
         .map(|(i, (r, c))| Proposal {
             params: params(i),
             run: r,
-            use_samples: true,
+            use_samples,
             class: *c,
         })
         .collect();

@@ -60,6 +60,7 @@ pub fn finish(cfg: &Config, results: Vec<RunResult>) -> Vec<SweepPoint> {
         &cfg.settings(),
         &results,
         &proposals,
+        true,
         cfg.run.lyapunov_tol,
     );
     values
