@@ -95,18 +95,22 @@ fn accuracy_command_writes_charts_with_observed_orders() {
     // and above, and converges at f64's order. (The polished point is the cycle's; after 200
     // transient periods the reference trajectory is on it to 0.86^200 = 1e-13.)
     assert!(order("located+newton", "f32", "order") > 3.5);
-    let csv = std::fs::read_to_string(d.join("a.csv")).unwrap();
+    let mut rd = csv::Reader::from_path(d.join("a.csv")).unwrap();
+    let head = rd.headers().unwrap().clone();
+    let rows: Vec<csv::StringRecord> = rd.records().map(|r| r.unwrap()).collect();
+    let col = |r: &csv::StringRecord, name: &str| {
+        r[head.iter().position(|h| h == name).unwrap()].to_string()
+    };
     let err = |method: &str, precision: &str, n: &str| -> f64 {
-        csv.lines()
-            .map(|l| l.split(',').collect::<Vec<_>>())
-            .find(|c| {
-                c[0] == "error"
-                    && c[1].starts_with("coulomb")
-                    && c[2] == method
-                    && c[3] == precision
-                    && c[5] == n
+        rows.iter()
+            .find(|r| {
+                col(r, "kind") == "error"
+                    && col(r, "case").starts_with("coulomb")
+                    && col(r, "method") == method
+                    && col(r, "precision") == precision
+                    && col(r, "n") == n
             })
-            .and_then(|c| c[6].parse().ok())
+            .map(|r| col(r, "error").parse().unwrap())
             .unwrap()
     };
     for n in ["256", "1024"] {

@@ -319,6 +319,21 @@ fn newton_rejects_an_unstable_cycle_the_detector_accepts() {
     assert!(again.converged && !again.is_stable());
 }
 
+#[test]
+fn newton_stops_where_its_residual_stalls() {
+    // From this orbit's section point the period-1 residual goes 1.5, 3.0, 2.2: not converging
+    // to the start's cycle. Left to wander, the iteration used to reach an unstable period-1
+    // cycle far from the start after many iterations; it stops at the third.
+    let (it, st) = settled(&coulomb(1.0, 0.6, 0.1), &settings(256, 1e-4), 600);
+    let c = refine(&it, &st, 1);
+    assert!(!c.converged, "{c:?}");
+    assert_eq!(c.iterations, 3, "{c:?}");
+    // Where it converges, it converges as before: quadratically from a settled orbit.
+    let (it, st) = settled(&coulomb(1.4, 0.6, 0.02), &settings(256, 1e-4), 300);
+    let c = refine(&it, &st, 1);
+    assert!(c.converged && c.is_stable() && c.iterations <= 3, "{c:?}");
+}
+
 /// Bifurcation points of a sweep of `configs/fig2.toml` over [from, to].
 fn fig2_bifurcations(from: f64, to: f64, points: u32) -> Vec<rattle::stability::BifurcationPoint> {
     let cfg = rattle::config::Config::load(
