@@ -52,6 +52,9 @@ var<private> h: F;
 var<private> dphi: F;
 var<private> zeno: F;
 var<private> tol: F;
+// model.rs `inv_mu`, `inv_one_plus_mu`: the field multiplies where it would divide.
+var<private> inv_mu: F;
+var<private> inv_1pmu: F;
 
 struct PointState {
     y: vec4<F>,
@@ -103,17 +106,19 @@ fn friction_slope(w: F) -> F {
     return decay + F(2.0) * l2() * w;
 }
 
+// Both modes' values, then a select: llvmpipe runs both arms of a branch on the mode anyway
+// (with lane masks), and the select saves the masking (about +3% steps/s).
 fn field(y: vec4<F>, mode: u32, c: F) -> vec4<F> {
-    if (is_slip(mode)) {
-        let v = y.y - y.w;
-        // Friction direction s of the mode; the law is evaluated at the signed speed s*v.
-        let s = select(F(-1.0), F(1.0), mode == MODE_SLIP_POS);
-        let t = s * friction(s * v);
-        let d = b1() * delta() * v;
-        return vec4<F>(y.y, c - b1() * y.y - y.x - d - t, y.w, (d + t) / mu());
-    }
-    let a = (c - b1() * y.y - y.x) / (F(1.0) + mu());
-    return vec4<F>(y.y, a, y.w, a);
+    let v = y.y - y.w;
+    // Friction direction s of a slip mode; the law is evaluated at the signed speed s*v.
+    let s = select(F(-1.0), F(1.0), mode == MODE_SLIP_POS);
+    let t = s * friction(s * v);
+    let d = b1() * delta() * v;
+    // Stick or lock: the masses move together with one acceleration, so v stays exactly 0.
+    let a = (c - b1() * y.y - y.x) * inv_1pmu;
+    let slip = is_slip(mode);
+    return vec4<F>(y.y, select(a, c - b1() * y.y - y.x - d - t, slip), y.w,
+                   select(a, (d + t) * inv_mu, slip));
 }
 
 // model.rs `jacobian_times`: J(y) x, the field's Jacobian in a fixed mode times x.
@@ -129,11 +134,11 @@ fn jacobian_times(y: vec4<F>, mode: u32, x: vec4<F>) -> vec4<F> {
 }
 
 fn needed_force(y: vec4<F>, c: F) -> F {
-    return mu() * (c - b1() * y.y - y.x) / (F(1.0) + mu());
+    return mu() * (c - b1() * y.y - y.x) * inv_1pmu;
 }
 
 fn needed_force_rate(y: vec4<F>, a: F, sn: F) -> F {
-    return mu() * (-eta() * sn - b1() * a - y.y) / (F(1.0) + mu());
+    return mu() * (-eta() * sn - b1() * a - y.y) * inv_1pmu;
 }
 
 fn impact(y: vec4<F>) -> vec4<F> {
@@ -815,6 +820,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     tol = consts[C_TOL];
     dphi = consts[C_DPHI];
     h = dphi / eta();
+    inv_mu = F(1.0) / mu();
+    inv_1pmu = F(1.0) / (F(1.0) + mu());
 
     st.y = load_y(Y_MAIN, i);
     st.mode = us[U_MODE * n + i];

@@ -327,6 +327,20 @@ pub fn friction_slope<F: Real>(p: &Params<F>, w: F) -> F {
     decay + F::of(2.0) * p.l2 * w
 }
 
+/// `1/mu`, so that the field multiplies where it would divide: a division costs several
+/// multiplications on SIMD adapters, and this one is loop-invariant (the kernel computes it
+/// once per point; here the compiler hoists it).
+#[inline(always)]
+pub fn inv_mu<F: Real>(p: &Params<F>) -> F {
+    F::one() / p.mu
+}
+
+/// `1/(1 + mu)`, see [`inv_mu`].
+#[inline(always)]
+pub fn inv_one_plus_mu<F: Real>(p: &Params<F>) -> F {
+    F::one() / (F::one() + p.mu)
+}
+
 pub fn field<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode, c: F) -> [F; 4] {
     match mode {
         Mode::SlipPos | Mode::SlipNeg => {
@@ -339,11 +353,16 @@ pub fn field<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode, c: F) -> [F; 4] {
             };
             let t = s * friction(p, s * v);
             let d = p.b1 * p.delta * v;
-            [y[1], c - p.b1 * y[1] - y[0] - d - t, y[3], (d + t) / p.mu]
+            [
+                y[1],
+                c - p.b1 * y[1] - y[0] - d - t,
+                y[3],
+                (d + t) * inv_mu(p),
+            ]
         }
         _ => {
             // Masses move together: same acceleration for both, so v stays exactly 0.
-            let a = (c - p.b1 * y[1] - y[0]) / (F::one() + p.mu);
+            let a = (c - p.b1 * y[1] - y[0]) * inv_one_plus_mu(p);
             [y[1], a, y[3], a]
         }
     }
@@ -399,14 +418,14 @@ pub fn jacobian_times<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode, x: &[F; 4]
 /// Force m2 needs from m1 to move with it (v = 0): `Tn = mu * a`.
 #[inline(always)]
 pub fn needed_force<F: Real>(p: &Params<F>, y: &[F; 4], c: F) -> F {
-    p.mu * (c - p.b1 * y[1] - y[0]) / (F::one() + p.mu)
+    p.mu * (c - p.b1 * y[1] - y[0]) * inv_one_plus_mu(p)
 }
 
 /// Time derivative of [`needed_force`] along the common motion, with `sn = sin(eta*tau)`
 /// and `a` the common acceleration; used to interpolate the release guard.
 #[inline(always)]
 pub fn needed_force_rate<F: Real>(p: &Params<F>, y: &[F; 4], a: F, sn: F) -> F {
-    p.mu * (-p.eta * sn - p.b1 * a - y[1]) / (F::one() + p.mu)
+    p.mu * (-p.eta * sn - p.b1 * a - y[1]) * inv_one_plus_mu(p)
 }
 
 /// Impact map: momentum `y2 + mu*y4` conserved, relative velocity reversed with factor R.

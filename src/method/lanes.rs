@@ -60,6 +60,8 @@ struct LaneParams<F, const N: usize> {
     b1: Lanes<F, N>,
     delta: Lanes<F, N>,
     mu: Lanes<F, N>,
+    /// `model::inv_mu` of each lane.
+    inv_mu: Lanes<F, N>,
     r: Lanes<F, N>,
     h: Lanes<F, N>,
 }
@@ -74,6 +76,7 @@ impl<F: Real, const N: usize> LaneParams<F, N> {
         self.b1[l] = it.p.b1;
         self.delta[l] = it.p.delta;
         self.mu[l] = it.p.mu;
+        self.inv_mu[l] = crate::model::inv_mu(&it.p);
         self.r[l] = it.p.r;
         self.h[l] = it.h;
     }
@@ -88,6 +91,7 @@ impl<F: Real, const N: usize> LaneParams<F, N> {
             b1: z,
             delta: z,
             mu: z,
+            inv_mu: z,
             r: z,
             h: z,
         };
@@ -120,7 +124,7 @@ fn slip_field<F: Real, const N: usize>(
         out[0][l] = y[1][l];
         out[1][l] = c - q.b1[l] * y[1][l] - y[0][l] - d - t;
         out[2][l] = y[3][l];
-        out[3][l] = (d + t) / q.mu[l];
+        out[3][l] = (d + t) * q.inv_mu[l];
     }
     out
 }
