@@ -383,3 +383,60 @@ fn fig2_neimark_sacker_and_period_doubling_are_located() {
     assert!((hit[0].value - 1.188304).abs() < 1e-5, "{:?}", hit[0]);
     assert!((hit[0].multipliers[0][0] + 1.0).abs() < 1e-3);
 }
+
+/// Impacts in `periods` more periods of `st`.
+fn impacts_over(it: &Integrator<f64>, st: &mut PointState<f64>, periods: u32) -> u64 {
+    let before = st.diag.impacts;
+    for _ in 0..periods {
+        it.period(st);
+    }
+    st.diag.impacts - before
+}
+
+/// Without impacts m2's position enters nothing (the field depends on y1, y2 and the velocity
+/// difference only), so shifting y3 maps a solution to a solution: an impact-free cycle has the
+/// multiplier +1 exactly and belongs to a family of shifted cycles. At Fig. 2's eta = 1.78 the
+/// family's z range is about 0.91, well inside the clearance 2r = 1.6, so no member grazes.
+#[test]
+fn impact_free_cycles_form_a_neutral_family() {
+    let s = settings(256, 1e-4);
+    let (it, mut st) = settled(&Params::paper(1.78), &s, 500);
+    assert_eq!(impacts_over(&it, &mut st, 200), 0, "from rest: impact-free");
+    let c = refine(&it, &st, 1);
+    assert!(c.converged, "{c:?}");
+    let m = &c.multipliers;
+    assert!(
+        (m[0][0] - 1.0).abs() < 1e-9 && m[0][1].abs() < 1e-9,
+        "{m:?}"
+    );
+    assert!(modulus(&m[1]) < 0.99, "the rest contract: {m:?}");
+    // A shifted member: one period returns it to itself, without an impact.
+    let mut shifted = PointState {
+        y: c.point,
+        mode: c.mode,
+        diag: Default::default(),
+    };
+    shifted.y[2] += 0.1;
+    let start = shifted.y;
+    assert_eq!(impacts_over(&it, &mut shifted, 1), 0);
+    let d = (0..4)
+        .map(|i| (shifted.y[i] - start[i]).abs())
+        .fold(0.0, f64::max);
+    assert!(d < 1e-9, "shifted cycle returns to within {d:e}");
+}
+
+/// Runs of Fig. 2 from rest stop reaching the stops at eta = 1.7774; that is where rest lies
+/// in the impact-free family's basin, not where the impacting attractor ends: followed from
+/// eta = 1.7769, it is still there at 1.78 (upward continuation finds it up to 1.887).
+#[test]
+fn fig2_impacting_attractor_outlives_the_end_of_impacts_from_rest() {
+    let s = settings(256, 1e-4);
+    let (_, chaotic) = settled(&Params::paper(1.7769), &s, 700);
+    let it = Integrator::<f64>::new(&Params::paper(1.78), &s);
+    let mut st = chaotic;
+    let early = impacts_over(&it, &mut st, 800);
+    let late = impacts_over(&it, &mut st, 200);
+    assert!(early > 1000 && late > 200, "{early} then {late} impacts");
+    let (it, mut rest) = settled(&Params::paper(1.78), &s, 800);
+    assert_eq!(impacts_over(&it, &mut rest, 200), 0);
+}
