@@ -440,3 +440,35 @@ fn fig2_impacting_attractor_outlives_the_end_of_impacts_from_rest() {
     let (it, mut rest) = settled(&Params::paper(1.78), &s, 800);
     assert_eq!(impacts_over(&it, &mut rest, 200), 0);
 }
+
+/// After the crisis at eta = 1.280 Fig. 2 is period-2, and the period-2 cycle is the one the
+/// period-1 cycle doubles into at 1.37059: a sweep from rest meets it from the doubled side
+/// (its multiplier +1 is the period-1 cycle's -1 over two periods, so it is listed as a fold of
+/// period 2), and just above it the period-1 cycle has a real multiplier close to -1.
+#[test]
+fn fig2_period_two_after_the_crisis_is_the_doubled_period_one() {
+    use rattle::stability::Kind;
+    let b = fig2_bifurcations(1.36, 1.38, 21);
+    let hit: Vec<_> = b
+        .iter()
+        .filter(|b| (b.value - 1.37059).abs() < 1e-4)
+        .collect();
+    assert_eq!(hit.len(), 1, "{b:?}");
+    assert_eq!(
+        (hit[0].kind, hit[0].period),
+        (Kind::Fold, 2),
+        "{:?}",
+        hit[0]
+    );
+    let s = settings(256, 1e-4);
+    let (it, st) = settled(&Params::paper(1.30), &s, 700);
+    let c = refine(&it, &st, 2);
+    assert!(c.is_stable() && c.period == 2, "period-2 at 1.30: {c:?}");
+    let (it, st) = settled(&Params::paper(1.3712), &s, 700);
+    let c = refine(&it, &st, 1);
+    let m = c.multipliers[0];
+    assert!(
+        c.is_stable() && c.period == 1 && m[1] == 0.0 && m[0] < -0.97,
+        "period-1 near its doubling: {c:?}"
+    );
+}
