@@ -209,6 +209,12 @@ const BISECTIONS: u32 = 20;
 /// A leading multiplier this close to the unit circle names the kind of the loss; farther
 /// inside, the branch ended without a multiplier crossing (non-smooth).
 const CRITICAL: f64 = 0.05;
+/// A cycle of period 2m whose points m periods apart lie this close (relative) at the last
+/// stable value of a bisection is merging into a cycle of period m: the +1 multiplier that ends
+/// it is that cycle's period doubling, seen from the doubled side. At a fold the points stay
+/// O(1) apart; at a doubling they part like the square root of the distance to it (about 1e-5
+/// at the bisection's final width).
+const DOUBLED: f64 = 1e-3;
 
 /// One point of a sweep as [`bifurcation_points`] reads it.
 pub struct Branch<'a> {
@@ -351,6 +357,28 @@ impl<'a> Locate<'a> {
         self.newton = Self::at(self.base, self.param, self.settings, self.mid, &self.last);
     }
 
+    /// Whether the cycle `c` (at the last stable value) has an even period 2m and its points
+    /// m periods apart have nearly merged: it is the doubled cycle of a period doubling (see
+    /// [`DOUBLED`]), not a cycle ending at a fold.
+    fn halves(&self, c: &Cycle) -> bool {
+        if c.period % 2 != 0 {
+            return false;
+        }
+        let mut p = *self.base;
+        self.param.set(&mut p, self.good);
+        let it = Integrator::<f64>::new(&p, self.settings);
+        let mut st = PointState {
+            y: c.point,
+            mode: c.mode,
+            diag: Default::default(),
+        };
+        for _ in 0..c.period / 2 {
+            it.period(&mut st);
+        }
+        let scale = c.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        (0..4).all(|i| (st.y[i] - c.point[i]).abs() < DOUBLED * scale)
+    }
+
     /// The located point, its kind from the last stable cycle's critical multiplier.
     fn point(&self) -> BifurcationPoint {
         let (good, bad, last) = (self.good, self.bad, &self.last);
@@ -359,7 +387,7 @@ impl<'a> Locate<'a> {
             Kind::NonSmooth
         } else if lead[1].abs() > 1e-6 {
             Kind::NeimarkSacker
-        } else if lead[0] < 0.0 {
+        } else if lead[0] < 0.0 || self.halves(last) {
             Kind::PeriodDoubling
         } else {
             Kind::Fold

@@ -443,8 +443,9 @@ fn fig2_impacting_attractor_outlives_the_end_of_impacts_from_rest() {
 
 /// After the crisis at eta = 1.280 Fig. 2 is period-2, and the period-2 cycle is the one the
 /// period-1 cycle doubles into at 1.37059: a sweep from rest meets it from the doubled side
-/// (its multiplier +1 is the period-1 cycle's -1 over two periods, so it is listed as a fold of
-/// period 2), and just above it the period-1 cycle has a real multiplier close to -1.
+/// (its multiplier +1 is the period-1 cycle's -1 over two periods; its two points merge, so it
+/// is a period doubling, listed with the doubled cycle's period), and just above it the
+/// period-1 cycle has a real multiplier close to -1.
 #[test]
 fn fig2_period_two_after_the_crisis_is_the_doubled_period_one() {
     use rattle::stability::Kind;
@@ -456,7 +457,12 @@ fn fig2_period_two_after_the_crisis_is_the_doubled_period_one() {
     assert_eq!(hit.len(), 1, "{b:?}");
     assert_eq!(
         (hit[0].kind, hit[0].period),
-        (Kind::Fold, 2),
+        (Kind::PeriodDoubling, 2),
+        "{:?}",
+        hit[0]
+    );
+    assert!(
+        (hit[0].multipliers[0][0] - 1.0).abs() < 1e-3,
         "{:?}",
         hit[0]
     );
