@@ -361,7 +361,7 @@ impl<'a> Locate<'a> {
     /// m periods apart have nearly merged: it is the doubled cycle of a period doubling (see
     /// [`DOUBLED`]), not a cycle ending at a fold.
     fn halves(&self, c: &Cycle) -> bool {
-        if c.period % 2 != 0 {
+        if !c.period.is_multiple_of(2) {
             return false;
         }
         let mut p = *self.base;
