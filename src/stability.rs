@@ -187,6 +187,8 @@ pub enum Kind {
     /// The cycle stops existing or changes its impact sequence with every multiplier well
     /// inside the circle: a grazing or border-collision bifurcation of the non-smooth system.
     NonSmooth,
+    /// An impact-free motion (a `no_impact` point's) starts to touch a stop: impacts begin.
+    Grazing,
 }
 
 /// A located bifurcation point.
@@ -220,6 +222,11 @@ const DOUBLED: f64 = 1e-3;
 pub struct Branch<'a> {
     pub value: f64,
     pub cycle: Option<&'a Cycle>,
+    /// The final state of a `no_impact` point; `None` for a point that impacts (or failed:
+    /// then `impacts` is false too).
+    pub impact_free: Option<PointState<f64>>,
+    /// The point impacts (a class other than `no_impact` and `failed`).
+    pub impacts: bool,
 }
 
 /// Locates where stable cycles of a sweep stop being stable: for each pair of neighbouring
@@ -268,7 +275,112 @@ pub fn bifurcation_points(
     // bifurcation: keep the first found per interval.
     found.sort_by_key(|(i, _)| *i);
     found.dedup_by_key(|(i, _)| *i);
+    let grazing = grazing_points(base, param, settings, points);
+    // Seen from the impacting side, a grazing ends that side's cycle as `non_smooth`: one event.
+    found.retain(|(i, b)| b.kind != Kind::NonSmooth || !grazing.iter().any(|(j, _)| j == i));
+    found.extend(grazing);
+    found.sort_by_key(|(i, _)| *i);
     found.into_iter().map(|(_, b)| b).collect()
+}
+
+/// Stop-free periods that settle an impact-free motion at a new parameter value (its
+/// contracting multipliers are well inside the circle; the start is the motion at a value a
+/// bisection step away).
+const GRAZE_SETTLE: u32 = 100;
+
+/// Where a `no_impact` point neighbours one that impacts, whether its impact-free motion
+/// grazes a stop in between: the motion is continued from the `no_impact` side with the stops
+/// removed (so that no transient impact decides) and, at each value, integrated one period
+/// with the stops; the value where that period first holds an impact is bisected. Impact-free
+/// motion has the multiplier +1 exactly (m2's position enters nothing without impacts, so
+/// shifting y3 gives another solution): which member of that family grazes depends on the
+/// shift the run reached, so the located value belongs to the sweep's own history (from rest,
+/// or a continuation chain). Returns (pair index, point).
+fn grazing_points(
+    base: &Params<f64>,
+    param: Param,
+    settings: &Settings,
+    points: &[Branch],
+) -> Vec<(usize, BifurcationPoint)> {
+    use rayon::prelude::*;
+    let pairs: Vec<(usize, f64, PointState<f64>, f64)> = points
+        .windows(2)
+        .enumerate()
+        .filter_map(|(i, w)| match (&w[0], &w[1]) {
+            (a, b) if b.impacts => a.impact_free.map(|st| (i, a.value, st, b.value)),
+            (a, b) if a.impacts => b.impact_free.map(|st| (i, b.value, st, a.value)),
+            _ => None,
+        })
+        .collect();
+    pairs
+        .into_par_iter()
+        .filter_map(|(i, good, st, bad)| {
+            graze(base, param, settings, good, st, bad).map(|b| (i, b))
+        })
+        .collect()
+}
+
+/// The motion from `st` at parameter value `v`: settled without stops, then one period with
+/// them; `Some(settled state)` if that period holds no impact.
+fn impact_free_at(
+    base: &Params<f64>,
+    param: Param,
+    settings: &Settings,
+    v: f64,
+    st: &PointState<f64>,
+) -> Option<PointState<f64>> {
+    let mut p = *base;
+    param.set(&mut p, v);
+    let mut free = p;
+    free.r = 1e6;
+    let loose = Integrator::<f64>::new(&free, settings);
+    let mut s = *st;
+    for _ in 0..GRAZE_SETTLE {
+        loose.period(&mut s);
+    }
+    s.diag = Default::default();
+    let mut check = s;
+    Integrator::<f64>::new(&p, settings).period(&mut check);
+    (check.diag.impacts == 0 && !check.diag.nonfinite).then_some(s)
+}
+
+/// [`grazing_points`] for one pair: `None` where the motion is still impact-free at `bad` (it
+/// coexists there with the neighbour's impacting attractor) or not impact-free at `good`.
+fn graze(
+    base: &Params<f64>,
+    param: Param,
+    settings: &Settings,
+    good: f64,
+    st: PointState<f64>,
+    bad: f64,
+) -> Option<BifurcationPoint> {
+    let mut last = impact_free_at(base, param, settings, good, &st)?;
+    if impact_free_at(base, param, settings, bad, &last).is_some() {
+        return None;
+    }
+    let (mut good, mut bad) = (good, bad);
+    for _ in 0..BISECTIONS {
+        let mid = 0.5 * (good + bad);
+        match impact_free_at(base, param, settings, mid, &last) {
+            Some(s) => {
+                good = mid;
+                last = s;
+            }
+            None => bad = mid,
+        }
+    }
+    // Multipliers of one period of the motion at the last impact-free value (+1 among them).
+    let mut p = *base;
+    param.set(&mut p, good);
+    let it = Integrator::<f64>::new(&p, settings);
+    let (_, tan) = crate::tangent::flow(&it, &last, 1);
+    Some(BifurcationPoint {
+        kind: Kind::Grazing,
+        value: 0.5 * (good + bad),
+        uncertainty: 0.5 * (good - bad).abs(),
+        period: 1,
+        multipliers: crate::tangent::eigenvalues(&tan.matrix()),
+    })
 }
 
 /// Continues the stable cycle of `from` towards `to` and bisects where it stops being stable:

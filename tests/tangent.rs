@@ -478,3 +478,74 @@ fn fig2_period_two_after_the_crisis_is_the_doubled_period_one() {
         "period-1 near its doubling: {c:?}"
     );
 }
+
+/// Followed down from eta = 1.8 by continuation, Fig. 2's impact-free motion (which runs from
+/// rest leave at 1.7774, see above) lasts until it grazes the upper stop at eta = 1.5537: the
+/// diagram lists a grazing there, with the neutral multiplier +1 among those of its last
+/// impact-free value, and the motion's largest z at that value is the clearance r (sampled
+/// on a 16 times finer grid, without the event logic that located it).
+#[test]
+fn fig2_impact_free_motion_grazes_under_continuation_down() {
+    use rattle::bifurcation::{Continuation, run};
+    use rattle::stability::Kind;
+    let cfg = rattle::config::Config::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/fig2.toml"),
+        &[
+            "sweep.from=1.54".into(),
+            "sweep.to=1.8".into(),
+            "sweep.points=261".into(),
+            "method.precision=\"f64\"".into(),
+        ],
+    )
+    .unwrap();
+    let engine = rattle::engine::Engine::Cpu;
+    let b = run(
+        &engine,
+        &cfg,
+        Some(Continuation::Down),
+        &rattle::progress::Silent,
+    )
+    .unwrap();
+    let graze: Vec<_> = b.bifurcations[0]
+        .iter()
+        .filter(|p| p.kind == Kind::Grazing)
+        .collect();
+    assert_eq!(graze.len(), 1, "{:?}", b.bifurcations);
+    let g = graze[0];
+    assert!((g.value - 1.5537).abs() < 1e-3, "{g:?}");
+    assert!(
+        g.multipliers
+            .iter()
+            .any(|m| (m[0] - 1.0).abs() < 1e-8 && m[1] == 0.0),
+        "{g:?}"
+    );
+    // The chain's impact-free point just above, continued to the grazing value without
+    // stops, then one period sampled at N = 4096.
+    let (_, pts) = &b.runs[0];
+    let above = pts
+        .iter()
+        .filter(|p| p.value > g.value)
+        .min_by(|a, c| a.value.total_cmp(&c.value))
+        .unwrap();
+    let mut p = Params::paper(g.value + g.uncertainty);
+    p.r = 1e6;
+    let it = Integrator::<f64>::new(&p, &settings(4096, 1e-4));
+    let mut st = PointState {
+        y: above.result.final_y,
+        mode: above.result.final_mode,
+        diag: Default::default(),
+    };
+    for _ in 0..300 {
+        it.period(&mut st);
+    }
+    let mut f0 = it.period_start(&st);
+    let mut zmax = f64::MIN;
+    for k in 0..4096 {
+        it.grid_step(&mut st, k, &mut f0, &mut ());
+        zmax = zmax.max(st.y[2] - st.y[0]);
+    }
+    assert!(
+        (zmax - 0.8).abs() < 1e-4,
+        "largest z {zmax} against r = 0.8"
+    );
+}

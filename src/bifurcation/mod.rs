@@ -7,7 +7,7 @@ use crate::config::Config;
 use crate::engine::Engine;
 use crate::error::Result;
 use crate::gpu::{GpuError, Timings};
-use crate::method::RunResult;
+use crate::method::{PointState, RunResult};
 use crate::progress::{Progress, Silent};
 use crate::spec::{Points, RunSpec};
 use crate::stability::{BifurcationPoint, Branch, bifurcation_points, confirm_all};
@@ -84,6 +84,12 @@ pub fn find_bifurcations(cfg: &Config, points: &[SweepPoint]) -> Vec<Bifurcation
         .map(|pt| Branch {
             value: pt.value,
             cycle: pt.cycle.as_ref().filter(|_| pt.class.period().is_some()),
+            impact_free: (pt.class == Class::NoImpact).then_some(PointState {
+                y: pt.result.final_y,
+                mode: pt.result.final_mode,
+                diag: Default::default(),
+            }),
+            impacts: !matches!(pt.class, Class::NoImpact | Class::Failed),
         })
         .collect();
     bifurcation_points(&cfg.params(), cfg.sweep.param, &cfg.settings(), &branch)

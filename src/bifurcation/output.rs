@@ -156,6 +156,7 @@ pub(super) fn marks_sentence(bifurcations: &[Vec<BifurcationPoint>]) -> String {
             Kind::Fold => "fold",
             Kind::NeimarkSacker => "Neimark-Sacker",
             Kind::NonSmooth => "non-smooth",
+            Kind::Grazing => "grazing",
         })
         .or_default() += 1;
     }
@@ -164,8 +165,9 @@ pub(super) fn marks_sentence(bifurcations: &[Vec<BifurcationPoint>]) -> String {
     }
     let list: Vec<String> = n.iter().map(|(k, v)| format!("{v} {k}")).collect();
     format!(
-        "Triangles on the axis mark where a stable cycle loses stability, located by \
-         continuation and bisection of its multipliers ({}; values in the JSON). ",
+        "Triangles on the axis mark where a stable cycle loses stability, or where an \
+         impact-free motion starts to touch a stop (grazing), located by continuation and \
+         bisection ({}; values in the JSON). ",
         list.join(", ")
     )
 }
@@ -208,6 +210,7 @@ pub(super) fn marks(points: &[BifurcationPoint]) -> Vec<Mark> {
                 Kind::Fold => 1,
                 Kind::NeimarkSacker => 2,
                 Kind::NonSmooth => 3,
+                Kind::Grazing => 4,
             },
         })
         .collect()
