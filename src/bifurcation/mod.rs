@@ -8,6 +8,7 @@ use crate::engine::Engine;
 use crate::error::Result;
 use crate::gpu::{GpuError, Timings};
 use crate::method::{PointState, RunResult};
+use crate::model::Mode;
 use crate::progress::{Progress, Silent};
 use crate::spec::{Points, RunSpec};
 use crate::stability::{BifurcationPoint, Branch, bifurcation_points, confirm_all};
@@ -84,7 +85,10 @@ pub fn find_bifurcations(cfg: &Config, points: &[SweepPoint]) -> Vec<Bifurcation
         .map(|pt| Branch {
             value: pt.value,
             cycle: pt.cycle.as_ref().filter(|_| pt.class.period().is_some()),
-            impact_free: (pt.class == Class::NoImpact).then_some(PointState {
+            // A lock holds m2 at a stop without impacts: not an impact-free motion.
+            impact_free: (pt.class == Class::NoImpact
+                && !matches!(pt.result.final_mode, Mode::LockPos | Mode::LockNeg))
+            .then_some(PointState {
                 y: pt.result.final_y,
                 mode: pt.result.final_mode,
                 diag: Default::default(),
