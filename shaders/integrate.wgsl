@@ -142,7 +142,7 @@ fn needed_force_rate(y: vec4<F>, a: F, sn: F) -> F {
 }
 
 fn impact(y: vec4<F>) -> vec4<F> {
-    let inv = F(1.0) / (F(1.0) + mu());
+    let inv = inv_1pmu;
     let vc = (y.y + mu() * y.w) * inv;
     let w = restitution() * (y.y - y.w);
     return vec4<F>(y.x, vc - mu() * inv * w, y.z, vc + inv * w);

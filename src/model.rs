@@ -386,7 +386,7 @@ pub fn jacobian<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode) -> [[F; 4]; 4] {
             ]
         }
         _ => {
-            let q = o / (o + p.mu);
+            let q = inv_one_plus_mu(p);
             let row = [-q, -p.b1 * q, z, z];
             [[z, o, z, z], row, [z, z, z, o], row]
         }
@@ -431,7 +431,7 @@ pub fn needed_force_rate<F: Real>(p: &Params<F>, y: &[F; 4], a: F, sn: F) -> F {
 /// Impact map: momentum `y2 + mu*y4` conserved, relative velocity reversed with factor R.
 #[inline(always)]
 pub fn impact<F: Real>(p: &Params<F>, y: &mut [F; 4]) {
-    let inv = F::one() / (F::one() + p.mu);
+    let inv = inv_one_plus_mu(p);
     let vc = (y[1] + p.mu * y[3]) * inv;
     let w = p.restitution * (y[1] - y[3]);
     y[1] = vc - p.mu * inv * w;

@@ -771,7 +771,6 @@ fn run_queue_portable<T: FlowTask + Send>(queue: &Queue<T>) {
         if drained && 3 * busy < NEWTON_LANES {
             // One long task left (a batch costs more than a scalar flow): it finishes on its
             // own, on another thread where one is idle.
-
             let rest: Vec<(&mut T, PointState<f64>, Tangent<f64>, u32)> = (0..NEWTON_LANES)
                 .filter_map(|l| {
                     let t = slot[l].take()?;
