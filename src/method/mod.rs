@@ -16,16 +16,15 @@ use crate::real::Real;
 use serde::{Deserialize, Serialize};
 
 mod events;
+mod flows;
 mod lanes;
 
 use events::finite_state;
 pub use events::{
     Bracket, bracket, clear_of, clear_of_stops, cos_sin_small, forcing_table, illinois,
 };
-pub use lanes::{
-    FlowTask, LANES, NEWTON_LANES, Queue, batches, run_flows, run_flows_portable, run_lanes,
-    run_lanes_portable, run_queue,
-};
+pub use flows::{FlowTask, NEWTON_LANES, Queue, run_flows, run_flows_portable, run_queue};
+pub use lanes::{LANES, batches, run_lanes, run_lanes_portable};
 
 /// How impacts are handled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
