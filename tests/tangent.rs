@@ -266,9 +266,11 @@ fn impact_saltation_determinant_is_restitution_squared() {
 #[test]
 fn spectrum_sums_to_the_volume_rate_and_matches_the_multipliers() {
     let s = settings(256, 1e-4);
-    // Periodic (Fig. 2 at eta = 1.4) and chaotic (eta = 1.1, lambda = 0.005) orbits without
-    // stick or lock (a stick removes a direction exactly: log-volume -inf).
-    for (eta, lambda, chaotic) in [(1.4, 0.02, false), (1.1, 0.005, true)] {
+    // Periodic (Fig. 2 at eta = 1.4) and chaotic (eta = 1.1, lambda = 0.001) orbits without
+    // stick or lock (a stick removes a direction exactly: log-volume -inf). The chaotic orbit
+    // has weak friction so that it does not stick in these 400 periods: at lambda = 0.002 and
+    // 0.005 it does, or not, depending on the round-off of the run.
+    for (eta, lambda, chaotic) in [(1.4, 0.02, false), (1.1, 0.001, true)] {
         let (it, mut st) = settled(&coulomb(eta, 0.6, lambda), &s, 300);
         let c0 = st.diag;
         let sp = spectrum(&it, &mut st, 400, 4);

@@ -2,14 +2,15 @@
 //! one batch's buffers and bind group, and the decoding of what a batch reads back.
 
 use super::layout::{
-    C_B1, C_DELTA, C_DPHI, C_ETA, C_FK, C_FS, C_L1, C_L2, C_MU, C_PERIOD_TOL, C_R, C_RESTITUTION,
-    C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_LOG_SUM, R_SLOTS, STATE_DIM, U_DET_COUNT,
-    U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS,
-    U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
+    C_B1, C_DELTA, C_DPHI, C_ETA, C_FK, C_FS, C_HALF_COS, C_HALF_SIN, C_L1, C_L2, C_MU,
+    C_PERIOD_TOL, C_R, C_RESTITUTION, C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_LOG_SUM,
+    R_SLOTS, STATE_DIM, U_DET_COUNT, U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE,
+    U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED, VARY_NONE, WORKGROUP,
+    Y_MAIN, Y_SLOTS, at,
 };
 use super::{Gpu, GpuError, Job};
 use crate::classify::{Class, PeriodDetector, class_of};
-use crate::method::{Diagnostics, ImpactMethod, RunResult, forcing_table};
+use crate::method::{Diagnostics, ImpactMethod, RunResult, forcing_table, half_step};
 use crate::model::{Mode, Params, initial_mode};
 use crate::real::Real;
 use crate::spec::RunSpec;
@@ -100,7 +101,7 @@ impl Shared {
 
 /// The `consts` buffer: base parameters, method constants, forcing table. Everything is
 /// computed in f64 and rounded once to F, except the tolerance, which is a multiple of F's
-/// epsilon.
+/// epsilon, and the table's mid-step entries (`method::forcing_table`).
 fn consts<F: Real>(spec: &RunSpec) -> Vec<F> {
     let s = &spec.settings;
     let b = &spec.params;
@@ -125,7 +126,10 @@ fn consts<F: Real>(spec: &RunSpec) -> Vec<F> {
     }
     c[C_TOL as usize] = F::EPSILON * F::of(16.0);
     c[C_TAN_FLOOR as usize] = crate::tangent::collapse_floor::<F>();
-    c.extend(forcing_table(nsteps).iter().flatten().map(|&v| F::of(v)));
+    let (hc, hs) = half_step::<F>(nsteps);
+    c[C_HALF_COS as usize] = hc;
+    c[C_HALF_SIN as usize] = hs;
+    c.extend(forcing_table::<F>(nsteps).iter().flatten());
     c
 }
 

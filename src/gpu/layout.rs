@@ -121,8 +121,11 @@ u32_group!(CONSTS, "Slots of `consts`, F shared by all points." {
     C_DPHI = 13;
     /// Norm below which the Lyapunov tangent vector counts as collapsed (eps^2 of F).
     C_TAN_FLOOR = 14;
-    /// Start of the forcing table (slot 15 is unused).
-    C_TABLE = 16;
+    /// cos and sin of half a step's forcing phase (`method::half_step`).
+    C_HALF_COS = 15;
+    C_HALF_SIN = 16;
+    /// Start of the forcing table (slot 17 is unused).
+    C_TABLE = 18;
 });
 
 /// `Control.vary0/1` of a point set with fewer varying parameters.

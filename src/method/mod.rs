@@ -21,7 +21,8 @@ mod lanes;
 
 use events::finite_state;
 pub use events::{
-    Bracket, bracket, clear_of, clear_of_stops, cos_sin_small, forcing_table, illinois,
+    Bracket, bracket, clear_of, clear_of_stops, cos_sin_small, forcing_table, half_step, illinois,
+    mid_step,
 };
 pub use flows::{FlowTask, NEWTON_LANES, Queue, run_flows, run_flows_portable, run_queue};
 pub use lanes::{LANES, batches, run_lanes, run_lanes_portable};
@@ -197,10 +198,7 @@ impl<F: Real> Integrator<F> {
         let dphi = F::of(2.0 * std::f64::consts::PI / n as f64);
         Integrator {
             p,
-            tab: forcing_table(n)
-                .iter()
-                .map(|&[c, s]| [F::of(c), F::of(s)])
-                .collect(),
+            tab: forcing_table(n),
             n,
             h: dphi / p.eta,
             dphi,
