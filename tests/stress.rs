@@ -126,3 +126,25 @@ fn accuracy_command_writes_charts_with_observed_orders() {
         );
     }
 }
+
+#[test]
+fn observed_order_stops_at_the_round_off_floor() {
+    // Fourth order from N = 16 to 128, then the floor, then round-off growing above it again
+    // at the largest N (as f32 does at N = 4096): the order is the descent's.
+    let pts: Vec<(u32, f64)> = [
+        (16, 1e-2),
+        (32, 6.25e-4),
+        (64, 3.9e-5),
+        (128, 2.44e-6),
+        (256, 3e-7),
+        (1024, 4e-7),
+        (4096, 2e-6),
+    ]
+    .to_vec();
+    let q = rattle::accuracy::observed_order(&pts, 1e-6).unwrap();
+    assert!((q - 4.0).abs() < 0.01, "order {q}");
+    // Unsorted input gives the same.
+    let mut rev = pts.clone();
+    rev.reverse();
+    assert_eq!(rattle::accuracy::observed_order(&rev, 1e-6), Some(q));
+}

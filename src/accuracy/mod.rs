@@ -127,11 +127,15 @@ fn max_diff(a: &[f64; 4], b: &[f64; 4]) -> f64 {
     (0..4).map(|i| (a[i] - b[i]).abs()).fold(0.0, f64::max)
 }
 
-/// Least-squares slope of -log(error) against log(N) over the points above `floor`.
+/// Least-squares slope of -log(error) against log(N) over the points above `floor`, in
+/// increasing N up to the first one at or below it: past the floor the error is round-off,
+/// which grows again with N (f32 at N = 4096 can rise above the floor), not the method's.
 pub fn observed_order(points: &[(u32, f64)], floor: f64) -> Option<f64> {
-    let xy: Vec<(f64, f64)> = points
+    let mut sorted = points.to_vec();
+    sorted.sort_by_key(|&(n, _)| n);
+    let xy: Vec<(f64, f64)> = sorted
         .iter()
-        .filter(|(_, e)| *e > floor && e.is_finite())
+        .take_while(|(_, e)| *e > floor && e.is_finite())
         .map(|&(n, e)| ((n as f64).ln(), e.ln()))
         .collect();
     if xy.len() < 2 {
