@@ -24,6 +24,9 @@ override COULOMB: bool = false;
 // its RK4 stages and events (tangent.rs `Leading`). Off, none of its code is compiled in, so the
 // plain kernel computes and costs what it did without it.
 override TANGENT: bool = false;
+// The quiet loop reads the step ends from `utab` (set by the host on CPU adapters, for jobs
+// with fewer than UTAB_LEN steps per period).
+override UNIFORM_TABLE: bool = false;
 
 @group(0) @binding(0) var<uniform> ctl: Control;
 @group(0) @binding(1) var<storage, read> consts: array<F>;
@@ -32,6 +35,11 @@ override TANGENT: bool = false;
 @group(0) @binding(4) var<storage, read_write> us: array<u32>;
 @group(0) @binding(5) var<storage, read_write> samples: array<F>;
 @group(0) @binding(6) var<storage, read_write> ring: array<F>;
+// The forcing table's entries 2k and 2k + 1 (step end k, middle of step k + 1) in a uniform
+// buffer, read where UNIFORM_TABLE: on llvmpipe a storage read at a per-lane index runs a loop
+// over the lanes, a uniform read is one gather instruction. On GPUs a uniform read at
+// divergent indices is serialized, so there the table stays in storage.
+@group(0) @binding(7) var<uniform> utab: array<vec4<F>, UTAB_LEN>;
 
 // Parameters of this point (model.rs `Params`); scalars rather than an array so that the
 // per-point override below does not force every access through dynamically indexed memory.
@@ -599,6 +607,14 @@ fn mid_step(cs: vec2<F>) -> vec2<F> {
     return vec2<F>(cs.x * half.x - cs.y * half.y, cs.y * half.x + cs.x * half.y);
 }
 
+// Forcing (cos, sin) at the end of step k - 1, the start of step k: table(2k).
+fn step_start(k: u32) -> vec2<F> {
+    if (UNIFORM_TABLE) {
+        return utab[k].xy;
+    }
+    return table(2u * k);
+}
+
 // Forcing (cos, sin) at grid point j (phase j/2 of a step: the table has half steps).
 fn table(j: u32) -> vec2<F> {
     let t = min(j, 2u * ctl.steps);
@@ -627,7 +643,7 @@ fn period() -> bool {
                 if (k >= ctl.steps) {
                     break;
                 }
-                let cs1 = table(2u * k + 2u);
+                let cs1 = step_start(k + 1u);
                 // The middle of the step from its start: one table read (a gather: each lane
                 // is at its own step) less per step, +7% steps/s.
                 let y1 = rk4_stages(st.y, st.mode, h, f0, mid_step(cs0).x, cs1.x);

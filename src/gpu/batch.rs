@@ -5,8 +5,8 @@ use super::layout::{
     C_B1, C_DELTA, C_DPHI, C_ETA, C_FK, C_FS, C_HALF_COS, C_HALF_SIN, C_L1, C_L2, C_MU,
     C_PERIOD_TOL, C_R, C_RESTITUTION, C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_LOG_SUM,
     R_SLOTS, STATE_DIM, U_DET_COUNT, U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE,
-    U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED, VARY_NONE, WORKGROUP,
-    Y_MAIN, Y_SLOTS, at,
+    U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED, UTAB_BYTES,
+    VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
 };
 use super::{Gpu, GpuError, Job};
 use crate::classify::{Class, PeriodDetector, class_of};
@@ -17,6 +17,7 @@ use crate::spec::RunSpec;
 use bytemuck::Pod;
 use std::marker::PhantomData;
 use std::ops::Range;
+use wgpu::util::DeviceExt;
 
 /// How a job splits into batches: every binding of a batch stays within the adapter's
 /// max_storage_buffer_binding_size (and the job's lower test limit).
@@ -79,10 +80,12 @@ impl Plan {
     }
 }
 
-/// Buffers shared by every batch of a job: the constants and the control uniform.
+/// Buffers shared by every batch of a job: the constants, the control uniform and the
+/// uniform copy of the forcing table.
 pub(super) struct Shared {
     consts: wgpu::Buffer,
     pub(super) control: wgpu::Buffer,
+    utab: wgpu::Buffer,
 }
 
 impl Shared {
@@ -95,8 +98,30 @@ impl Shared {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
+            utab: gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("utab"),
+                    contents: bytemuck::cast_slice(&utab::<F>(spec)),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                }),
         }
     }
+}
+
+/// The `utab` buffer: entry k holds the forcing table's entries 2k and 2k + 1 (the same
+/// values), for k up to N where N + 1 fits, zeros after (the binding has the declared size).
+fn utab<F: Real>(spec: &RunSpec) -> Vec<F> {
+    let n = (UTAB_BYTES as usize) / size_of::<F>();
+    let mut u = vec![F::zero(); n];
+    let table = forcing_table::<F>(spec.settings.steps_per_period);
+    for (k, pair) in table.chunks(2).enumerate().take(n / 4) {
+        for (i, cs) in pair.iter().enumerate() {
+            u[4 * k + 2 * i] = cs[0];
+            u[4 * k + 2 * i + 1] = cs[1];
+        }
+    }
+    u
 }
 
 /// The `consts` buffer: base parameters, method constants, forcing table. Everything is
@@ -215,6 +240,7 @@ impl<F: Real + Pod> Batch<F> {
                 entry(4, &us),
                 entry(5, &samples),
                 entry(6, &ring),
+                entry(7, &shared.utab),
             ],
         });
 

@@ -63,10 +63,11 @@ impl Rung {
     }
 
     /// Values of the shader's `LADDER_*` constants, `COULOMB` (friction law of every point
-    /// of the job is Coulomb's: a kernel without the general law's division) and `TANGENT` (the
+    /// of the job is Coulomb's: a kernel without the general law's division), `TANGENT` (the
     /// job estimates the exponent: a kernel without it has none of the tangent's code, which
-    /// on llvmpipe costs even where it does not run).
-    fn constants(self, coulomb: bool, tangent: bool) -> [(&'static str, f64); 7] {
+    /// on llvmpipe costs even where it does not run) and `UNIFORM_TABLE` (the quiet loop reads
+    /// the forcing from the uniform copy of the table).
+    fn constants(self, v: Variant) -> [(&'static str, f64); 8] {
         let on = |r: Rung| if self as u8 >= r as u8 { 1.0 } else { 0.0 };
         let flag = |b: bool| if b { 1.0 } else { 0.0 };
         [
@@ -75,18 +76,30 @@ impl Rung {
             ("LADDER_GUARDS", on(Rung::Guards)),
             ("LADDER_EVENTS", on(Rung::Events)),
             ("LADDER_QUIET", on(Rung::Full)),
-            ("COULOMB", flag(coulomb)),
-            ("TANGENT", flag(tangent) * on(Rung::Tangent)),
+            ("COULOMB", flag(v.coulomb)),
+            ("TANGENT", flag(v.tangent) * on(Rung::Tangent)),
+            ("UNIFORM_TABLE", flag(v.uniform_table)),
         ]
     }
 }
 
-/// Compiled kernels per precision, rung, Coulomb-only and tangent, built on first use
+/// What a job compiles into its kernel besides the precision and the rung.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub(super) struct Variant {
+    /// Every point of the job has Coulomb friction.
+    pub(super) coulomb: bool,
+    /// The tangent vector of the Lyapunov exponent.
+    pub(super) tangent: bool,
+    /// The quiet loop reads `utab` (CPU adapters, jobs that fit it).
+    pub(super) uniform_table: bool,
+}
+
+/// Compiled kernels per precision, rung and variant, built on first use
 /// (continuation runs many small jobs and compiles once; a run that never asks for f64 never
 /// compiles it).
 #[derive(Default)]
 pub(super) struct Kernels {
-    pipelines: Mutex<HashMap<(Precision, Rung, bool, bool), wgpu::ComputePipeline>>,
+    pipelines: Mutex<HashMap<(Precision, Rung, Variant), wgpu::ComputePipeline>>,
     /// One bind group layout for every pipeline (an automatic layout belongs to its pipeline
     /// alone), so that a batch's bind group serves the kernel with the tangent and the one
     /// without it, which runs the transient.
@@ -94,7 +107,8 @@ pub(super) struct Kernels {
 }
 
 /// The kernel's bindings: the control uniform, the read-only constants and per-point
-/// parameters, then the per-point state, counters, samples and ring.
+/// parameters, then the per-point state, counters, samples and ring, then the uniform copy of
+/// the forcing table.
 fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
         binding,
@@ -117,6 +131,7 @@ fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
             entry(4, storage(false)),
             entry(5, storage(false)),
             entry(6, storage(false)),
+            entry(7, wgpu::BufferBindingType::Uniform),
         ],
     })
 }
@@ -127,8 +142,7 @@ impl Kernels {
         device: &wgpu::Device,
         precision: Precision,
         rung: Rung,
-        coulomb: bool,
-        tangent: bool,
+        variant: Variant,
     ) -> wgpu::ComputePipeline {
         let (_, layout) = self.layout.get_or_init(|| {
             let group = bind_group_layout(device);
@@ -141,7 +155,7 @@ impl Kernels {
         });
         let mut cache = self.pipelines.lock().unwrap();
         cache
-            .entry((precision, rung, coulomb, tangent))
+            .entry((precision, rung, variant))
             .or_insert_with(|| {
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("integrate"),
@@ -153,7 +167,7 @@ impl Kernels {
                     module: &module,
                     entry_point: Some("main"),
                     compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &rung.constants(coulomb, tangent),
+                        constants: &rung.constants(variant),
                         ..Default::default()
                     },
                     cache: None,

@@ -128,6 +128,20 @@ u32_group!(CONSTS, "Slots of `consts`, F shared by all points." {
     C_TABLE = 18;
 });
 
+/// Bytes of `utab`, the uniform copy of the forcing table's step ends: WebGPU's minimum (and
+/// wgpu's default) max_uniform_buffer_binding_size, so every adapter can bind it.
+pub const UTAB_BYTES: u64 = 65536;
+
+/// Entries of `utab` in a precision (one `vec4<F>` each: the forcing at step end k and at the
+/// middle of step k + 1); jobs with fewer steps per period than this can use it.
+pub fn utab_len(precision: Precision) -> u32 {
+    let f = match precision {
+        Precision::F32 => 4,
+        Precision::F64 => 8,
+    };
+    (UTAB_BYTES / (4 * f)) as u32
+}
+
 /// `Control.vary0/1` of a point set with fewer varying parameters.
 pub const VARY_NONE: u32 = 255;
 
@@ -240,6 +254,11 @@ fn write_prelude(s: &mut String, precision: Precision) -> std::fmt::Result {
         "\n// Precision: f32, or f64 where the adapter has SHADER_F64."
     )?;
     writeln!(s, "alias F = {};", wgsl_type(precision))?;
+    writeln!(
+        s,
+        "\n// Entries of the uniform copy of the forcing table (UTAB_BYTES / 16 / size of F)."
+    )?;
+    writeln!(s, "const UTAB_LEN: u32 = {}u;", utab_len(precision))?;
     for g in &GROUPS {
         writeln!(s, "\n// {}", g.heading)?;
         for (name, value) in g.items {

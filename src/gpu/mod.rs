@@ -27,8 +27,8 @@ use crate::spec::{Points, RunSpec};
 use batch::{Batch, Plan, Shared};
 use bytemuck::Pod;
 use dispatch::Timer;
-use kernel::Kernels;
 pub use kernel::Rung;
+use kernel::{Kernels, Variant};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
@@ -298,18 +298,25 @@ impl Gpu {
         let plan = Plan::new::<F>(job, &self.limits)?;
         let coulomb =
             (0..job.points.len()).all(|i| job.points.params(&spec.params, i).is_coulomb());
-        let pipeline = self.kernels.get(
-            &self.device,
-            spec.precision,
-            job.rung,
+        // Uniform reads at divergent indices are fast on llvmpipe and serialized on GPUs.
+        let uniform_table = self.info.device_type == wgpu::DeviceType::Cpu
+            && spec.settings.steps_per_period < layout::utab_len(spec.precision);
+        let variant = Variant {
             coulomb,
-            spec.settings.lyapunov,
-        );
+            tangent: spec.settings.lyapunov,
+            uniform_table,
+        };
+        let pipeline = self
+            .kernels
+            .get(&self.device, spec.precision, job.rung, variant);
         // The tangent's code costs on llvmpipe even where it does not run: the transient
         // periods run the kernel without it.
         let transient = spec.settings.lyapunov.then(|| {
-            self.kernels
-                .get(&self.device, spec.precision, job.rung, coulomb, false)
+            let v = Variant {
+                tangent: false,
+                ..variant
+            };
+            self.kernels.get(&self.device, spec.precision, job.rung, v)
         });
         self.check_error()?;
         let shared = Shared::new::<F>(self, spec);
