@@ -678,3 +678,34 @@ fn the_loop_budget_holds_with_the_tangent_at_n_64() {
         assert!(g.results.iter().all(|r| r.lyapunov.is_finite()));
     }
 }
+
+/// On CPU adapters the quiet loop reads the forcing from the uniform copy of the table where
+/// it holds the job's steps (N < `utab_len`), else from the storage buffer; both paths agree
+/// with the CPU twin after one period (same tolerances as above), on either side of the limit.
+#[test]
+fn both_forcing_table_paths_agree_with_cpu() {
+    let etas: Vec<f64> = (0..8).map(|i| 1.3 + 0.05 * i as f64).collect();
+    for (f64, tol) in [(true, 1e-12), (false, 1e-5)] {
+        let limit =
+            rattle::gpu::layout::utab_len(if f64 { Precision::F64 } else { Precision::F32 });
+        for n in [limit - 1, limit] {
+            let s = Settings {
+                steps_per_period: n,
+                ..Settings::default()
+            };
+            let Some(g) = run_gpu(&etas, s, 1, 0, f64) else {
+                return;
+            };
+            for (i, &eta) in etas.iter().enumerate() {
+                let c = if f64 {
+                    run_cpu::<f64>(eta, &s, 1, 0)
+                } else {
+                    run_cpu::<f32>(eta, &s, 1, 0)
+                };
+                let d = max_diff(&g.results[i].final_y, &c.final_y);
+                assert!(d < tol, "f64 {f64} N {n} eta {eta}: |GPU-CPU| {d:e}");
+                assert_eq!(g.results[i].diag.impacts, c.diag.impacts, "N {n} eta {eta}");
+            }
+        }
+    }
+}
