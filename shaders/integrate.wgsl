@@ -658,10 +658,6 @@ fn period() -> bool {
                 f0 = f1;
                 cs0 = cs1;
                 k++;
-                if (LADDER_FINITE && !finite_state(st.y)) {
-                    st.nonfinite = 1u;
-                    return false;
-                }
             }
         }
         if (k >= ctl.steps) {
@@ -672,6 +668,15 @@ fn period() -> bool {
         if (st.nonfinite != 0u) {
             return false;
         }
+    }
+    // The quiet loop has no finiteness test of its own: a non-finite state fails the quiet
+    // test (its comparisons are false), so the lane's next step is `step`, which tests it;
+    // a state that does not enter any guard (or is finite beyond 1e30) is caught here, at the
+    // end of the period (+12% steps/s; the CPU twin tests every step, with the same outcome:
+    // the point fails in the same period).
+    if (LADDER_FINITE && !finite_state(st.y)) {
+        st.nonfinite = 1u;
+        return false;
     }
     return k == ctl.steps;
 }
