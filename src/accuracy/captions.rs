@@ -77,7 +77,7 @@ pub(super) fn work_precision_caption(
          (cost grows with N). Solid: event-located RK4 (impacts located inside the step); \
          dashed: naive RK4 (impacts applied at step ends), in the same colour for the same \
          precision (f32, f64) and backend ({backends}). Observed orders of convergence \
-         (least-squares slope above the noise floor, 1e-6 in f32 and 1e-12 in f64): \
+         (least-squares slope over the errors down to the noise floor, 1e-6 in f32 and 1e-12 in f64): \
          {orders_text}.{f32_floor}{polish}",
         case = r.case,
         class = r.class,

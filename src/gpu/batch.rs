@@ -90,8 +90,12 @@ pub(super) struct Shared {
 
 impl Shared {
     pub(super) fn new<F: Real + Pod>(gpu: &Gpu, spec: &RunSpec) -> Shared {
+        let table: Vec<F> = forcing_table::<F>(spec.settings.steps_per_period)
+            .into_iter()
+            .flatten()
+            .collect();
         Shared {
-            consts: gpu.storage_init("consts", bytemuck::cast_slice(&consts::<F>(spec))),
+            consts: gpu.storage_init("consts", bytemuck::cast_slice(&consts(spec, &table))),
             control: gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("control"),
                 size: size_of::<Control>() as u64,
@@ -102,32 +106,27 @@ impl Shared {
                 .device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("utab"),
-                    contents: bytemuck::cast_slice(&utab::<F>(spec)),
+                    contents: bytemuck::cast_slice(&utab(&table)),
                     usage: wgpu::BufferUsages::UNIFORM,
                 }),
         }
     }
 }
 
-/// The `utab` buffer: entry k holds the forcing table's entries 2k and 2k + 1 (the same
-/// values), for k up to N where N + 1 fits, zeros after (the binding has the declared size).
-fn utab<F: Real>(spec: &RunSpec) -> Vec<F> {
-    let n = (UTAB_BYTES as usize) / size_of::<F>();
-    let mut u = vec![F::zero(); n];
-    let table = forcing_table::<F>(spec.settings.steps_per_period);
-    for (k, pair) in table.chunks(2).enumerate().take(n / 4) {
-        for (i, cs) in pair.iter().enumerate() {
-            u[4 * k + 2 * i] = cs[0];
-            u[4 * k + 2 * i + 1] = cs[1];
-        }
-    }
+/// The `utab` buffer: the flat forcing table `table` (cos, sin of entry j at 2j, 2j + 1), so
+/// that its vec4 k holds entries 2k and 2k + 1; cut where it is full, zeros after (the binding
+/// has the declared size).
+fn utab<F: Real>(table: &[F]) -> Vec<F> {
+    let mut u = vec![F::zero(); UTAB_BYTES as usize / size_of::<F>()];
+    let n = table.len().min(u.len());
+    u[..n].copy_from_slice(&table[..n]);
     u
 }
 
 /// The `consts` buffer: base parameters, method constants, forcing table. Everything is
 /// computed in f64 and rounded once to F, except the tolerance, which is a multiple of F's
-/// epsilon, and the table's mid-step entries (`method::forcing_table`).
-fn consts<F: Real>(spec: &RunSpec) -> Vec<F> {
+/// epsilon, and the table's mid-step entries (`method::forcing_table`, flat in `table`).
+fn consts<F: Real>(spec: &RunSpec, table: &[F]) -> Vec<F> {
     let s = &spec.settings;
     let b = &spec.params;
     let nsteps = s.steps_per_period;
@@ -154,7 +153,7 @@ fn consts<F: Real>(spec: &RunSpec) -> Vec<F> {
     let (hc, hs) = half_step::<F>(nsteps);
     c[C_HALF_COS as usize] = hc;
     c[C_HALF_SIN as usize] = hs;
-    c.extend(forcing_table::<F>(nsteps).iter().flatten());
+    c.extend_from_slice(table);
     c
 }
 
