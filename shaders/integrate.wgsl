@@ -1,5 +1,6 @@
-// The integration method of src/method.rs (its twin: same names, same order, same event
-// rules), one invocation per parameter point. Read method.rs for the reasoning; comments here
+// The integration method of src/method/ (its twin: same names, same order, same event rules;
+// the tangent functions are those of src/method/tangent.rs), one invocation per parameter
+// point. Read the Rust side for the reasoning; comments here
 // only note what differs in form.
 //
 // The host prepends `alias F = f32;` or `alias F = f64;`, the constants (MODE_*, EV_*, slots

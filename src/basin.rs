@@ -489,7 +489,7 @@ pub fn caption(cfg: &Config, b: &Basin) -> String {
         y = g.y.name(),
         xn = g.x.name(),
         yn = g.y.name(),
-        how = crate::bifurcation::computed_with(cfg, &b.backend, &b.device),
+        how = crate::caption::computed_with(cfg, &b.backend, &b.device),
         tr = r.transient_periods,
         sa = r.sample_periods,
         tol = cfg.basin.tol,

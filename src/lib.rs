@@ -1,13 +1,16 @@
 //! rattle: parameter sweeps of an impact oscillator with dry friction, on GPU and CPU.
 //!
-//! One module per concept: [`model`] (equations), [`method`] (the CPU integrator, twin of
-//! `shaders/integrate.wgsl`), [`classify`], [`sweep`], [`config`], [`render`], [`output`].
+//! One module per concept: [`model`] (equations), [`method`] (the CPU integrator and its tangent
+//! dynamics, twin of `shaders/integrate.wgsl`), [`cpu`] and [`gpu`] (the backends) under
+//! [`engine`], [`classify`] and [`stability`] (what a run is), [`bifurcation`], [`map`], [`basin`]
+//! and [`point`] (the commands), [`config`], [`render`], [`output`].
 
 pub mod accuracy;
 pub mod adaptive;
 pub mod basin;
 pub mod bench;
 pub mod bifurcation;
+pub mod caption;
 pub mod classify;
 pub mod config;
 pub mod cpu;

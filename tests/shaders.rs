@@ -153,3 +153,24 @@ fn slots_are_distinct_and_inside_their_buffers() {
     assert_eq!(layout::R_LO, layout::MAX_PERIOD);
     assert_eq!(layout::Y_SLOTS, 2 * layout::STATE_DIM);
 }
+
+#[test]
+fn kernel_bindings_match_the_host_layout() {
+    let module = parse(&shader_source(Precision::F32));
+    let mut bound: Vec<(String, u32)> = module
+        .global_variables
+        .iter()
+        .filter_map(|(_, g)| Some((g.name.clone()?, g.binding.as_ref()?)))
+        .map(|(name, b)| {
+            assert_eq!(b.group, 0, "{name} is in group {}", b.group);
+            (name, b.binding)
+        })
+        .collect();
+    bound.sort_by_key(|(_, b)| *b);
+    let mut host: Vec<(String, u32)> = layout::BINDINGS
+        .iter()
+        .map(|(n, b)| (n.to_string(), *b))
+        .collect();
+    host.sort_by_key(|(_, b)| *b);
+    assert_eq!(bound, host, "kernel bindings vs gpu::layout::BINDINGS");
+}

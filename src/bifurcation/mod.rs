@@ -18,7 +18,7 @@ use std::time::Instant;
 mod output;
 mod paper;
 
-pub use output::{computed_with, title, top_classes, write_outputs};
+pub use output::{title, write_outputs};
 pub use paper::{PAPER_CONFIGS, paper_figure};
 
 /// One point of a finished sweep.

@@ -1,6 +1,7 @@
 //! The CSV, PNG and JSON files of a diagram, its title and caption.
 
 use super::{Bifurcation, Continuation, Direction, SweepPoint, plot_value};
+use crate::caption::{computed_with, top_classes};
 use crate::config::{Config, FrictionLaw};
 use crate::error::{Error, Result};
 use crate::method::Diagnostics;
@@ -35,42 +36,6 @@ pub fn title(cfg: &Config) -> String {
         cfg.method.steps_per_period,
         cfg.method.precision.name()
     )
-}
-
-/// How a run was integrated, for captions: method, steps per period, precision, backend.
-pub fn computed_with(cfg: &Config, backend: &str, device: &str) -> String {
-    let m = &cfg.method;
-    let method = match m.impacts {
-        crate::method::ImpactMethod::Located => {
-            "event-located RK4 (impacts located inside the step)"
-        }
-        crate::method::ImpactMethod::Naive => {
-            "naive RK4 (impacts applied at step ends, first order)"
-        }
-    };
-    let dev = if device.is_empty() {
-        String::new()
-    } else {
-        format!(" ({device})")
-    };
-    format!(
-        "{method} with N = {} steps per forcing period in {} arithmetic on the {backend} \
-         backend{dev}",
-        m.steps_per_period,
-        m.precision.name()
-    )
-}
-
-/// "period-1 41%, chaotic 30%, ...": the most frequent classes, at most `k`.
-pub fn top_classes(counts: &BTreeMap<String, usize>, k: usize) -> String {
-    let total: usize = counts.values().sum();
-    let mut v: Vec<(&String, &usize)> = counts.iter().collect();
-    v.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
-    v.iter()
-        .take(k)
-        .map(|(name, n)| format!("{name} {:.1}%", 100.0 * **n as f64 / total.max(1) as f64))
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// The caption of a diagram's JSON: what was computed, how, and what to notice.

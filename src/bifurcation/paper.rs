@@ -1,7 +1,8 @@
 //! The paper's four-panel figure (Figs. 2-4b on shared axes).
 
-use super::output::{computed_with, marks, marks_sentence, panel, plot_points};
+use super::output::{marks, marks_sentence, panel, plot_points};
 use super::run;
+use crate::caption::computed_with;
 use crate::config::{Config, FrictionLaw};
 use crate::engine::Engine;
 use crate::error::{Error, Result};

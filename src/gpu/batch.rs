@@ -2,11 +2,12 @@
 //! one batch's buffers and bind group, and the decoding of what a batch reads back.
 
 use super::layout::{
-    C_B1, C_DELTA, C_DPHI, C_ETA, C_FK, C_FS, C_HALF_COS, C_HALF_SIN, C_L1, C_L2, C_MU,
-    C_PERIOD_TOL, C_R, C_RESTITUTION, C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_LOG_SUM,
-    R_SLOTS, STATE_DIM, U_DET_COUNT, U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE,
-    U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED, UTAB_BYTES,
-    VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
+    B_CONSTS, B_CONTROL, B_PVALS, B_RING, B_SAMPLES, B_US, B_UTAB, B_YS, C_B1, C_DELTA, C_DPHI,
+    C_ETA, C_FK, C_FS, C_HALF_COS, C_HALF_SIN, C_L1, C_L2, C_MU, C_PERIOD_TOL, C_R, C_RESTITUTION,
+    C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_LOG_SUM, R_SLOTS, STATE_DIM, U_DET_COUNT,
+    U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS,
+    U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED, UTAB_BYTES, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS,
+    at,
 };
 use super::{Gpu, GpuError, Job};
 use crate::classify::{Class, PeriodDetector, class_of};
@@ -232,14 +233,14 @@ impl<F: Real + Pod> Batch<F> {
             label: Some("integrate"),
             layout: &pipeline.get_bind_group_layout(0),
             entries: &[
-                entry(0, &shared.control),
-                entry(1, &shared.consts),
-                entry(2, &pvals),
-                entry(3, &ys),
-                entry(4, &us),
-                entry(5, &samples),
-                entry(6, &ring),
-                entry(7, &shared.utab),
+                entry(B_CONTROL, &shared.control),
+                entry(B_CONSTS, &shared.consts),
+                entry(B_PVALS, &pvals),
+                entry(B_YS, &ys),
+                entry(B_US, &us),
+                entry(B_SAMPLES, &samples),
+                entry(B_RING, &ring),
+                entry(B_UTAB, &shared.utab),
             ],
         });
 

@@ -1,6 +1,6 @@
 //! The kernel: its source and its compiled pipelines.
 
-use super::layout;
+use super::layout::{self, B_CONSTS, B_CONTROL, B_PVALS, B_RING, B_SAMPLES, B_US, B_UTAB, B_YS};
 use crate::config::Precision;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
@@ -124,14 +124,14 @@ fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("integrate"),
         entries: &[
-            entry(0, wgpu::BufferBindingType::Uniform),
-            entry(1, storage(true)),
-            entry(2, storage(true)),
-            entry(3, storage(false)),
-            entry(4, storage(false)),
-            entry(5, storage(false)),
-            entry(6, storage(false)),
-            entry(7, wgpu::BufferBindingType::Uniform),
+            entry(B_CONTROL, wgpu::BufferBindingType::Uniform),
+            entry(B_CONSTS, storage(true)),
+            entry(B_PVALS, storage(true)),
+            entry(B_YS, storage(false)),
+            entry(B_US, storage(false)),
+            entry(B_SAMPLES, storage(false)),
+            entry(B_RING, storage(false)),
+            entry(B_UTAB, wgpu::BufferBindingType::Uniform),
         ],
     })
 }

@@ -32,6 +32,27 @@ macro_rules! u32_group {
     };
 }
 
+/// The kernel's bindings (group 0), each with the name of the shader's variable it feeds;
+/// tests/shaders.rs checks every pair against the `@binding` attributes of the kernel.
+pub const B_CONTROL: u32 = 0;
+pub const B_CONSTS: u32 = 1;
+pub const B_PVALS: u32 = 2;
+pub const B_YS: u32 = 3;
+pub const B_US: u32 = 4;
+pub const B_SAMPLES: u32 = 5;
+pub const B_RING: u32 = 6;
+pub const B_UTAB: u32 = 7;
+pub const BINDINGS: [(&str, u32); 8] = [
+    ("ctl", B_CONTROL),
+    ("consts", B_CONSTS),
+    ("pvals", B_PVALS),
+    ("ys", B_YS),
+    ("us", B_US),
+    ("samples", B_SAMPLES),
+    ("ring", B_RING),
+    ("utab", B_UTAB),
+];
+
 u32_group!(DISPATCH, "Invocations per workgroup (`@workgroup_size`)." {
     WORKGROUP = 64;
 });

@@ -247,12 +247,12 @@ fn caption(
         y1 = m.y_to,
         title = title(cfg),
         start = cfg.initial.y,
-        how = crate::bifurcation::computed_with(cfg, backend, &device),
+        how = crate::caption::computed_with(cfg, backend, &device),
         tr = r.transient_periods,
         sa = r.sample_periods,
         tol = r.period_tol,
         ltol = r.lyapunov_tol,
-        top = crate::bifurcation::top_classes(counts, 5),
+        top = crate::caption::top_classes(counts, 5),
     )
 }
 

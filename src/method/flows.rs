@@ -4,9 +4,9 @@
 //! the task's next flow or the next task.
 
 use super::lanes::{Batch, Four, LaneParams};
+use super::tangent::Tangent;
 use super::{Integrator, PointState};
 use crate::model::Mode;
-use crate::tangent::Tangent;
 use rayon::prelude::*;
 use std::sync::Mutex;
 
@@ -30,7 +30,7 @@ pub trait FlowTask {
     /// The task's remaining flows, one at a time without lanes.
     fn finish(&mut self) {
         while let Some((st, n)) = self.flow() {
-            let (end, tan) = crate::tangent::flow(self.integrator(), &st, n);
+            let (end, tan) = super::tangent::flow(self.integrator(), &st, n);
             self.ended(&end, &tan);
         }
     }

@@ -8,10 +8,10 @@
 //! results are the same bit for bit (tested); only the order in which the work is done changes.
 
 use super::events::{clear_of, clear_of_stops};
+use super::tangent::{Leading, Tangent};
 use super::{Integrator, PointState, RunResult};
 use crate::model::Mode;
 use crate::real::Real;
-use crate::tangent::{Leading, Tangent};
 
 /// Points per batch: 8 f32 or f64 values fill two 128-bit or one 256-bit vector per operation
 /// and keep the per-lane state in registers and L1.

@@ -488,7 +488,7 @@ pub fn caption(p: &PointPlot) -> String {
          natural frequency of m1; eta = forcing frequency / omega1). Raster image, {w} x {h} \
          px, with an SVG twin.",
         title = model_line(c, true),
-        how = crate::bifurcation::computed_with(c, "cpu", &r.device),
+        how = crate::caption::computed_with(c, "cpu", &r.device),
         y0 = c.initial.y,
         tr = c.run.transient_periods,
         sa = c.run.sample_periods,

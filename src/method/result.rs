@@ -1,0 +1,108 @@
+//! What a run is told (the method's [`Settings`]) and what it gives back (the per-point
+//! [`PointState`], [`Diagnostics`] and [`RunResult`]).
+
+use crate::model::Mode;
+use serde::{Deserialize, Serialize};
+
+/// How impacts are handled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum ImpactMethod {
+    /// Locate the impact inside the step (fourth order).
+    #[default]
+    Located,
+    /// Apply the impact at the end of the step and clamp the position (first order);
+    /// kept only as a comparison method.
+    Naive,
+}
+
+/// Numerical settings of the method.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Settings {
+    pub steps_per_period: u32,
+    pub max_events: u32,
+    pub zeno_speed: f64,
+    pub impacts: ImpactMethod,
+    /// Estimate the largest Lyapunov exponent over the sampled periods (one tangent vector
+    /// carried through the state's RK4 stages and events).
+    pub lyapunov: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            steps_per_period: 256,
+            max_events: 32,
+            zeno_speed: 1e-4,
+            impacts: ImpactMethod::Located,
+            lyapunov: false,
+        }
+    }
+}
+
+/// Per-point diagnostics.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct Diagnostics {
+    pub impacts: u64,
+    /// Entries into STICK.
+    pub sticks: u64,
+    /// Entries into LOCK+ or LOCK- (end of a chattering sequence).
+    pub locks: u64,
+    /// Steps whose event budget ran out (finished without further event handling).
+    pub overflows: u64,
+    /// The state became non-finite; integration stopped there.
+    pub nonfinite: bool,
+    /// Computed by the CPU twin because the GPU driver cut the kernel's loops short.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub cpu_rerun: bool,
+}
+/// State of one parameter point.
+#[derive(Clone, Copy, Debug)]
+pub struct PointState<F> {
+    pub y: [F; 4],
+    pub mode: Mode,
+    pub diag: Diagnostics,
+}
+
+/// Result of a run: stroboscopic samples (phase 0 of the forcing) and diagnostics.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    pub samples: Vec<[f64; 4]>,
+    /// Impacts during the sampled periods only.
+    pub sample_impacts: u64,
+    pub diag: Diagnostics,
+    pub final_y: [f64; 4],
+    pub final_mode: Mode,
+    /// Largest Lyapunov exponent per unit time over the sampled periods (NaN when not
+    /// computed or when the tangent vector overflowed).
+    pub lyapunov: f64,
+}
+
+impl RunResult {
+    /// Class of the run by its samples (period detector, impacts, finiteness).
+    pub fn class(&self, period_tol: f64) -> crate::classify::Class {
+        crate::classify::classify(
+            &self.samples,
+            self.sample_impacts,
+            self.diag.nonfinite,
+            period_tol,
+        )
+    }
+
+    /// The failure rule shared by every backend: a run whose state or samples left the finite
+    /// range is non-finite, and a failed run has no exponent.
+    pub fn enforce_failure_rule(&mut self) {
+        let bad = |y: &[f64; 4]| y.iter().any(|v| !v.is_finite());
+        if bad(&self.final_y) || self.samples.iter().any(bad) {
+            self.diag.nonfinite = true;
+        }
+        if self.diag.nonfinite {
+            self.lyapunov = f64::NAN;
+        }
+    }
+
+    /// Mean impacts per sampled period.
+    pub fn impacts_per_period(&self) -> f64 {
+        self.sample_impacts as f64 / self.samples.len().max(1) as f64
+    }
+}
