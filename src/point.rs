@@ -29,8 +29,9 @@ pub struct PointReport {
     /// periods from the final state), largest first; a stick or lock removes directions
     /// exactly, and the exponents of removed directions then only say "very negative".
     pub lyapunov_spectrum: Vec<f64>,
-    /// Floquet multipliers of the Newton-refined cycle ([re, im], modulus descending); null
-    /// where no cycle converged.
+    /// Floquet multipliers of the confirmed cycle ([re, im], modulus descending); null without
+    /// one. An unstable cycle that Newton found (round-off or transient) is not confirmed: its
+    /// multipliers are in `cycle` only.
     pub multipliers: Option<Vec<[f64; 2]>>,
     /// The refined cycle (section point, mode, residual); null where none was tried.
     pub cycle: Option<Cycle>,
@@ -82,7 +83,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         multipliers: verdict
             .cycle
             .as_ref()
-            .filter(|c| c.converged)
+            .filter(|c| c.is_stable())
             .map(|c| c.multipliers.clone()),
         cycle: verdict.cycle,
         diagnostics: r.diag,

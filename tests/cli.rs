@@ -24,6 +24,45 @@ fn point_json_has_the_documented_keys() {
     let samples = j["samples"].as_array().unwrap();
     assert_eq!(samples.len(), 200);
     assert_eq!(samples[0].as_array().unwrap().len(), 4);
+    // The confirmed cycle: four multipliers, modulus descending, all inside the unit circle;
+    // the refined section point next to the samples; the spectrum's largest exponent is the
+    // leading multiplier's ln|mu| per unit time (P = 2 pi / eta).
+    let modulus = |z: &serde_json::Value| z[0].as_f64().unwrap().hypot(z[1].as_f64().unwrap());
+    let mu: Vec<f64> = j["multipliers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(modulus)
+        .collect();
+    assert_eq!(mu.len(), 4);
+    assert!(mu.windows(2).all(|w| w[0] >= w[1]) && mu[0] < 1.0, "{mu:?}");
+    assert_eq!(j["cycle"]["period"], 1);
+    let x: Vec<f64> = serde_json::from_value(j["cycle"]["point"].clone()).unwrap();
+    let last: Vec<f64> = serde_json::from_value(samples[199].clone()).unwrap();
+    assert!(
+        x.iter().zip(&last).all(|(a, b)| (a - b).abs() < 1e-6),
+        "{x:?} {last:?}"
+    );
+    let spectrum: Vec<f64> = serde_json::from_value(j["lyapunov_spectrum"].clone()).unwrap();
+    assert_eq!(spectrum.len(), 4);
+    let period = 2.0 * std::f64::consts::PI / 1.5;
+    assert!(
+        (spectrum[0] - mu[0].ln() / period).abs() < 1e-3,
+        "{spectrum:?} {mu:?}"
+    );
+
+    // A chaotic point has no confirmed cycle: no multipliers, a positive largest exponent.
+    let out = rattle()
+        .args(["point", "--config"])
+        .arg(config("fig2.toml"))
+        .args(["--eta", "1.1", "--backend", "cpu", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["class"], "chaotic");
+    assert!(j["multipliers"].is_null(), "{}", j["multipliers"]);
+    assert!(j["lyapunov_spectrum"][0].as_f64().unwrap() > 0.05);
 }
 
 #[test]

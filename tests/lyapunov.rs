@@ -5,7 +5,8 @@ use rattle::classify::{Class, classify};
 use rattle::method::{Integrator, PointState, Settings};
 use rattle::model::Params;
 use rattle::real::Real;
-use rattle::tangent::{refine, spectrum};
+use rattle::stability::confirm;
+use rattle::tangent::{modulus, refine, spectrum};
 
 fn settings() -> Settings {
     Settings {
@@ -31,13 +32,45 @@ fn negative_on_periodic_positive_on_chaotic_attractors() {
 }
 
 #[test]
-fn quasi_periodic_torus_after_the_neimark_sacker_bifurcation() {
-    // Fig. 2 just past the Neimark-Sacker point (eta = 1.703): two impacts per period, no
-    // period <= 64, exponent within the zero band.
-    let (c, l) = run(&Params::paper(1.71), [0.0; 4], 500, 1000);
-    eprintln!("eta 1.71: {c:?} lambda {l:.5}");
-    assert_eq!(c, Class::QuasiPeriodic, "lambda {l}");
-    assert!(l.abs() < 0.005);
+fn slow_transient_before_and_torus_after_the_neimark_sacker_bifurcation() {
+    // Fig. 2 around its Neimark-Sacker point (eta = 1.71577, located in tests/tangent.rs).
+    // Before it, at 1.71, the period-1 orbit is stable but contracts slowly (|mu| = 0.994 per
+    // period, a complex pair): from rest it has not settled to the detector's tolerance after
+    // 500 periods, so the detector alone proposes no period, while Newton from the run's end
+    // converges to the cycle and its multipliers confirm it: period-1, exponent ln|mu| / P < 0.
+    let p = Params::paper(1.71);
+    let s = settings();
+    let r = Integrator::<f64>::new(&p, &s).run([0.0; 4], 500, 200);
+    let proposal = classify(&r.samples, r.sample_impacts, r.diag.nonfinite, 1e-4);
+    let v = confirm(&p, &s, &r, true, proposal, 0.01);
+    let c = v.cycle.as_ref().expect("a cycle was tried");
+    let mu = modulus(&c.multipliers[0]);
+    eprintln!(
+        "eta 1.71: detector {proposal:?} -> {:?}, |mu| {mu:.5}",
+        v.class
+    );
+    assert!(!matches!(proposal, Class::Periodic(_)), "{proposal:?}");
+    assert_eq!(v.class, Class::Periodic(1));
+    assert!(
+        c.multipliers[0][1] != 0.0 && (0.99..1.0).contains(&mu),
+        "{:?}",
+        c.multipliers
+    );
+    // Just after it, at 1.717, the cycle still exists but is unstable (|mu| > 1): never
+    // period-1; the motion is on the torus, its exponent within the zero band.
+    let p = Params::paper(1.717);
+    let r = Integrator::<f64>::new(&p, &s).run([0.0; 4], 500, 1000);
+    let proposal = classify(&r.samples, r.sample_impacts, r.diag.nonfinite, 1e-4);
+    let v = confirm(&p, &s, &r, true, proposal, 0.01);
+    let mu = v.cycle.as_ref().map(|c| modulus(&c.multipliers[0]));
+    let class = v.class.with_lyapunov(r.lyapunov, 0.01);
+    eprintln!(
+        "eta 1.717: {class:?}, |mu| {mu:?}, exponent {:.5}",
+        r.lyapunov
+    );
+    assert!(mu.is_none_or(|m| m > 1.0), "{mu:?}");
+    assert_eq!(class, Class::QuasiPeriodic, "exponent {}", r.lyapunov);
+    assert!(r.lyapunov.abs() < 0.005);
 }
 
 #[test]
@@ -74,8 +107,8 @@ fn impact_free_linear_case_has_the_exact_exponent() {
 fn run_exponent_is_the_largest_of_the_spectrum() {
     // The run's tangent vector and the first vector of the Gram-Schmidt spectrum follow the same
     // variational RK4 and saltations from the same state (J x formed directly against the
-    // matrix J times x; f32 against f64 logarithms of the norms): periodic, chaotic and
-    // quasi-periodic points of Fig. 2.
+    // matrix J times x; f32 against f64 logarithms of the norms): periodic points of Fig. 2
+    // (1.71 the slowly contracting one before the Neimark-Sacker point) and chaotic ones.
     for eta in [1.1, 1.4, 1.5, 1.71, 1.74] {
         let it = Integrator::<f64>::new(&Params::paper(eta), &settings());
         let mut st = it.start([0.0; 4]);
