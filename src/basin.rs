@@ -481,7 +481,7 @@ pub fn caption(cfg: &Config, b: &Basin) -> String {
          share and count of the cells of each attractor, |mu| the largest multiplier modulus; \
          \"mirror of Ak\": the image of Ak under the symmetry (y, t) -> (-y, t + P/2) of the \
          model (same multipliers). \
-         Raster image, {WIDTH} x {HEIGHT} px.",
+         Raster image, {WIDTH} x {HEIGHT} px ({dpi}).",
         title = crate::map::model_title(cfg, &[]),
         nx = g.x_values.len(),
         ny = g.y_values.len(),
@@ -492,6 +492,7 @@ pub fn caption(cfg: &Config, b: &Basin) -> String {
         how = crate::caption::computed_with(cfg, &b.backend, &b.device),
         tr = r.transient_periods,
         sa = r.sample_periods,
+        dpi = crate::map::RASTER,
         tol = cfg.basin.tol,
         n = b.attractors.len(),
         found = found.join(", "),

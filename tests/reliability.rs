@@ -111,6 +111,20 @@ fn merge_refuses_parts_of_different_runs() {
     let o = merge(&parts, &d.join("merged"));
     assert!(!o.status.success());
     assert!(stderr(&o).contains("config"), "{}", stderr(&o));
+    // So is another precision.
+    let o = rattle()
+        .args(["map", "--backend", "cpu", "--precision", "f32", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(&p)
+        .args(["--shard", "2/3"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = merge(&parts, &d.join("merged"));
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("m.part-2-of-3.json"), "{}", stderr(&o));
+    assert!(!d.join("merged-class.npy").exists());
 }
 
 #[test]
@@ -432,6 +446,10 @@ fn inputs_are_checked_before_anything_runs() {
         c.output().unwrap()
     };
     assert!(run("point").status.success());
+    // Nor does bifurcation, which uses [sweep].
+    let o = run("bifurcation");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.join("mm.json").exists());
     fails(&run("map"), "map.x_points");
 }
 

@@ -74,7 +74,8 @@ pub(super) fn work_precision_caption(
          y0 = 0, against a CPU f64 event-located RK4 reference at N = {n} steps per period \
          (which changes by {ch:.1e} when N doubles), versus seconds per parameter point \
          measured on a batch of {e} copies of the point. One marker per N = 16, 32, ..., 4096 \
-         (cost grows with N). Solid: event-located RK4 (impacts located inside the step); \
+         (cost grows with N), except the located f64 rows at N = {n}, which repeat the \
+         reference's own N and measure only round-off (CSV only). Solid: event-located RK4 (impacts located inside the step); \
          dashed: naive RK4 (impacts applied at step ends), in the same colour for the same \
          precision (f32, f64) and backend ({backends}). Observed orders of convergence \
          (least-squares slope over the errors down to the noise floor, 1e-6 in f32 and 1e-12 in f64): \

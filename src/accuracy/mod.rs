@@ -536,8 +536,11 @@ pub fn write_outputs(
                 "{m} {p} {b} (order {})",
                 q.map_or("-".to_string(), |q| format!("{q:.2}"))
             ),
+            // A located f64 row at the reference's own N compares the reference with itself
+            // (round-off only): in the CSV, not on the chart.
             points: main
                 .iter()
+                .filter(|r| !(r.n == N_REF && p == "f64" && m == "located"))
                 .filter_map(|r| Some((r.seconds_per_point?, r.error?)))
                 .collect(),
             // The polished lines take colours of their own after the precision/backend ones.

@@ -7,8 +7,8 @@ mod parts;
 pub mod refine;
 
 pub use output::{
-    CompareReport, MapReport, MapTimings, RefineReport, category, model_title, title,
-    write_compare, write_outputs,
+    CompareReport, MapReport, MapTimings, RASTER, RefineReport, category, compare_caption,
+    model_title, title, write_compare, write_outputs,
 };
 pub use parts::{
     MapOptions, MapSummary, Part, compute_part, merge, merge_files, parse_shard, part_path,

@@ -156,6 +156,8 @@ pub struct MapTimings {
 /// The `--compare` result.
 #[derive(Clone, Debug, Serialize)]
 pub struct CompareReport {
+    /// What the `PREFIX-compare.png` image shows and how many cells changed.
+    pub caption: String,
     pub other_config: Config,
     pub cells_changed: usize,
     pub fraction_changed: f64,
@@ -169,6 +171,9 @@ struct MapJson<'a> {
     report: &'a MapReport,
     /// What the class map shows, how it was computed, and what to notice.
     caption: String,
+    /// The same for PREFIX-lyapunov.png and PREFIX-multiplier.png (null where not drawn).
+    caption_lyapunov: Option<String>,
+    caption_multiplier: Option<String>,
     version: &'static str,
     config: &'a Config,
     class_counts: BTreeMap<String, usize>,
@@ -184,6 +189,9 @@ struct Axes {
     y_values: Vec<f64>,
     layout: &'static str,
 }
+
+/// How large the maps' raster images print (1100 px at 150 dpi).
+pub const RASTER: &str = "18.6 cm wide at 150 dpi";
 
 /// The caption of a map's JSON.
 fn caption(
@@ -236,7 +244,7 @@ fn caption(
          computed); no impact, unresolved and failed as in the README. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64) with \
          lightness steps inside a family; chaotic near-black, quasi-periodic light green. The \
          legend gives the share and the count of every class shown. Most frequent: \
-         {top}.{coex}{refined} Raster image, 1100 x 800 px.",
+         {top}.{coex}{refined} Raster image, 1100 x 800 px ({RASTER}).",
         nx = m.x_points,
         ny = m.y_points,
         x = m.x,
@@ -254,6 +262,119 @@ fn caption(
         ltol = r.lyapunov_tol,
         top = crate::caption::top_classes(counts, 5),
     )
+}
+
+/// The grid and model of a map, for the captions of its images.
+fn grid_phrase(cfg: &Config) -> String {
+    let m = &cfg.map;
+    format!(
+        "{nx} x {ny} cell centres, {x} from {x0} to {x1} (horizontal) and {y} from {y0} to {y1} \
+         (vertical); {title}",
+        nx = m.x_points,
+        ny = m.y_points,
+        x = m.x,
+        x0 = m.x_from,
+        x1 = m.x_to,
+        y = m.y,
+        y0 = m.y_from,
+        y1 = m.y_to,
+        title = title(cfg),
+    )
+}
+
+/// The caption of PREFIX-lyapunov.png; None where it is not drawn.
+fn lyapunov_caption(cfg: &Config, values: &[f64], clip: f64) -> Option<String> {
+    let v: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    let tol = cfg.run.lyapunov_tol;
+    let pos = v.iter().filter(|&&l| l > tol).count();
+    let zero = v.iter().filter(|&&l| l.abs() <= tol).count();
+    let (lo, hi) = v
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &l| {
+            (a.min(l), b.max(l))
+        });
+    Some(format!(
+        "Largest Lyapunov exponent per unit time at each of {grid}, from the same run as the \
+         class map (one tangent vector through the RK4 stages and the saltation matrices of the \
+         events; a cell whose cycle Newton confirmed carries ln|mu_1| / P). Diverging colours \
+         centred on 0, clipped at the 99th percentile of |exponent| ({clip:.3}); grey: no \
+         exponent (failed, or inferred by refinement). {n} cells with a value, from {lo:.3} to {hi:.3}: {pos} above +{tol} \
+         (chaotic), {zero} within +-{tol} (quasi-periodic or nearly neutral cycles), the rest \
+         contracting. Raster image, 1100 x 800 px ({RASTER}).",
+        grid = grid_phrase(cfg),
+        n = v.len(),
+    ))
+}
+
+/// The caption of PREFIX-multiplier.png; None where it is not drawn.
+fn multiplier_caption(cfg: &Config, values: &[f64]) -> Option<String> {
+    let v: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    let near = v.iter().filter(|&&m| m > 0.95).count();
+    let hi = v.iter().copied().fold(0.0, f64::max);
+    Some(format!(
+        "Stability margin at each of {grid}: the modulus of the leading Floquet multiplier of \
+         each cell's Newton-confirmed stable cycle (viridis, 0 to 1; 1 is where a cycle loses \
+         stability), grey where no stable cycle was confirmed (aperiodic, no impact, failed, \
+         inferred). {n} periodic cells, largest modulus {hi:.4}; {near} of them above 0.95, \
+         slowly contracting cycles near a bifurcation whose transients a fixed number of \
+         periods may not outlast. Raster image, 1100 x 800 px ({RASTER}).",
+        grid = grid_phrase(cfg),
+        n = v.len(),
+    ))
+}
+
+/// The caption of PREFIX-compare.png.
+pub fn compare_caption(cfg: &Config, other: &Config, a: &[Class], b: &[Class]) -> String {
+    let n = a.len().max(1);
+    let kind = |x: &Class, y: &Class| std::mem::discriminant(x) == std::mem::discriminant(y);
+    let failed = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| **x == Class::Failed || **y == Class::Failed)
+        .count();
+    let period = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| x != y && kind(x, y) && **x != Class::Failed)
+        .count();
+    let motion = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| !kind(x, y) && **x != Class::Failed && **y != Class::Failed)
+        .count();
+    format!(
+        "Where the class of the attractor changes between two configurations on the same grid: \
+         {grid}, against the same model with {diff}. Each cell of both maps is computed as in \
+         the class map (same initial state, method, periods and precision). Light grey: same \
+         class; sky blue: another period ({period} cells, {pp}); vermillion: another type of \
+         motion, e.g. periodic against chaotic or no impact ({motion} cells, {mp}); black: \
+         failed in one of the two ({failed} cells). Okabe-Ito colours, told apart with \
+         colour-vision deficiencies. Raster image, 1100 x 800 px ({RASTER}).",
+        grid = grid_phrase(cfg),
+        diff = model_diff(cfg, other).join(", "),
+        pp = percent(period, n),
+        mp = percent(motion, n),
+    )
+}
+
+/// `key = a -> b` for every model value that differs between two configurations.
+fn model_diff(cfg: &Config, other: &Config) -> Vec<String> {
+    let (ma, mb) = (
+        serde_json::to_value(&cfg.model).unwrap_or_default(),
+        serde_json::to_value(&other.model).unwrap_or_default(),
+    );
+    ma.as_object()
+        .into_iter()
+        .flatten()
+        .filter(|(k, v)| mb.get(k.as_str()) != Some(v))
+        .map(|(k, v)| format!("{k} = {v} -> {}", mb[k.as_str()]))
+        .collect()
 }
 
 /// Writes PREFIX.png (classes), PREFIX-lyapunov.png, PREFIX-multiplier.png (stability margin
@@ -423,6 +544,8 @@ pub fn write_outputs(
     let coexisting = cells.iter().filter(|&&c| c == COEXISTING).count();
     let j = MapJson {
         caption: caption(cfg, report, &fields.counts(), coexisting),
+        caption_lyapunov: lyapunov_caption(cfg, lyap_raw, lim),
+        caption_multiplier: multiplier_caption(cfg, &mult),
         report,
         version: env!("CARGO_PKG_VERSION"),
         config: cfg,
@@ -474,17 +597,7 @@ pub fn write_compare(
     ];
     let ordered = |r: (f64, f64)| (r.0.min(r.1), r.0.max(r.1));
     // Name what differs between the two models, not the whole model (too long a title).
-    let (ma, mb) = (
-        serde_json::to_value(&cfg.model).unwrap_or_default(),
-        serde_json::to_value(&other.model).unwrap_or_default(),
-    );
-    let diffs: Vec<String> = ma
-        .as_object()
-        .into_iter()
-        .flatten()
-        .filter(|(k, v)| mb.get(k.as_str()) != Some(v))
-        .map(|(k, v)| format!("{k} = {v} -> {}", mb[k.as_str()]))
-        .collect();
+    let diffs = model_diff(cfg, other);
     let t = if diffs.is_empty() {
         "class changes against the compared configuration".to_string()
     } else {

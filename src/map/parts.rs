@@ -1,8 +1,8 @@
 //! Shards of a map: partial outputs, checkpoints that resume, one share per adapter, merging.
 
 use super::{
-    CompareReport, Fields, MapError, MapReport, MapTimings, RefineReport, cell_count, compute,
-    shard_range, write_compare, write_outputs,
+    CompareReport, Fields, MapError, MapReport, MapTimings, RefineReport, cell_count,
+    compare_caption, compute, shard_range, write_compare, write_outputs,
 };
 use crate::config::Config;
 use crate::engine::Engine;
@@ -544,6 +544,7 @@ pub fn run(
         let (a, b) = (fields.classes(), other_fields.classes());
         let changed = a.iter().zip(&b).filter(|(x, y)| x != y).count();
         report.compare = Some(CompareReport {
+            caption: compare_caption(&cfg, other, &a, &b),
             other_config: other.clone(),
             cells_changed: changed,
             fraction_changed: changed as f64 / cells as f64,
