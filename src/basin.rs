@@ -325,7 +325,7 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
     let chunk = chunk_size(cfg);
     crate::memory::check_basin(cfg, chunk)?;
     let grid = Grid::new(cfg);
-    let spec = RunSpec::new(cfg).with_lyapunov();
+    let spec = RunSpec::new(cfg).with_tangent(cfg.tangent(crate::config::Tangent::Largest));
     let it = Integrator::<f64>::new(&spec.params, &spec.settings);
     let tol = cfg.basin.tol;
     let mut ids = Vec::with_capacity(grid.len());

@@ -5,7 +5,7 @@ pub mod laminar;
 pub mod plot;
 
 use crate::classify::Class;
-use crate::config::Config;
+use crate::config::{Config, Tangent};
 use crate::engine::Engine;
 use crate::error::Result;
 use crate::method::{Diagnostics, Integrator, PointState, RunResult};
@@ -28,7 +28,7 @@ pub struct PointReport {
     /// All four Lyapunov exponents per unit time (tangent dynamics, CPU f64, over the sampled
     /// periods from the final state), largest first; a stick or lock removes directions
     /// exactly, and the exponents of removed directions then only say "very negative".
-    pub lyapunov_spectrum: Vec<f64>,
+    pub lyapunov_spectrum: Option<Vec<f64>>,
     /// Floquet multipliers of the confirmed cycle ([re, im], modulus descending); null without
     /// one. An unstable cycle that Newton found (round-off or transient) is not confirmed: its
     /// multipliers are in `cycle` only.
@@ -45,9 +45,11 @@ pub struct PointReport {
     pub seconds: f64,
 }
 
-/// Integrates the configured point, with the Lyapunov estimate.
+/// Integrates the configured point, with the exponents `run.tangent` asks for (default: the
+/// spectrum).
 pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<PointReport> {
-    let spec = RunSpec::new(cfg).with_lyapunov();
+    let tangent = cfg.tangent(Tangent::Spectrum);
+    let spec = RunSpec::new(cfg).with_tangent(tangent);
     let t = Instant::now();
     let (mut rs, _) = engine.run(&spec, &Points::single(), progress)?;
     let r: RunResult = rs.pop().expect("one point, one result");
@@ -63,8 +65,10 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         spec.lyapunov_tol,
     );
     let class: Class = verdict.class;
-    let lyapunov_spectrum = if r.diag.nonfinite {
-        vec![f64::NAN; 4]
+    let lyapunov_spectrum = if tangent != Tangent::Spectrum {
+        None
+    } else if r.diag.nonfinite {
+        Some(vec![f64::NAN; 4])
     } else {
         let it = Integrator::<f64>::new(&spec.params, &spec.settings);
         let mut st = PointState {
@@ -72,7 +76,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
             mode: r.final_mode,
             diag: Default::default(),
         };
-        spectrum(&it, &mut st, spec.samples, 4).exponents
+        Some(spectrum(&it, &mut st, spec.samples, 4).exponents)
     };
     Ok(PointReport {
         class: class.name(),
@@ -108,16 +112,14 @@ impl fmt::Display for PointReport {
         )?;
         writeln!(f, "impacts per period {:.4}", self.impacts_per_period)?;
         writeln!(f, "lyapunov exponent  {:.5} (per unit time)", self.lyapunov)?;
-        let spec: Vec<String> = self
-            .lyapunov_spectrum
-            .iter()
-            .map(|l| format!("{l:.5}"))
-            .collect();
-        writeln!(
-            f,
-            "lyapunov spectrum  {} (tangent dynamics)",
-            spec.join(" ")
-        )?;
+        if let Some(s) = &self.lyapunov_spectrum {
+            let spec: Vec<String> = s.iter().map(|l| format!("{l:.5}")).collect();
+            writeln!(
+                f,
+                "lyapunov spectrum  {} (tangent dynamics)",
+                spec.join(" ")
+            )?;
+        }
         if let Some(c) = &self.cycle {
             let m: Vec<String> = c
                 .multipliers

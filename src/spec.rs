@@ -38,9 +38,15 @@ impl RunSpec {
         }
     }
 
-    /// The same run with the Lyapunov estimate on (points and maps always use it).
+    /// The same run with the Lyapunov estimate on.
     pub fn with_lyapunov(mut self) -> RunSpec {
         self.settings.lyapunov = true;
+        self
+    }
+
+    /// The same run with the largest exponent estimated or not, as `tangent` says.
+    pub fn with_tangent(mut self, tangent: crate::config::Tangent) -> RunSpec {
+        self.settings.lyapunov = tangent != crate::config::Tangent::None;
         self
     }
 

@@ -151,3 +151,73 @@ fn bad_configs_fail_cleanly_without_output() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("model.R"));
 }
+
+#[test]
+fn run_tangent_chooses_what_the_tangent_dynamics_compute() {
+    let point = |eta: &str, tangent: &str| -> serde_json::Value {
+        let out = rattle()
+            .args(["point", "--config"])
+            .arg(config("fig2.toml"))
+            .args(["--eta", eta, "--backend", "cpu", "--json", "--set"])
+            .arg(format!("run.tangent={tangent}"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    // none: no exponent at all; a cycle is still confirmed by Newton, chaos stays aperiodic.
+    let j = point("1.5", "none");
+    assert_eq!(j["class"], "period-1");
+    assert!(
+        j["lyapunov"].is_null() && j["lyapunov_spectrum"].is_null(),
+        "{j}"
+    );
+    assert_eq!(point("1.1", "none")["class"], "aperiodic");
+    // largest: the run's exponent, no spectrum; it decides chaos.
+    let j = point("1.1", "largest");
+    assert_eq!(j["class"], "chaotic");
+    assert!(j["lyapunov"].as_f64().unwrap() > 0.05);
+    assert!(j["lyapunov_spectrum"].is_null());
+    // A map computes at most the largest exponent: the spectrum is refused, key named.
+    let d = scratch("tangent");
+    let out = rattle()
+        .args(["map", "--backend", "cpu", "--config"])
+        .arg(config("r_lambda.toml"))
+        .args(["--set", "run.tangent=spectrum", "--out"])
+        .arg(d.join("m"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("run.tangent") && err.contains("largest"),
+        "{err}"
+    );
+    assert!(std::fs::read_dir(&d).unwrap().next().is_none());
+    // A bifurcation diagram with the exponent tells chaos from the aperiodic default.
+    let out = rattle()
+        .args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(config("fig2.toml"))
+        .args(["--set", "sweep.from=1.1", "--set", "sweep.to=1.12"])
+        .args([
+            "--set",
+            "sweep.points=2",
+            "--set",
+            "run.tangent=largest",
+            "--out",
+        ])
+        .arg(d.join("b"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j = common::json(&d.join("b.json"));
+    assert_eq!(j["points"][0]["class"], "chaotic", "{}", j["points"][0]);
+}

@@ -6,6 +6,7 @@ impl Config {
     /// Checks the `[map]` section (only maps need it: the defaults name lambda, which a
     /// Stribeck bifurcation config does not have).
     pub fn validate_map(&self) -> Result<(), ConfigError> {
+        self.check_tangent("`map`")?;
         let m = &self.map;
         for (key, name) in [("map.x", m.x), ("map.y", m.y)] {
             if name == Param::Lambda && self.model.friction != FrictionLaw::Coulomb {
@@ -82,6 +83,7 @@ impl Config {
     /// width (z0 within the clearance), a grid of at most [`MAX_BASIN_CELLS`] cells and a
     /// matching tolerance in (0, 0.1].
     pub fn validate_basin(&self) -> Result<(), ConfigError> {
+        self.check_tangent("`basin`")?;
         let b = &self.basin;
         if b.x == b.y {
             return Err(ConfigError::range(

@@ -164,6 +164,31 @@ impl Default for MethodConfig {
     }
 }
 
+/// What the tangent dynamics of a run compute (`run.tangent`). Unset, each command takes what
+/// it needs: `point` the spectrum; `map` and `basin` the largest exponent, which tells chaos
+/// from quasi-periodicity in their classes; `bifurcation` (and the commands that sweep) none,
+/// as their periods are confirmed by Newton's method and the multipliers anyway.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Tangent {
+    /// No tangent vector: no exponent; points without a confirmed cycle stay `aperiodic`.
+    None,
+    /// One tangent vector through the run's last periods: the largest Lyapunov exponent.
+    Largest,
+    /// All four exponents by Gram-Schmidt at the section (CPU, f64; `point` only).
+    Spectrum,
+}
+
+impl Tangent {
+    pub fn name(self) -> &'static str {
+        match self {
+            Tangent::None => "none",
+            Tangent::Largest => "largest",
+            Tangent::Spectrum => "spectrum",
+        }
+    }
+}
+
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RunConfig {
@@ -171,8 +196,8 @@ pub struct RunConfig {
     pub sample_periods: u32,
     /// Period test tolerance relative to the attractor size.
     pub period_tol: f64,
-    /// Estimate the largest Lyapunov exponent (maps always do).
-    pub lyapunov: bool,
+    /// What the tangent dynamics compute; unset: what the command needs (see [`Tangent`]).
+    pub tangent: Option<Tangent>,
     /// |exponent| below this (per unit time) counts as zero: quasi-periodic.
     pub lyapunov_tol: f64,
     /// Let points leave the run once their cycle is confirmed (`crate::adaptive`); false
@@ -186,7 +211,7 @@ impl Default for RunConfig {
             transient_periods: 500,
             sample_periods: 200,
             period_tol: 1e-4,
-            lyapunov: false,
+            tangent: None,
             lyapunov_tol: 0.01,
             early_stop: true,
         }
@@ -477,8 +502,28 @@ impl Config {
             max_events: self.method.max_events,
             zeno_speed: self.method.zeno_speed,
             impacts: self.method.impacts,
-            lyapunov: self.run.lyapunov,
+            lyapunov: self.tangent(Tangent::None) != Tangent::None,
         }
+    }
+
+    /// `run.tangent`, or the command's `default` where it is unset.
+    pub fn tangent(&self, default: Tangent) -> Tangent {
+        self.run.tangent.unwrap_or(default)
+    }
+
+    /// Refuses `run.tangent = "spectrum"` for a command that computes at most the largest
+    /// exponent.
+    pub fn check_tangent(&self, command: &str) -> Result<(), ConfigError> {
+        if self.run.tangent == Some(Tangent::Spectrum) {
+            return Err(ConfigError::range(
+                "run.tangent",
+                "\"spectrum\"",
+                &format!(
+                    "\"none\" or \"largest\" for {command} (the spectrum is computed by `point`)"
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// Parameter values of the sweep (inclusive of both ends).
@@ -628,6 +673,7 @@ impl Config {
 
     /// Checks the `[sweep]` section (bifurcation diagrams and the commands that sweep eta).
     pub fn validate_sweep(&self) -> Result<(), ConfigError> {
+        self.check_tangent("sweeps (`bifurcation`, `accuracy`, `validate`, `bench`)")?;
         let m = &self.model;
         let r = &self.run;
         let s = &self.sweep;

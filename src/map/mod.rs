@@ -106,7 +106,7 @@ pub fn compute_cells(
     starts: usize,
     progress: &dyn Progress,
 ) -> Result<(Vec<(Summary, u8)>, Timings), MapError> {
-    let spec = RunSpec::new(cfg).with_lyapunov();
+    let spec = RunSpec::new(cfg).with_tangent(cfg.tangent(crate::config::Tangent::Largest));
     let k = starts.max(1);
     let cells = cell_values(cfg, cells);
     let values: Vec<f64> = cells

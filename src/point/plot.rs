@@ -221,6 +221,8 @@ pub fn compute(cfg: &Config, o: &PlotOptions, progress: &dyn Progress) -> Result
     let mut cfg = cfg.clone();
     cfg.method.backend = Backend::Cpu;
     cfg.method.precision = Precision::F64;
+    // The figure reports the exponents whatever run.tangent says.
+    cfg.run.tangent = Some(crate::config::Tangent::Spectrum);
     let report = super::run(&Engine::Cpu, &cfg, progress)?;
     let failed = || {
         Error::Invalid(format!(
@@ -398,7 +400,10 @@ pub fn caption(p: &PointPlot) -> String {
         _ => format!(
             "{} (largest Lyapunov exponent {:.4} per unit time)",
             r.class,
-            r.lyapunov_spectrum.first().copied().unwrap_or(f64::NAN)
+            r.lyapunov_spectrum
+                .as_ref()
+                .and_then(|s| s.first().copied())
+                .unwrap_or(f64::NAN)
         ),
     };
     let mut modes = Vec::new();
@@ -655,7 +660,7 @@ pub fn write_outputs(prefix: &Path, p: &PointPlot) -> Result<Vec<PathBuf>> {
         class: &p.report.class,
         period: p.report.period,
         impacts_per_period: p.report.impacts_per_period,
-        lyapunov_spectrum: &p.report.lyapunov_spectrum,
+        lyapunov_spectrum: p.report.lyapunov_spectrum.as_deref().unwrap_or(&[]),
         cycle: &p.report.cycle,
         cycle_points: &p.cycle_points,
         shown: &p.shown,
