@@ -10,8 +10,11 @@ use rattle::engine::Engine;
 use rattle::progress::Silent;
 use std::path::Path;
 
-fn fig2(sets: &[&str]) -> Config {
-    let mut s: Vec<String> = vec!["sweep.points=120".into(), "method.precision=\"f64\"".into()];
+fn fig2_in(precision: &str, sets: &[&str]) -> Config {
+    let mut s: Vec<String> = vec![
+        "sweep.points=120".into(),
+        format!("method.precision=\"{precision}\""),
+    ];
     s.extend(sets.iter().map(|x| x.to_string()));
     Config::load(
         Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/fig2.toml")),
@@ -20,18 +23,26 @@ fn fig2(sets: &[&str]) -> Config {
     .unwrap()
 }
 
-#[test]
-fn early_stop_keeps_the_classes_of_the_brute_force_diagram() {
+fn early_stop_keeps_the_classes_of_the_brute_force_diagram(engine: &Engine, precision: &str) {
     let brute = bifurcation::run(
-        &Engine::Cpu,
-        &fig2(&["run.early_stop=false"]),
+        engine,
+        &fig2_in(precision, &["run.early_stop=false"]),
         None,
         &Silent,
     )
     .unwrap();
-    let early = bifurcation::run(&Engine::Cpu, &fig2(&[]), None, &Silent).unwrap();
+    let early = bifurcation::run(engine, &fig2_in(precision, &[]), None, &Silent).unwrap();
     let (b, e) = (&brute.runs[0].1, &early.runs[0].1);
     let agree = b.iter().zip(e).filter(|(x, y)| x.class == y.class).count();
+    for (x, y) in b.iter().zip(e).filter(|(x, y)| x.class != y.class) {
+        eprintln!(
+            "{} {precision}: brute {:?} early {:?} ({} periods)",
+            engine.name(),
+            x.class,
+            y.class,
+            y.periods
+        );
+    }
     let total = 700;
     let mean = e.iter().map(|p| p.periods as f64).sum::<f64>() / e.len() as f64;
     eprintln!(
@@ -42,6 +53,17 @@ fn early_stop_keeps_the_classes_of_the_brute_force_diagram() {
         brute.integration_s
     );
     assert!(agree as f64 >= 0.98 * b.len() as f64);
+    // Early termination never changes the class of a periodic point, and an aperiodic
+    // (chaotic) point runs to its cap.
+    for (x, y) in b.iter().zip(e) {
+        if matches!(x.class, Class::Periodic(_)) {
+            assert_eq!(x.class, y.class, "at {}", y.value);
+        }
+        if x.class == Class::Aperiodic {
+            assert_eq!(y.periods, total, "at {}", y.value);
+        }
+    }
+    assert!(b.iter().filter(|x| x.class == Class::Aperiodic).count() >= 10);
     assert!(b.iter().all(|p| p.periods == total));
     assert!(mean < 0.7 * total as f64, "{mean}");
     for p in e {
@@ -60,6 +82,20 @@ fn early_stop_keeps_the_classes_of_the_brute_force_diagram() {
     // The decided points were computed on fewer periods, the others on the same ones.
     assert!(e.iter().any(|p| p.periods < total));
     assert!(early.rk4_steps() < 0.7 * brute.rk4_steps());
+}
+
+#[test]
+fn early_stop_keeps_the_classes_of_the_brute_force_diagram_on_the_cpu() {
+    early_stop_keeps_the_classes_of_the_brute_force_diagram(&Engine::Cpu, "f64");
+}
+
+#[test]
+fn early_stop_keeps_the_classes_of_the_brute_force_diagram_on_the_gpu() {
+    // Fails, not skips, without an adapter when RATTLE_REQUIRE_GPU=1 (CI).
+    let Some(engine) = common::gpu_engine() else {
+        return;
+    };
+    early_stop_keeps_the_classes_of_the_brute_force_diagram(&engine, "f32");
 }
 
 #[test]

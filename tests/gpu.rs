@@ -422,6 +422,15 @@ fn overflowing_points_fail_on_the_gpu_as_on_the_cpu() {
             assert_eq!(r.class, "failed", "{} {prec:?}", e.name());
             assert!(r.diagnostics.nonfinite, "{} {prec:?}", e.name());
             assert!(r.lyapunov.is_nan(), "{} {prec:?}", e.name());
+            // A forcing frequency near zero (eta = 2e-6: the forcing period and the steps
+            // overflow the state) fails the same way.
+            let mut slow = cfg.clone();
+            slow.model.eta = 2e-6;
+            slow.model.l2 = 0.0;
+            let r = rattle::point::run(e, &slow, &Silent).unwrap();
+            assert_eq!(r.class, "failed", "eta 2e-6 {} {prec:?}", e.name());
+            assert!(r.diagnostics.nonfinite, "eta 2e-6 {} {prec:?}", e.name());
+            assert!(r.lyapunov.is_nan(), "eta 2e-6 {} {prec:?}", e.name());
         }
     }
 }
