@@ -9,6 +9,8 @@ use std::path::Path;
 mod grids;
 mod overrides;
 
+pub use grids::{BasinConfig, MapConfig, StateCoord};
+
 use overrides::apply_override;
 
 #[derive(Debug, thiserror::Error)]
@@ -240,129 +242,6 @@ impl Default for SweepConfig {
             to: 2.0,
             points: 2000,
             plot: "y1".into(),
-            title: String::new(),
-        }
-    }
-}
-
-/// A 2-D map over two parameters.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct MapConfig {
-    pub x: Param,
-    pub x_from: f64,
-    pub x_to: f64,
-    pub x_points: u32,
-    pub y: Param,
-    pub y_from: f64,
-    pub y_to: f64,
-    pub y_points: u32,
-    /// Figure title; empty => generated.
-    pub title: String,
-}
-
-impl Default for MapConfig {
-    fn default() -> Self {
-        MapConfig {
-            x: Param::R,
-            x_from: 0.5,
-            x_to: 0.7,
-            x_points: 128,
-            y: Param::Lambda,
-            y_from: 0.0,
-            y_to: 0.1,
-            y_points: 128,
-            title: String::new(),
-        }
-    }
-}
-
-/// A coordinate of the initial state that a basin grid varies. The others are zero: m1 at
-/// rest at y1 = 0, m2 in the middle of the clearance, no relative velocity.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum StateCoord {
-    /// m2's position in the clearance, z = y3 - y1 (within [-r, r]).
-    Z0,
-    /// Relative (slip) velocity v = y2 - y4.
-    V0,
-    /// m1's position.
-    Y1,
-    /// m1's velocity.
-    Y2,
-}
-
-impl StateCoord {
-    pub fn name(self) -> &'static str {
-        match self {
-            StateCoord::Z0 => "z0",
-            StateCoord::V0 => "v0",
-            StateCoord::Y1 => "y1",
-            StateCoord::Y2 => "y2",
-        }
-    }
-
-    /// Axis label of plots.
-    pub fn label(self) -> &'static str {
-        match self {
-            StateCoord::Z0 => "z0 = y3 - y1 (initial position of m2 in the clearance)",
-            StateCoord::V0 => "v0 = y2 - y4 (initial relative velocity)",
-            StateCoord::Y1 => "y1 (initial position of m1)",
-            StateCoord::Y2 => "y2 (initial velocity of m1)",
-        }
-    }
-
-    /// The state (y1, y2, y3, y4) with this coordinate at `a` and `other` at `b`, the rest 0.
-    pub fn state(self, a: f64, other: StateCoord, b: f64) -> [f64; 4] {
-        let (mut y1, mut y2, mut z, mut v) = (0.0, 0.0, 0.0, 0.0);
-        for (c, x) in [(self, a), (other, b)] {
-            match c {
-                StateCoord::Z0 => z = x,
-                StateCoord::V0 => v = x,
-                StateCoord::Y1 => y1 = x,
-                StateCoord::Y2 => y2 = x,
-            }
-        }
-        [y1, y2, y1 + z, y2 - v]
-    }
-}
-
-/// A grid of initial states at one parameter point (basins of attraction).
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct BasinConfig {
-    pub x: StateCoord,
-    /// Range of x; unset: [-r, r] for z0, [-1, 1] otherwise (same for y).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub x_from: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub x_to: Option<f64>,
-    pub x_points: u32,
-    pub y: StateCoord,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub y_from: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub y_to: Option<f64>,
-    pub y_points: u32,
-    /// Two refined cycles are one attractor when a section point of one lies within
-    /// `tol * max(1, |point|)` of a section point of the other, in every coordinate.
-    pub tol: f64,
-    /// Figure title; empty => generated.
-    pub title: String,
-}
-
-impl Default for BasinConfig {
-    fn default() -> Self {
-        BasinConfig {
-            x: StateCoord::Z0,
-            x_from: None,
-            x_to: None,
-            x_points: 101,
-            y: StateCoord::V0,
-            y_from: None,
-            y_to: None,
-            y_points: 101,
-            tol: 1e-6,
             title: String::new(),
         }
     }
