@@ -4,12 +4,14 @@
 mod common;
 use common::{config, rattle, scratch};
 
-#[test]
-fn point_json_has_the_documented_keys() {
+/// `rattle point --config configs/fig2.toml --eta ETA --backend cpu --json [EXTRA]`, which must
+/// succeed; its JSON.
+fn point_json(eta: &str, extra: &[&str]) -> serde_json::Value {
     let out = rattle()
         .args(["point", "--config"])
         .arg(config("fig2.toml"))
-        .args(["--eta", "1.5", "--backend", "cpu", "--json"])
+        .args(["--eta", eta, "--backend", "cpu", "--json"])
+        .args(extra)
         .output()
         .unwrap();
     assert!(
@@ -17,7 +19,12 @@ fn point_json_has_the_documented_keys() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn point_json_has_the_documented_keys() {
+    let j = point_json("1.5", &[]);
     assert_eq!(j["class"], "period-1");
     assert_eq!(j["period"], 1);
     assert!((j["impacts_per_period"].as_f64().unwrap() - 2.0).abs() < 1e-12);
@@ -52,14 +59,7 @@ fn point_json_has_the_documented_keys() {
     );
 
     // A chaotic point has no confirmed cycle: no multipliers, a positive largest exponent.
-    let out = rattle()
-        .args(["point", "--config"])
-        .arg(config("fig2.toml"))
-        .args(["--eta", "1.1", "--backend", "cpu", "--json"])
-        .output()
-        .unwrap();
-    assert!(out.status.success());
-    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let j = point_json("1.1", &[]);
     assert_eq!(j["class"], "chaotic");
     assert!(j["multipliers"].is_null(), "{}", j["multipliers"]);
     assert!(j["lyapunov_spectrum"][0].as_f64().unwrap() > 0.05);
@@ -154,21 +154,8 @@ fn bad_configs_fail_cleanly_without_output() {
 
 #[test]
 fn run_tangent_chooses_what_the_tangent_dynamics_compute() {
-    let point = |eta: &str, tangent: &str| -> serde_json::Value {
-        let out = rattle()
-            .args(["point", "--config"])
-            .arg(config("fig2.toml"))
-            .args(["--eta", eta, "--backend", "cpu", "--json", "--set"])
-            .arg(format!("run.tangent={tangent}"))
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        serde_json::from_slice(&out.stdout).unwrap()
-    };
+    let point =
+        |eta: &str, tangent: &str| point_json(eta, &["--set", &format!("run.tangent={tangent}")]);
     // none: no exponent at all; a cycle is still confirmed by Newton, chaos stays aperiodic.
     let j = point("1.5", "none");
     assert_eq!(j["class"], "period-1");

@@ -200,7 +200,6 @@ fn caption(
     counts: &BTreeMap<String, usize>,
     coexisting: usize,
 ) -> String {
-    let m = &cfg.map;
     let r = &cfg.run;
     let backend = report.backend.as_deref().unwrap_or("unknown");
     let device = report
@@ -233,9 +232,7 @@ fn caption(
         )
     });
     format!(
-        "Class map of the attractor reached at each of {nx} x {ny} cell centres: {x} from \
-         {x0} to {x1} (horizontal) and {y} from {y0} to {y1} (vertical); {title}. Each cell \
-         starts from y0 = {start:?} and is integrated with {how}; {tr} transient periods, then \
+        "Class map of the attractor reached at each of {grid}. Each cell starts from y0 = {start:?} and is integrated with {how}; {tr} transient periods, then \
          {sa} sampled periods. Classes: a period <= 64 of the stroboscopic section (tolerance \
          {tol}), kept only where Newton's method converges to a cycle whose Floquet multipliers \
          all lie inside the unit circle (a contracting point without a period is tried at \
@@ -245,15 +242,7 @@ fn caption(
          lightness steps inside a family; chaotic near-black, quasi-periodic light green. The \
          legend gives the share and the count of every class shown. Most frequent: \
          {top}.{coex}{refined} Raster image, 1100 x 800 px ({RASTER}).",
-        nx = m.x_points,
-        ny = m.y_points,
-        x = m.x,
-        x0 = m.x_from,
-        x1 = m.x_to,
-        y = m.y,
-        y0 = m.y_from,
-        y1 = m.y_to,
-        title = title(cfg),
+        grid = grid_phrase(cfg),
         start = cfg.initial.y,
         how = crate::caption::computed_with(cfg, backend, &device),
         tr = r.transient_periods,
@@ -268,7 +257,7 @@ fn caption(
 fn grid_phrase(cfg: &Config) -> String {
     let m = &cfg.map;
     format!(
-        "{nx} x {ny} cell centres, {x} from {x0} to {x1} (horizontal) and {y} from {y0} to {y1} \
+        "{nx} x {ny} cell centres: {x} from {x0} to {x1} (horizontal) and {y} from {y0} to {y1} \
          (vertical); {title}",
         nx = m.x_points,
         ny = m.y_points,
