@@ -14,10 +14,11 @@
 //! in at the rare section that falls inside a stick or lock: the agreement with brute force is
 //! measured, not assumed.
 
-use crate::classify::{Class, detect_period};
+use crate::classify::{Class, Pool, detect_period};
 use crate::engine::{Engine, Summary};
 use crate::gpu::{GpuError, Timings};
 use crate::method::{Diagnostics, RunResult};
+use crate::model::Mode;
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
 use crate::stability::{Proposal, Verdict, confirm_many};
@@ -82,14 +83,58 @@ fn final_spec(spec: &RunSpec, elapsed: u32) -> RunSpec {
     }
 }
 
-/// The live points' parameter values and current states, for a sub-run.
-fn subset(points: &Points, live: &[usize], y: &[[f64; 4]]) -> (Vec<f64>, Vec<[f64; 4]>) {
-    let nv = points.vary.len();
-    let values = live
+/// The live points of a run, for a sub-run: their parameter values, current states and
+/// modes.
+struct Live {
+    values: Vec<f64>,
+    states: Vec<[f64; 4]>,
+    modes: Option<Vec<Mode>>,
+}
+
+impl Live {
+    /// `live` of `points`, at states `y` in `modes` (where every live mode is known: a
+    /// continued point resumes in the mode it stopped in, as a section can fall inside a stick
+    /// or a lock, so its path is that of one uninterrupted run).
+    fn new(points: &Points, live: &[usize], y: &[[f64; 4]], modes: &[Option<Mode>]) -> Live {
+        let nv = points.vary.len();
+        Live {
+            values: live
+                .iter()
+                .flat_map(|&i| points.values[i * nv..(i + 1) * nv].iter().copied())
+                .collect(),
+            states: live.iter().map(|&i| y[i]).collect(),
+            modes: live.iter().map(|&i| modes[i]).collect(),
+        }
+    }
+
+    fn points<'a>(&'a self, of: &Points<'a>) -> Points<'a> {
+        Points {
+            vary: of.vary,
+            values: if of.vary.is_empty() {
+                of.values
+            } else {
+                &self.values
+            },
+            y0s: Some(&self.states),
+            modes: self.modes.as_deref(),
+        }
+    }
+}
+
+/// The verdicts on runs `rs` of the points `live` (samples kept), every candidate tried.
+fn decide_all(spec: &RunSpec, points: &Points, rs: &[RunResult], live: &[usize]) -> Vec<Verdict> {
+    let proposals: Vec<Proposal> = rs
         .iter()
-        .flat_map(|&i| points.values[i * nv..(i + 1) * nv].iter().copied())
+        .zip(live)
+        .map(|(r, &i)| Proposal {
+            params: points.params(&spec.params, i),
+            run: r,
+            class: r.class(spec.period_tol),
+            candidates: true,
+            skip: [0; 2],
+        })
         .collect();
-    (values, live.iter().map(|&i| y[i]).collect())
+    confirm_many(&spec.settings, &proposals)
 }
 
 /// Runs `points` with early termination, keeping samples (bifurcation diagrams).
@@ -100,8 +145,8 @@ pub fn run(
     progress: &dyn Progress,
 ) -> Result<Adaptive, GpuError> {
     let n = points.len();
-    let nv = points.vary.len();
     let mut y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
+    let mut modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
     let mut live: Vec<usize> = (0..n).collect();
     let mut diag = vec![Diagnostics::default(); n];
     let mut done: Vec<Option<(RunResult, Verdict)>> = vec![None; n];
@@ -115,12 +160,8 @@ pub fn run(
             break;
         }
         let round = round_spec(spec, t, w);
-        let (values, states) = subset(points, &live, &y);
-        let sub = Points {
-            vary: points.vary,
-            values: if nv == 0 { points.values } else { &values },
-            y0s: Some(&states),
-        };
+        let lv = Live::new(points, &live, &y, &modes);
+        let sub = lv.points(points);
         let (rs, tm) = engine.run(&round, &sub, progress)?;
         timings.integration_s += tm.integration_s;
         elapsed += t + w;
@@ -134,12 +175,13 @@ pub fn run(
             .map(|((r, &i), &class)| Proposal {
                 params: params(i),
                 run: r,
-                use_samples: true,
                 class,
+                candidates: false,
+                skip: [0; 2],
             })
             .collect();
         let tn = Instant::now();
-        let mut verdicts = confirm_many(&spec.settings, &proposals, spec.lyapunov_tol).into_iter();
+        let mut verdicts = confirm_many(&spec.settings, &proposals).into_iter();
         newton_s += tn.elapsed().as_secs_f64();
         let decided: Vec<Option<(RunResult, Verdict)>> = rs
             .iter()
@@ -161,6 +203,7 @@ pub fn run(
                 }
                 None => {
                     y[i] = r.final_y;
+                    modes[i] = Some(r.final_mode);
                     next.push(i);
                 }
             }
@@ -169,28 +212,12 @@ pub fn run(
     }
     if !live.is_empty() {
         let last = final_spec(spec, elapsed);
-        let (values, states) = subset(points, &live, &y);
-        let sub = Points {
-            vary: points.vary,
-            values: if nv == 0 { points.values } else { &values },
-            y0s: Some(&states),
-        };
+        let lv = Live::new(points, &live, &y, &modes);
+        let sub = lv.points(points);
         let (rs, tm) = engine.run(&last, &sub, progress)?;
         timings.integration_s += tm.integration_s;
-        let proposals: Vec<Proposal> = rs
-            .iter()
-            .zip(&live)
-            .map(|(r, &i)| Proposal {
-                params: params(i),
-                run: r,
-                use_samples: true,
-                class: r
-                    .class(spec.period_tol)
-                    .with_lyapunov(r.lyapunov, spec.lyapunov_tol),
-            })
-            .collect();
         let tn = Instant::now();
-        let verdicts = confirm_many(&spec.settings, &proposals, spec.lyapunov_tol);
+        let verdicts = decide_all(spec, points, &rs, &live);
         newton_s += tn.elapsed().as_secs_f64();
         for ((mut r, v), &i) in rs.into_iter().zip(verdicts).zip(&live) {
             add(&mut diag[i], &r.diag);
@@ -199,10 +226,20 @@ pub fn run(
             done[i] = Some((r, v));
         }
     }
-    let (results, verdicts) = done
+    let (mut results, mut verdicts): (Vec<RunResult>, Vec<Verdict>) = done
         .into_iter()
         .map(|d| d.expect("every point decided or finished"))
         .unzip();
+    let tm = extend(
+        engine,
+        spec,
+        points,
+        &mut results,
+        &mut verdicts,
+        &mut periods,
+        progress,
+    )?;
+    timings.integration_s += tm.integration_s;
     Ok(Adaptive {
         results,
         verdicts,
@@ -254,67 +291,123 @@ fn decide(
             Verdict {
                 class: Class::NoImpact,
                 cycle: None,
+                rule: crate::classify::Rule::NoImpact,
+                tried: Vec::new(),
             },
         )),
         _ => None,
     }
 }
 
-/// [`run`] for maps: no samples are kept, and the engine's summaries (whose classes are
-/// already confirmed by the multipliers) decide.
+/// The extra windows of sampled periods an undecided point gets after the configured run (the
+/// adaptive horizon): doubling from twice the sampled window, until the point has had
+/// `spec.horizon` times the configured periods (transient + sampled) in all.
+pub fn extensions(spec: &RunSpec) -> Vec<u32> {
+    let cap = u64::from(spec.periods()) * u64::from(spec.horizon.max(1));
+    let mut used = u64::from(spec.periods());
+    let mut w = u64::from(spec.samples);
+    let mut out = Vec::new();
+    // A window shorter than two blocks per half gives no error bar worth the time.
+    let least = 4 * u64::from(crate::classify::BLOCKS);
+    while used < cap {
+        w = (2 * w).min(cap - used);
+        if w < least {
+            break;
+        }
+        out.push(w as u32);
+        used += w;
+    }
+    out
+}
+
+/// One stage of [`run_summaries`].
+#[derive(Clone, Copy)]
+enum Stage {
+    /// An early round (transient, window): only confirmed cycles leave.
+    Early(u32, u32),
+    /// The rest of the transient and the configured sampling: every decided point leaves.
+    Final,
+    /// More sampled periods for the undecided (the adaptive horizon).
+    Extra(u32),
+}
+
+/// [`run`] for maps: no samples are kept, and the engine's summaries (decided by
+/// [`crate::stability::confirm`]) say which points leave. With `early` the points run the early
+/// rounds first; every point then runs the configured stretch, and a point still undecided
+/// gets the windows of [`extensions`], and is `unresolved` only after the last of them.
 pub fn run_summaries(
     engine: &Engine,
     spec: &RunSpec,
     points: &Points,
+    early: bool,
     progress: &dyn Progress,
 ) -> Result<(Vec<Summary>, Timings), GpuError> {
     let n = points.len();
-    let nv = points.vary.len();
     let mut y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
+    let mut modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
     let mut live: Vec<usize> = (0..n).collect();
     let mut diag = vec![Diagnostics::default(); n];
     let mut done: Vec<Option<Summary>> = vec![None; n];
     let mut timings = Timings::default();
     let mut elapsed = 0u32;
     let params = |i: usize| points.params(&spec.params, i);
-    let rounds = rounds(spec.transient);
-    let finals = rounds.len();
-    for (k, (t, w)) in rounds
-        .into_iter()
-        .chain(std::iter::once((0, 0)))
-        .enumerate()
-    {
+    let mut pools = vec![Pool::default(); n];
+    // The candidate periods each live point tried in vain in its last window.
+    let mut skip = vec![[0u32; 2]; n];
+    let mut stages: Vec<Stage> = if early {
+        rounds(spec.transient)
+            .into_iter()
+            .map(|(t, w)| Stage::Early(t, w))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    stages.push(Stage::Final);
+    stages.extend(extensions(spec).into_iter().map(Stage::Extra));
+    let last_stage = stages.len() - 1;
+    for (k, stage) in stages.into_iter().enumerate() {
         if live.is_empty() {
             break;
         }
-        let last = k == finals;
-        let round = if last {
-            final_spec(spec, elapsed)
-        } else {
-            round_spec(spec, t, w)
+        let round = match stage {
+            Stage::Early(t, w) => round_spec(spec, t, w),
+            Stage::Final => final_spec(spec, elapsed),
+            Stage::Extra(w) => RunSpec {
+                transient: 0,
+                samples: w,
+                ..spec.clone()
+            },
         };
-        let (values, states) = subset(points, &live, &y);
-        let sub = Points {
-            vary: points.vary,
-            values: if nv == 0 { points.values } else { &values },
-            y0s: Some(&states),
-        };
-        let (ss, tm) = engine.run_summaries(&round, &sub, progress)?;
+        let lv = Live::new(points, &live, &y, &modes);
+        let sub = lv.points(points);
+        let mut live_pools: Vec<Pool> = live.iter().map(|&i| pools[i]).collect();
+        let live_skip: Vec<[u32; 2]> = live.iter().map(|&i| skip[i]).collect();
+        let (ss, tm) = engine.run_summaries(&round, &sub, &mut live_pools, &live_skip, progress)?;
+        for (&i, p) in live.iter().zip(live_pools) {
+            pools[i] = p;
+        }
         timings.integration_s += tm.integration_s;
         elapsed += round.transient + round.samples;
         let mut next = Vec::with_capacity(live.len());
         for (mut s, &i) in ss.into_iter().zip(&live) {
             add(&mut diag[i], &s.diag);
-            if last || matches!(s.class, Class::Periodic(_)) {
-                if !last {
+            let leaves = match stage {
+                Stage::Early(..) => matches!(s.class, Class::Periodic(_)),
+                _ => k == last_stage || s.rule != crate::classify::Rule::Undecided,
+            };
+            if leaves {
+                if let Stage::Early(..) = stage {
                     let n = s.class.period().unwrap_or(1);
                     s.lyapunov = floquet_exponent(s.multiplier, n, &params(i));
+                    s.lyapunov_se = 0.0;
                 }
                 s.diag = diag[i];
                 s.periods = elapsed;
                 done[i] = Some(s);
             } else {
                 y[i] = s.final_y;
+                modes[i] = Some(s.final_mode);
+                skip[i] = s.tried;
                 next.push(i);
             }
         }
@@ -325,4 +418,56 @@ pub fn run_summaries(
         .map(|d| d.expect("every point decided or finished"))
         .collect();
     Ok((out, timings))
+}
+
+/// Gives the undecided points of a finished run that kept its samples (`results[i]` with its
+/// `verdicts[i]`, after `periods[i]` periods) the windows of [`extensions`], as
+/// [`run_summaries`] does for maps: each window continues from where the point stopped and
+/// replaces its samples and evidence; the point leaves once decided.
+pub fn extend(
+    engine: &Engine,
+    spec: &RunSpec,
+    points: &Points,
+    results: &mut [RunResult],
+    verdicts: &mut [Verdict],
+    periods: &mut [u32],
+    progress: &dyn Progress,
+) -> Result<Timings, GpuError> {
+    let mut timings = Timings::default();
+    let mut pools = vec![Pool::default(); results.len()];
+    for (r, p) in results.iter().zip(&mut pools) {
+        p.add(r.lyapunov, r.lyapunov_se);
+    }
+    for w in extensions(spec) {
+        let live: Vec<usize> = (0..results.len())
+            .filter(|&i| verdicts[i].rule == crate::classify::Rule::Undecided)
+            .collect();
+        if live.is_empty() {
+            break;
+        }
+        let y: Vec<[f64; 4]> = results.iter().map(|r| r.final_y).collect();
+        let modes: Vec<Option<Mode>> = results.iter().map(|r| Some(r.final_mode)).collect();
+        let lv = Live::new(points, &live, &y, &modes);
+        let sub = lv.points(points);
+        let window = RunSpec {
+            transient: 0,
+            samples: w,
+            ..spec.clone()
+        };
+        let (mut rs, tm) = engine.run(&window, &sub, progress)?;
+        timings.integration_s += tm.integration_s;
+        for (r, &i) in rs.iter_mut().zip(&live) {
+            r.pool(&mut pools[i]);
+        }
+        let vs = decide_all(spec, points, &rs, &live);
+        for ((mut r, v), &i) in rs.into_iter().zip(vs).zip(&live) {
+            let mut d = results[i].diag;
+            add(&mut d, &r.diag);
+            r.diag = d;
+            results[i] = r;
+            verdicts[i] = v;
+            periods[i] += w;
+        }
+    }
+    Ok(timings)
 }

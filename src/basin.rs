@@ -340,17 +340,7 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
         let verdicts: Vec<(Class, Option<Cycle>, f64)> = results
             .par_iter()
             .map(|r: &RunResult| {
-                let proposal = r
-                    .class(spec.period_tol)
-                    .with_lyapunov(r.lyapunov, spec.lyapunov_tol);
-                let v = confirm(
-                    &spec.params,
-                    &spec.settings,
-                    r,
-                    true,
-                    proposal,
-                    spec.lyapunov_tol,
-                );
+                let v = confirm(&spec.params, &spec.settings, r, r.class(spec.period_tol));
                 (v.class, v.cycle, r.impacts_per_period())
             })
             .collect();

@@ -27,7 +27,10 @@ fn run_typed<F: Real>(spec: &RunSpec, points: &Points, progress: &dyn Progress) 
                 .map(|&i| Integrator::<F>::new(&points.params(&spec.params, i), &spec.settings))
                 .collect();
             let y0s: Vec<[f64; 4]> = chunk.iter().map(|&i| points.y0(spec, i)).collect();
-            let r = run_lanes(&its, &y0s, spec.transient, spec.samples);
+            let modes: Option<Vec<_>> = points
+                .modes
+                .map(|_| chunk.iter().filter_map(|&i| points.mode0(i)).collect());
+            let r = run_lanes(&its, &y0s, modes.as_deref(), spec.transient, spec.samples);
             progress.advance(chunk.len() as u64);
             r
         })
@@ -41,11 +44,9 @@ pub fn run_scalar(spec: &RunSpec, points: &Points) -> Vec<RunResult> {
         (0..points.len())
             .into_par_iter()
             .map(|i| {
-                Integrator::<F>::new(&points.params(&spec.params, i), &spec.settings).run(
-                    points.y0(spec, i),
-                    spec.transient,
-                    spec.samples,
-                )
+                let it = Integrator::<F>::new(&points.params(&spec.params, i), &spec.settings);
+                let mut st = it.start_in(points.y0(spec, i), points.mode0(i));
+                it.run_from(&mut st, spec.transient, spec.samples)
             })
             .collect()
     }

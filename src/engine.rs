@@ -1,7 +1,7 @@
 //! Backend selection and running a set of parameter points on it: the GPU kernel by default,
 //! the CPU twin on request or as the fallback when no adapter exists.
 
-use crate::classify::Class;
+use crate::classify::{Class, Pool, Rule};
 use crate::config::Backend;
 use crate::gpu::{Gpu, GpuError, Job, Timings};
 use crate::method::{Diagnostics, RunResult};
@@ -26,57 +26,52 @@ pub struct Summary {
     /// Largest Floquet multiplier modulus of the confirmed (stable) cycle; NaN where the class
     /// is not periodic.
     pub multiplier: f64,
+    /// Standard error of `lyapunov` (batch means; NaN without it).
+    pub lyapunov_se: f64,
+    /// Agreeing digits of the torus test (NaN without two full halves).
+    pub torus: f64,
+    /// The rule that decided the class.
+    pub rule: Rule,
+    /// The periods Newton tried (0: none).
+    pub tried: [u32; 2],
     pub diag: Diagnostics,
     pub final_y: [f64; 4],
+    pub final_mode: crate::model::Mode,
     /// Forcing periods integrated.
     pub periods: u32,
 }
 
 impl Summary {
-    /// `class` comes from the period detector, refined by the exponent; the multipliers of
-    /// the Newton-refined cycle decide ([`crate::stability::confirm`]). The summary keeps no
-    /// samples, so a point without a period gets its Newton trial at period 1.
+    /// The summary of run `r` whose strict detector said `detected`, decided by
+    /// [`crate::stability::confirm`] (the same evidence and rule as every command).
     pub fn new(
-        class: Class,
+        detected: Class,
         r: &RunResult,
         samples: usize,
         spec: &RunSpec,
         params: &crate::model::Params<f64>,
     ) -> Summary {
-        let proposal = class.with_lyapunov(r.lyapunov, spec.lyapunov_tol);
-        let v = confirm(
-            params,
-            &spec.settings,
-            r,
-            false,
-            proposal,
-            spec.lyapunov_tol,
-        );
+        let v = confirm(params, &spec.settings, r, detected);
         Summary::of(v, r, samples, spec)
     }
 
-    /// [`Summary::new`] of every point of a run (`classes[i]` for `results[i]`, which kept
+    /// [`Summary::new`] of every point of a run (`detected[i]` for `results[i]`, which kept
     /// `samples(r)` samples), the same summaries bit for bit, with the Newton trials on the
     /// lanes ([`confirm_all`]).
     pub fn many(
-        classes: &[Class],
+        detected: &[Class],
         results: &[RunResult],
         samples: impl Fn(&RunResult) -> usize,
         spec: &RunSpec,
         points: &Points,
+        skip: &[[u32; 2]],
     ) -> Vec<Summary> {
-        let proposals: Vec<Class> = results
-            .iter()
-            .zip(classes)
-            .map(|(r, c)| c.with_lyapunov(r.lyapunov, spec.lyapunov_tol))
-            .collect();
         confirm_all(
             |i| points.params(&spec.params, i),
             &spec.settings,
             results,
-            &proposals,
-            false,
-            spec.lyapunov_tol,
+            detected,
+            skip,
         )
         .into_iter()
         .zip(results)
@@ -89,13 +84,19 @@ impl Summary {
             (Class::Periodic(_), Some(c)) => c.leading_modulus(),
             _ => f64::NAN,
         };
+        let tried = [0, 1].map(|k| v.tried.get(k).copied().unwrap_or(0));
         Summary {
             class: v.class,
             impacts_per_period: r.sample_impacts as f64 / samples.max(1) as f64,
             lyapunov: r.lyapunov,
             multiplier,
+            lyapunov_se: r.lyapunov_se,
+            torus: r.torus,
+            rule: v.rule,
+            tried,
             diag: r.diag,
             final_y: r.final_y,
+            final_mode: r.final_mode,
             periods: spec.periods(),
         }
     }
@@ -180,11 +181,15 @@ impl Engine {
 
     /// Runs points and keeps only their class, exponent and diagnostics (no samples), so that
     /// maps of millions of points fit in memory. Classes use the Lyapunov exponent when the
-    /// spec estimates it.
+    /// spec estimates it. `pools` (one per point, or empty) carries each point's exponent over
+    /// the windows it ran before: the summaries decide with the pooled exponent; `skip` (one per
+    /// point, or empty) names candidate periods a point tried in vain before.
     pub fn run_summaries(
         &self,
         spec: &RunSpec,
         points: &Points,
+        pools: &mut [Pool],
+        skip: &[[u32; 2]],
         progress: &dyn Progress,
     ) -> Result<(Vec<Summary>, Timings), GpuError> {
         match self {
@@ -200,8 +205,11 @@ impl Engine {
                         if r.diag.nonfinite { Class::Failed } else { *c }
                     })
                     .collect();
+                for (r, p) in out.results.iter_mut().zip(pools.iter_mut()) {
+                    r.pool(p);
+                }
                 let samples = spec.samples as usize;
-                let s = Summary::many(&classes, &out.results, |_| samples, spec, points);
+                let s = Summary::many(&classes, &out.results, |_| samples, spec, points, skip);
                 Ok((s, out.timings))
             }
             Engine::Cpu => {
@@ -210,9 +218,16 @@ impl Engine {
                 let mut out = Vec::with_capacity(n);
                 for start in (0..n).step_by(CPU_BLOCK) {
                     let block = points.slice(start, (start + CPU_BLOCK).min(n));
-                    let (rs, _) = self.run(spec, &block, progress)?;
+                    let (mut rs, _) = self.run(spec, &block, progress)?;
+                    let end = (start + CPU_BLOCK).min(pools.len());
+                    if start < end {
+                        for (r, p) in rs.iter_mut().zip(&mut pools[start..end]) {
+                            r.pool(p);
+                        }
+                    }
                     let classes: Vec<Class> = rs.iter().map(|r| r.class(spec.period_tol)).collect();
-                    let sums = Summary::many(&classes, &rs, |r| r.samples.len(), spec, &block);
+                    let sk = &skip[start.min(skip.len())..(start + CPU_BLOCK).min(skip.len())];
+                    let sums = Summary::many(&classes, &rs, |r| r.samples.len(), spec, &block, sk);
                     out.extend(sums);
                 }
                 let timings = Timings {
@@ -238,10 +253,12 @@ fn rerun_on_cpu(spec: &RunSpec, points: &Points, out: &mut crate::gpu::GpuOutput
         .flat_map(|&i| points.values[i * nv..(i + 1) * nv].iter().copied())
         .collect();
     let y0s: Vec<[f64; 4]> = idx.iter().map(|&i| points.y0(spec, i)).collect();
+    let modes: Option<Vec<_>> = idx.iter().map(|&i| points.mode0(i)).collect();
     let sub = Points {
         vary: points.vary,
         values: if nv == 0 { points.values } else { &values },
         y0s: Some(&y0s),
+        modes: modes.as_deref(),
     };
     eprintln!(
         "warning: {} point(s) exceeded the GPU driver's loop budget and were computed by the \

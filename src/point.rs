@@ -25,6 +25,17 @@ pub struct PointReport {
     pub period: Option<u32>,
     pub impacts_per_period: f64,
     pub lyapunov: f64,
+    /// Standard error of `lyapunov` by batch means over the last sampled window.
+    pub lyapunov_se: f64,
+    /// Agreeing digits of the torus test (weighted Birkhoff averages of y1 over the two
+    /// halves of the last sampled window).
+    pub torus_digits: f64,
+    /// The rule that decided the class.
+    pub rule: crate::classify::Rule,
+    /// The periods Newton tried, in order.
+    pub tried_periods: Vec<u32>,
+    /// Forcing periods integrated (more than configured where the point was undecided).
+    pub periods: u32,
     /// All four Lyapunov exponents per unit time (tangent dynamics, CPU f64, over the sampled
     /// periods from the final state), largest first; a stick or lock removes directions
     /// exactly, and the exponents of removed directions then only say "very negative".
@@ -53,17 +64,25 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     let t = Instant::now();
     let (mut rs, _) = engine.run(&spec, &Points::single(), progress)?;
     let r: RunResult = rs.pop().expect("one point, one result");
-    let proposal = r
-        .class(cfg.run.period_tol)
-        .with_lyapunov(r.lyapunov, spec.lyapunov_tol);
     let verdict = confirm(
         &spec.params,
         &spec.settings,
         &r,
-        true,
-        proposal,
-        spec.lyapunov_tol,
+        r.class(cfg.run.period_tol),
     );
+    // An undecided point gets the adaptive horizon, as a map cell does.
+    let (mut results, mut verdicts, mut periods) = ([r], [verdict], [spec.periods()]);
+    crate::adaptive::extend(
+        engine,
+        &spec,
+        &Points::single(),
+        &mut results,
+        &mut verdicts,
+        &mut periods,
+        progress,
+    )?;
+    let [r] = results;
+    let [verdict] = verdicts;
     let class: Class = verdict.class;
     let lyapunov_spectrum = if tangent != Tangent::Spectrum {
         None
@@ -83,6 +102,11 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         period: class.period(),
         impacts_per_period: r.impacts_per_period(),
         lyapunov: r.lyapunov,
+        lyapunov_se: r.lyapunov_se,
+        torus_digits: r.torus,
+        rule: verdict.rule,
+        tried_periods: verdict.tried.clone(),
+        periods: periods[0],
         lyapunov_spectrum,
         multipliers: verdict
             .cycle
@@ -111,7 +135,17 @@ impl fmt::Display for PointReport {
             self.period.map_or("-".into(), |n| n.to_string())
         )?;
         writeln!(f, "impacts per period {:.4}", self.impacts_per_period)?;
-        writeln!(f, "lyapunov exponent  {:.5} (per unit time)", self.lyapunov)?;
+        writeln!(
+            f,
+            "lyapunov exponent  {:.5} +- {:.5} (per unit time, standard error)",
+            self.lyapunov, self.lyapunov_se
+        )?;
+        writeln!(f, "torus test         {:.1} digits", self.torus_digits)?;
+        writeln!(
+            f,
+            "decided by         {:?} after {} periods (Newton tried {:?})",
+            self.rule, self.periods, self.tried_periods
+        )?;
         if let Some(s) = &self.lyapunov_spectrum {
             let spec: Vec<String> = s.iter().map(|l| format!("{l:.5}")).collect();
             writeln!(

@@ -5,7 +5,7 @@
 
 use crate::config::{Config, Precision};
 use crate::method::Settings;
-use crate::model::{Param, Params};
+use crate::model::{Mode, Param, Params};
 
 /// How every point of a run is integrated.
 #[derive(Clone, Debug)]
@@ -21,6 +21,9 @@ pub struct RunSpec {
     pub period_tol: f64,
     /// |Lyapunov exponent| below this counts as zero.
     pub lyapunov_tol: f64,
+    /// An undecided point may run this many times the configured periods in all
+    /// (`run.horizon`, [`crate::adaptive::extensions`]).
+    pub horizon: u32,
     pub precision: Precision,
 }
 
@@ -34,6 +37,7 @@ impl RunSpec {
             samples: cfg.run.sample_periods,
             period_tol: cfg.run.period_tol,
             lyapunov_tol: cfg.run.lyapunov_tol,
+            horizon: cfg.run.horizon,
             precision: cfg.method.precision,
         }
     }
@@ -64,6 +68,10 @@ pub struct Points<'a> {
     /// `len() * vary.len()` numbers, point-major.
     pub values: &'a [f64],
     pub y0s: Option<&'a [[f64; 4]]>,
+    /// Optionally the motion mode each initial state is in (a continued run resumes in the
+    /// mode it stopped in, so that it follows the same path as one uninterrupted run); without
+    /// it, the at-rest rule decides from the state.
+    pub modes: Option<&'a [Mode]>,
 }
 
 impl<'a> Points<'a> {
@@ -73,6 +81,7 @@ impl<'a> Points<'a> {
             vary: &[],
             values: &[],
             y0s: None,
+            modes: None,
         }
     }
 
@@ -82,6 +91,7 @@ impl<'a> Points<'a> {
             vary,
             values,
             y0s: None,
+            modes: None,
         }
     }
 
@@ -91,6 +101,7 @@ impl<'a> Points<'a> {
             vary: &[],
             values: &[],
             y0s: Some(y0s),
+            modes: None,
         }
     }
 
@@ -124,6 +135,7 @@ impl<'a> Points<'a> {
                 &self.values[a * nv..b * nv]
             },
             y0s: self.y0s.map(|y| &y[a..b]),
+            modes: self.modes.map(|m| &m[a..b]),
         }
     }
 
@@ -139,5 +151,10 @@ impl<'a> Points<'a> {
     /// Initial state of point `i`.
     pub fn y0(&self, spec: &RunSpec, i: usize) -> [f64; 4] {
         self.y0s.map_or(spec.y0, |y| y[i])
+    }
+
+    /// Mode of point `i`'s initial state, where given.
+    pub fn mode0(&self, i: usize) -> Option<Mode> {
+        self.modes.map(|m| m[i])
     }
 }

@@ -7,171 +7,153 @@
 //! it judges the backend's answer with the reference arithmetic (an f32 round-off cycle near an
 //! unstable orbit converges to that orbit, whose multipliers reject it).
 
-use crate::classify::Class;
+use crate::classify::{Candidate, Class, Rule, approaches, conclude, proposals};
 use crate::method::{FlowTask, Integrator, PointState, RunResult, Settings};
 use crate::model::{Param, Params};
-use crate::tangent::{Cycle, Refine, Tangent, modulus, refine, run_parallel};
+use crate::tangent::{Cycle, Refine, Tangent, modulus, run_parallel};
 use serde::Serialize;
-
-/// Longest period tried for a point the detector left without one.
-pub const MAX_TRIAL_PERIOD: usize = 16;
 
 /// A point's class after the multipliers had their say, and the cycle behind it.
 #[derive(Clone, Debug)]
 pub struct Verdict {
     pub class: Class,
-    /// The refined cycle: stable for `period-n`; an unstable cycle the detector proposed (or
-    /// the trailing window suggested) otherwise; `None` where no cycle was tried.
+    /// The refined cycle: stable for `period-n`; otherwise the first cycle tried (unstable or
+    /// not converged); `None` where no cycle was tried.
     pub cycle: Option<Cycle>,
+    /// The rule of [`crate::classify::conclude`] that decided.
+    pub rule: Rule,
+    /// The periods Newton tried, in order.
+    pub tried: Vec<u32>,
 }
 
-/// Confirms or rejects the detector's `proposal` for the run `r` of parameters `p`.
-///
-/// - `period-n`: Newton from the final state; stable => `period-m` (m the least period),
-///   otherwise the point is aperiodic and its exponent (if any) decides the class.
-/// - aperiodic, quasi-periodic or unresolved (not chaotic by its exponent): the trailing window
-///   of samples proposes the lag n that repeats best (n = 1 without enough samples, or when
-///   `use_samples` is false: maps decide without samples so that every backend decides alike),
-///   and a stable cycle found by Newton from the final state makes the point `period-n` (a
-///   slow transient or an early miss).
-pub fn confirm(
-    p: &Params<f64>,
-    settings: &Settings,
-    r: &RunResult,
-    use_samples: bool,
-    proposal: Class,
-    lyapunov_tol: f64,
-) -> Verdict {
-    match trial(r, use_samples, proposal) {
-        None => Verdict {
-            class: proposal,
-            cycle: None,
-        },
-        Some((start, n)) => {
-            let c = refine(&Integrator::<f64>::new(p, settings), &start, n);
-            judge(r, proposal, c, lyapunov_tol)
-        }
-    }
+/// Decides the run `r` of parameters `p` whose strict detector said `detected`: Newton's method
+/// tries the periods [`proposals`] names (the detector's, then the candidates of the last
+/// section values) from the final state, in f64 on the CPU, and [`conclude`] weighs the
+/// stable cycle it found, if any, with the exponent and the torus test. Every command decides
+/// through here, so the same evidence gives the same class whatever the command.
+pub fn confirm(p: &Params<f64>, settings: &Settings, r: &RunResult, detected: Class) -> Verdict {
+    confirm_many(
+        settings,
+        &[Proposal {
+            params: *p,
+            run: r,
+            class: detected,
+            candidates: true,
+            skip: [0; 2],
+        }],
+    )
+    .pop()
+    .expect("one point, one verdict")
 }
 
 /// A point for [`confirm_many`]: the arguments of [`confirm`] that differ between points.
 pub struct Proposal<'a> {
     pub params: Params<f64>,
     pub run: &'a RunResult,
-    pub use_samples: bool,
+    /// The strict detector's class.
     pub class: Class,
+    /// Whether the candidate periods are tried too (the adaptive loop's early rounds try the
+    /// detector's period only: a point they leave undecided runs on anyway).
+    pub candidates: bool,
+    /// Candidate periods not to try again (those a continued point tried in its previous
+    /// window without finding its cycle; 0: none).
+    pub skip: [u32; 2],
 }
 
-/// [`confirm`] of many points, the same verdicts bit for bit: their Newton trials run
-/// [`LANES`](crate::method::LANES) at a time on the lanes of [`run_flows`], in parallel.
-pub fn confirm_many(settings: &Settings, points: &[Proposal], lyapunov_tol: f64) -> Vec<Verdict> {
-    let (idx, tasks): (Vec<usize>, Vec<Refine>) = points
+/// [`confirm`] of many points: their Newton trials run [`LANES`](crate::method::LANES) at a
+/// time on the lanes of [`run_flows`], in parallel, one pass per proposed period (a point
+/// leaves once a stable cycle is found).
+pub fn confirm_many(settings: &Settings, points: &[Proposal]) -> Vec<Verdict> {
+    let periods: Vec<Vec<(u32, Option<Candidate>)>> = points
         .iter()
-        .enumerate()
-        .filter_map(|(i, q)| {
-            let (start, n) = trial(q.run, q.use_samples, q.class)?;
-            let it = Integrator::<f64>::new(&q.params, settings);
-            Some((i, Refine::new(it, &start, n)))
+        .map(|q| {
+            let r = q.run;
+            if r.diag.nonfinite || !r.final_y.iter().all(|v| v.is_finite()) {
+                return Vec::new();
+            }
+            let mut p = proposals(&r.evidence(q.class));
+            if !q.candidates {
+                p.truncate(q.class.period().map_or(0, |_| 1));
+            }
+            p.retain(|t| t.1.is_none() || !q.skip.contains(&t.0));
+            p
         })
-        .unzip();
-    let tasks = run_parallel(tasks, |t| u64::from(t.period()));
-    let mut cycles: Vec<Option<Cycle>> = vec![None; points.len()];
-    for (i, t) in idx.into_iter().zip(tasks) {
-        cycles[i] = Some(t.cycle());
+        .collect();
+    let mut first: Vec<Option<Cycle>> = vec![None; points.len()];
+    let mut stable: Vec<Option<Cycle>> = vec![None; points.len()];
+    let mut tried: Vec<Vec<u32>> = vec![Vec::new(); points.len()];
+    let passes = periods.iter().map(Vec::len).max().unwrap_or(0);
+    for pass in 0..passes {
+        let (idx, tasks): (Vec<usize>, Vec<Refine>) = points
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| stable[i].is_none())
+            .filter_map(|(i, q)| {
+                let n = periods[i].get(pass)?.0;
+                let start = PointState {
+                    y: q.run.final_y,
+                    mode: q.run.final_mode,
+                    diag: Default::default(),
+                };
+                let it = Integrator::<f64>::new(&q.params, settings);
+                Some((i, Refine::new(it, &start, n)))
+            })
+            .unzip();
+        let tasks = run_parallel(tasks, |t| u64::from(t.period()));
+        for (i, t) in idx.into_iter().zip(tasks) {
+            let cand = periods[i][pass].1;
+            tried[i].push(t.period());
+            let c = t.cycle();
+            let r = points[i].run;
+            let on_it = |cand: &Candidate| {
+                approaches(&r.tail, &r.final_y, cand, &c.point, c.leading_modulus())
+            };
+            if c.is_stable() && cand.as_ref().is_none_or(on_it) {
+                stable[i] = Some(c);
+            } else if first[i].is_none() {
+                first[i] = Some(c);
+            }
+        }
     }
     points
         .iter()
-        .zip(cycles)
-        .map(|(q, c)| match c {
-            Some(c) => judge(q.run, q.class, c, lyapunov_tol),
-            None => Verdict {
-                class: q.class,
-                cycle: None,
-            },
+        .enumerate()
+        .map(|(i, q)| {
+            let found = stable[i].take();
+            let (class, rule) =
+                conclude(&q.run.evidence(q.class), found.as_ref().map(|c| c.period));
+            Verdict {
+                class,
+                cycle: found.or(first[i].take()),
+                rule,
+                tried: std::mem::take(&mut tried[i]),
+            }
         })
         .collect()
 }
 
-/// The Newton trial [`confirm`] makes (start state and period), `None` where the proposal
-/// stands as it is.
-fn trial(r: &RunResult, use_samples: bool, proposal: Class) -> Option<(PointState<f64>, u32)> {
-    let tried = match proposal {
-        Class::Failed | Class::NoImpact | Class::Chaotic => return None,
-        Class::Periodic(n) => n,
-        _ if use_samples => trailing_lag(&r.samples).unwrap_or(1),
-        // Without samples and without an exponent nothing suggests a cycle nearby.
-        Class::Aperiodic => return None,
-        _ => 1,
-    };
-    if r.diag.nonfinite || !r.final_y.iter().all(|v| v.is_finite()) {
-        return None;
-    }
-    Some((
-        PointState {
-            y: r.final_y,
-            mode: r.final_mode,
-            diag: Default::default(),
-        },
-        tried,
-    ))
-}
-
-/// The verdict on `proposal` once its Newton trial gave `c`.
-fn judge(r: &RunResult, proposal: Class, c: Cycle, lyapunov_tol: f64) -> Verdict {
-    let class = if c.is_stable() {
-        Class::Periodic(c.period)
-    } else if let Class::Periodic(_) = proposal {
-        Class::Aperiodic.with_lyapunov(r.lyapunov, lyapunov_tol)
-    } else {
-        proposal
-    };
-    Verdict {
-        class,
-        cycle: Some(c),
-    }
-}
-
-/// The lag n <= [`MAX_TRIAL_PERIOD`] over which the last samples repeat best (smallest largest
-/// difference |x_k - x_(k-n)| over a trailing window of 32 samples); `None` with too few
-/// samples.
-pub fn trailing_lag(samples: &[[f64; 4]]) -> Option<u32> {
-    let len = samples.len();
-    let window = 32;
-    (1..=MAX_TRIAL_PERIOD)
-        .filter(|n| len >= window + n)
-        .map(|n| {
-            let d = (len - window..len)
-                .flat_map(|k| (0..4).map(move |i| (k, i)))
-                .map(|(k, i)| (samples[k][i] - samples[k - n][i]).abs())
-                .fold(0.0f64, f64::max);
-            (n, d)
-        })
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(n, _)| n as u32)
-}
-
-/// [`confirm`] for every point of a run (`params(i)` and `proposals[i]` for `results[i]`),
-/// the Newton trials on the lanes ([`confirm_many`]).
+/// [`confirm`] for every point of a run (`params(i)` and the detector's `classes[i]` for
+/// `results[i]`), the Newton trials on the lanes ([`confirm_many`]).
 pub fn confirm_all(
     params: impl Fn(usize) -> Params<f64>,
     settings: &Settings,
     results: &[RunResult],
-    proposals: &[Class],
-    use_samples: bool,
-    lyapunov_tol: f64,
+    classes: &[Class],
+    skip: &[[u32; 2]],
 ) -> Vec<Verdict> {
     let points: Vec<Proposal> = results
         .iter()
-        .zip(proposals)
+        .zip(classes)
         .enumerate()
         .map(|(i, (r, c))| Proposal {
             params: params(i),
             run: r,
-            use_samples,
             class: *c,
+            candidates: true,
+            skip: skip.get(i).copied().unwrap_or([0; 2]),
         })
         .collect();
-    confirm_many(settings, &points, lyapunov_tol)
+    confirm_many(settings, &points)
 }
 
 /// Kind of a bifurcation point along a sweep.

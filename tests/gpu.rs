@@ -10,7 +10,10 @@ use rattle::model::{Param, Params};
 use rattle::progress::Silent;
 use rattle::real::Real;
 use rattle::spec::{Points, RunSpec};
+use rattle::stability::confirm;
 use std::sync::{Mutex, OnceLock};
+
+mod common;
 
 /// One device for all tests of this binary (adapters are slow to open; tests run serially
 /// on it through the mutex).
@@ -41,6 +44,7 @@ fn eta_spec(s: Settings, transient: u32, samples: u32, f64: bool) -> RunSpec {
         samples,
         period_tol: 1e-4,
         lyapunov_tol: 0.01,
+        horizon: 1,
         precision: if f64 { Precision::F64 } else { Precision::F32 },
     }
 }
@@ -226,38 +230,65 @@ fn non_finite_parameters_fail_the_point_only() {
 
 #[test]
 fn lyapunov_exponents_and_classes_agree_with_cpu() {
-    // Chaotic, periodic, quasi-periodic (just past the Neimark-Sacker point) and chaotic again.
-    let etas = [1.10, 1.50, 1.71, 1.74];
-    let want = [
-        Class::Chaotic,
-        Class::Periodic(1),
-        Class::QuasiPeriodic,
-        Class::Chaotic,
+    // Chaotic, periodic, a slowly contracting cycle just before the Neimark-Sacker point (|mu|
+    // = 0.994, a complex pair: the detector misses it, a candidate period whose near-repeats
+    // shrink as the multiplier predicts is confirmed by Newton) and chaotic again; then the
+    // torus just past the point, which needs a long run for its torus test. Every class from
+    // the evidence of each backend by the one classifier (stability::confirm).
+    let cases: [(&[f64], u32, u32, &[Class]); 2] = [
+        (
+            &[1.10, 1.50, 1.71, 1.74],
+            500,
+            400,
+            &[
+                Class::Chaotic,
+                Class::Periodic(1),
+                Class::Periodic(1),
+                Class::Chaotic,
+            ],
+        ),
+        (&[1.717], 4000, 2000, &[Class::QuasiPeriodic]),
     ];
     let s = Settings {
         lyapunov: true,
         ..Settings::default()
     };
-    for f64 in [false, true] {
-        let Some(g) = run_gpu(&etas, s, 500, 400, f64) else {
-            return;
-        };
-        for (i, &eta) in etas.iter().enumerate() {
-            let c = Integrator::<f64>::new(&Params::paper(eta), &s).run([0.0; 4], 500, 400);
-            let cc =
-                classify(&c.samples, c.sample_impacts, false, 1e-4).with_lyapunov(c.lyapunov, 0.01);
-            let gc = g.classes[i].with_lyapunov(g.results[i].lyapunov, 0.01);
-            eprintln!(
-                "eta {eta} ({}): GPU {gc:?} {:.5}, CPU f64 {cc:?} {:.5}",
-                if f64 { "f64" } else { "f32" },
-                g.results[i].lyapunov,
-                c.lyapunov
-            );
-            assert_eq!(gc, want[i], "GPU eta {eta}");
-            assert_eq!(cc, want[i], "CPU eta {eta}");
-            if matches!(want[i], Class::Periodic(_)) {
-                // On a periodic attractor both estimate the same contraction rate.
-                assert!((g.results[i].lyapunov - c.lyapunov).abs() < 1e-3);
+    for (etas, transient, samples, want) in cases {
+        for f64 in [false, true] {
+            let Some(g) = run_gpu(etas, s, transient, samples, f64) else {
+                return;
+            };
+            for (i, &eta) in etas.iter().enumerate() {
+                let p = Params::paper(eta);
+                let c = Integrator::<f64>::new(&p, &s).run([0.0; 4], transient, samples);
+                let cc = confirm(
+                    &p,
+                    &s,
+                    &c,
+                    classify(&c.samples, c.sample_impacts, false, 1e-4),
+                );
+                let gv = confirm(&p, &s, &g.results[i], g.classes[i]);
+                eprintln!(
+                    "eta {eta} ({}): GPU {:?} {:.5} +- {:.5} torus {:.1}, CPU f64 {:?} {:.5} +- \
+                     {:.5} torus {:.1}",
+                    if f64 { "f64" } else { "f32" },
+                    gv.class,
+                    g.results[i].lyapunov,
+                    g.results[i].lyapunov_se,
+                    g.results[i].torus,
+                    cc.class,
+                    c.lyapunov,
+                    c.lyapunov_se,
+                    c.torus
+                );
+                assert_eq!(gv.class, want[i], "GPU eta {eta}");
+                assert_eq!(cc.class, want[i], "CPU eta {eta}");
+                if want[i] == Class::Periodic(1) && eta < 1.7 {
+                    // On a periodic attractor both estimate the same contraction rate, and
+                    // the same (small) error.
+                    assert!((g.results[i].lyapunov - c.lyapunov).abs() < 1e-3);
+                    assert!((g.results[i].lyapunov_se - c.lyapunov_se).abs() < 1e-3);
+                }
             }
         }
     }
@@ -285,31 +316,16 @@ fn small_map_classes_agree_with_cpu() {
                 .into_iter()
                 .map(|c| c.0)
                 .collect();
-        let g = gpu().unwrap().lock().unwrap();
-        let out = {
-            let spec = RunSpec::new(&cfg).with_lyapunov();
-            let values = rattle::map::cell_values(&cfg, 0..cells);
-            let vary = [Param::R, Param::Lambda];
-            let job = Job::new(&spec, Points::along(&vary, &values), false);
-            g.run(&job, &Silent).unwrap()
-        };
-        drop(g);
-        // The GPU's proposals judged by the same rule as the map's (exponent, then Newton and
-        // multipliers on the CPU).
-        let spec = RunSpec::new(&cfg).with_lyapunov();
-        let values = rattle::map::cell_values(&cfg, 0..cells);
-        let vary = [Param::R, Param::Lambda];
-        let points = Points::along(&vary, &values);
-        let gpu_classes: Vec<Class> = out
-            .classes
-            .iter()
-            .zip(&out.results)
-            .enumerate()
-            .map(|(i, (c, r))| {
-                let p = points.params(&spec.params, i);
-                rattle::engine::Summary::new(*c, r, spec.samples as usize, &spec, &p).class
-            })
+        // The same map on the GPU: the kernel's evidence, decided by the same classifier
+        // (stability::confirm) through the same adaptive loop.
+        let engine = common::gpu_engine().expect("an adapter (checked above)");
+        let gpu: Vec<_> = rattle::map::compute(&engine, &cfg, 0..cells, 1, &Silent)
+            .unwrap()
+            .0
+            .into_iter()
+            .map(|c| c.0)
             .collect();
+        let gpu_classes: Vec<Class> = gpu.iter().map(|c| c.class).collect();
         let agree = cpu
             .iter()
             .zip(&gpu_classes)
@@ -322,16 +338,43 @@ fn small_map_classes_agree_with_cpu() {
             .iter()
             .filter(|&&i| gpu_classes[i] == cpu[i].class)
             .count();
+        for i in (0..cells).filter(|&i| cpu[i].class != gpu_classes[i]) {
+            eprintln!(
+                "  cell {i}: CPU {:?} (exponent {:.4} +- {:.4}, {} periods, tried {:?}), GPU {:?} \
+                 (exponent {:.4} +- {:.4}, {} periods, tried {:?})",
+                cpu[i].class,
+                cpu[i].lyapunov,
+                cpu[i].lyapunov_se,
+                cpu[i].periods,
+                cpu[i].tried,
+                gpu[i].class,
+                gpu[i].lyapunov,
+                gpu[i].lyapunov_se,
+                gpu[i].periods,
+                gpu[i].tried
+            );
+        }
         eprintln!(
             "{}: class agreement {agree}/{cells}, periodic cells {pagree}/{}",
             prec.name(),
             periodic.len()
         );
-        // Same precision on both sides: periodic cells must agree (chaotic ones may split
-        // between chaotic/quasi-periodic/unresolved at the band edges).
+        // Same precision on both sides, but the kernel and its twin round differently: a path
+        // through a long chaotic transient can end on a cycle on one side and still be chaotic
+        // on the other (this map's region has such transients of 400 to 4000 periods). Every
+        // other cell agrees; a disagreement is a transient (chaotic against a confirmed
+        // cycle), never two rules reading the same motion differently.
         assert!(periodic.len() >= 40);
-        assert!(pagree as f64 >= 0.97 * periodic.len() as f64);
-        assert!(agree as f64 >= 0.85 * cells as f64);
+        assert!(pagree as f64 >= 0.95 * periodic.len() as f64);
+        assert!(agree as f64 >= 0.95 * cells as f64);
+        for i in (0..cells).filter(|&i| cpu[i].class != gpu_classes[i]) {
+            let pair = [cpu[i].class, gpu_classes[i]];
+            assert!(
+                pair.contains(&Class::Chaotic)
+                    && pair.iter().any(|c| matches!(c, Class::Periodic(_))),
+                "cell {i}: {pair:?}"
+            );
+        }
     }
 }
 

@@ -76,8 +76,8 @@ fn check<F: Real>(settings: &Settings, n_points: usize, points: Vec<(Params<f64>
     assert_eq!(batches(&its[..n_points.min(LANES)]), batched_path);
     let (transient, samples) = (40, 12);
     // The build chosen at run time (AVX2 where the CPU has it) and the baseline one.
-    let batched = run_lanes(&its, &y0s, transient, samples);
-    let portable = run_lanes_portable(&its, &y0s, transient, samples);
+    let batched = run_lanes(&its, &y0s, None, transient, samples);
+    let portable = run_lanes_portable(&its, &y0s, None, transient, samples);
     assert_eq!(batched.len(), pts.len());
     assert_eq!(portable.len(), pts.len());
     let mut kinds = [0usize; 4];
@@ -287,15 +287,20 @@ fn confirm_many_equals_confirm_point_by_point() {
         .map(|(i, (p, r))| Proposal {
             params: *p,
             run: r,
-            // With samples (bifurcation diagrams) and without (maps).
-            use_samples: i % 2 == 0,
             class: r.class(1e-4),
+            // With the candidate periods and with the detector's period only.
+            candidates: i % 2 == 0,
+            skip: [0; 2],
         })
         .collect();
-    let many = confirm_many(&s, &proposals, 0.01);
+    let many = confirm_many(&s, &proposals);
     let mut tried = 0;
     for (q, v) in proposals.iter().zip(&many) {
-        let one = confirm(&q.params, &s, q.run, q.use_samples, q.class, 0.01);
+        let one = if q.candidates {
+            confirm(&q.params, &s, q.run, q.class)
+        } else {
+            confirm_many(&s, std::slice::from_ref(q)).remove(0)
+        };
         assert_eq!(one.class, v.class);
         match (&one.cycle, &v.cycle) {
             (Some(a), Some(b)) => {

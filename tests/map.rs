@@ -111,7 +111,7 @@ fn failed_cells_are_never_a_valid_class() {
     let vary = [Param::R, Param::Lambda];
     let run = |values: &[f64]| {
         Engine::Cpu
-            .run_summaries(&spec, &Points::along(&vary, values), &Silent)
+            .run_summaries(&spec, &Points::along(&vary, values), &mut [], &[], &Silent)
             .unwrap()
             .0
     };
@@ -140,8 +140,17 @@ fn failed_cells_are_never_a_valid_class() {
     assert!(npy::<f64>(&d.join("m-lyapunov.npy"))[1].is_nan());
     assert!(npy::<f64>(&d.join("m-multiplier.npy"))[1].is_nan());
     assert_eq!(json(&d.join("m.json"))["class_counts"]["failed"], 1);
+    assert_eq!(json(&d.join("m.json"))["rule_counts"]["failed"], 1);
     // A failed class stays failed whatever the exponent says.
-    assert_eq!(Class::Failed.with_lyapunov(0.5, 0.01), Class::Failed);
+    let tail = [0.1, 0.2];
+    let e = rattle::classify::Evidence {
+        detected: Class::Failed,
+        tail: &tail,
+        lyapunov: 0.5,
+        lyapunov_se: 0.01,
+        torus: 10.0,
+    };
+    assert_eq!(rattle::classify::conclude(&e, Some(1)).0, Class::Failed);
 }
 
 #[test]
@@ -432,8 +441,13 @@ fn cell(class: Class, lyapunov: f64, multiplier: f64) -> (rattle::engine::Summar
             impacts_per_period: 1.0,
             lyapunov,
             multiplier,
+            lyapunov_se: 0.0,
+            torus: f64::NAN,
+            rule: rattle::classify::Rule::StableCycle,
+            tried: [0, 0],
             diag: Default::default(),
             final_y: [0.0; 4],
+            final_mode: rattle::model::Mode::SlipPos,
             periods: 400,
         },
         1,

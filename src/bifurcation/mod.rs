@@ -49,21 +49,11 @@ pub fn finish(cfg: &Config, results: Vec<RunResult>) -> Vec<SweepPoint> {
         cfg.sweep.param.set(&mut p, values[i]);
         p
     };
-    let proposals: Vec<Class> = results
+    let detected: Vec<Class> = results
         .iter()
-        .map(|r| {
-            r.class(cfg.run.period_tol)
-                .with_lyapunov(r.lyapunov, cfg.run.lyapunov_tol)
-        })
+        .map(|r| r.class(cfg.run.period_tol))
         .collect();
-    let verdicts = confirm_all(
-        at,
-        &cfg.settings(),
-        &results,
-        &proposals,
-        true,
-        cfg.run.lyapunov_tol,
-    );
+    let verdicts = confirm_all(at, &cfg.settings(), &results, &detected, &[]);
     values
         .into_iter()
         .zip(results)

@@ -200,11 +200,15 @@ pub struct RunConfig {
     pub period_tol: f64,
     /// What the tangent dynamics compute; unset: what the command needs (see [`Tangent`]).
     pub tangent: Option<Tangent>,
-    /// |exponent| below this (per unit time) counts as zero: quasi-periodic.
+    /// Scale of a clearly chaotic exponent (per unit time) for `--refine`: a corner whose
+    /// exponent exceeds `--refine-clear` times it may fill its block.
     pub lyapunov_tol: f64,
     /// Let points leave the run once their cycle is confirmed (`crate::adaptive`); false
     /// integrates every point for all its periods (brute force).
     pub early_stop: bool,
+    /// A point still undecided after the configured periods keeps integrating, in doubling
+    /// windows, up to this many times the configured periods in all (1: never).
+    pub horizon: u32,
 }
 
 impl Default for RunConfig {
@@ -216,6 +220,7 @@ impl Default for RunConfig {
             tangent: None,
             lyapunov_tol: 0.01,
             early_stop: true,
+            horizon: 10,
         }
     }
 }
@@ -490,6 +495,9 @@ impl Config {
         }
         if !(r.period_tol.is_finite() && r.period_tol > 0.0 && r.period_tol < 1.0) {
             return Err(ConfigError::range("run.period_tol", r.period_tol, "(0, 1)"));
+        }
+        if !(1..=1000).contains(&r.horizon) {
+            return Err(ConfigError::range("run.horizon", r.horizon, "[1, 1000]"));
         }
         if !(r.lyapunov_tol.is_finite() && r.lyapunov_tol > 0.0) {
             return Err(ConfigError::range(

@@ -4,13 +4,15 @@
 use super::layout::{
     B_CONSTS, B_CONTROL, B_PVALS, B_RING, B_SAMPLES, B_US, B_UTAB, B_YS, C_B1, C_DELTA, C_DPHI,
     C_ETA, C_FK, C_FS, C_HALF_COS, C_HALF_SIN, C_L1, C_L2, C_MU, C_PERIOD_TOL, C_R, C_RESTITUTION,
-    C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_LOG_SUM, R_SLOTS, STATE_DIM, U_DET_COUNT,
-    U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS,
-    U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED, UTAB_BYTES, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS,
-    at,
+    C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_BLOCK_M2, R_HI, R_LO, R_LOG_SUM, R_SLOTS,
+    R_WB_FIRST, R_WB_SECOND, STATE_DIM, TAIL, U_DET_COUNT, U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS,
+    U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED,
+    UTAB_BYTES, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
 };
 use super::{Gpu, GpuError, Job};
-use crate::classify::{Class, PeriodDetector, class_of};
+use crate::classify::{
+    BLOCKS, Class, Growth, PeriodDetector, birkhoff_digits, block_len, class_of,
+};
 use crate::method::{Diagnostics, ImpactMethod, RunResult, forcing_table, half_step};
 use crate::model::{Mode, Params, initial_mode};
 use crate::real::Real;
@@ -214,7 +216,10 @@ impl<F: Real + Pod> Batch<F> {
             for (c, &v) in yf.iter().enumerate() {
                 ys[at(Y_MAIN + c as u32, m, i)] = v;
             }
-            us[at(U_MODE, m, i)] = initial_mode(&p, &yf, F::one()) as u32;
+            let mode = pts
+                .mode0(start + i)
+                .unwrap_or_else(|| initial_mode(&p, &yf, F::one()));
+            us[at(U_MODE, m, i)] = mode as u32;
             // Non-finite input fails the point before it runs (as `Integrator::start`).
             us[at(U_NONFINITE, m, i)] =
                 (!p.is_finite() || !yf.iter().all(|v| v.is_finite())) as u32;
@@ -301,11 +306,8 @@ impl<F: Real + Pod> Batch<F> {
         let fsz = size_of::<F>() as u64;
         // The state only: the tangent vector is the kernel's business.
         let ys = gpu.read_storage(&self.ys, (Y_MAIN + STATE_DIM) as u64 * m * fsz)?;
-        let ring = if job.spec.settings.lyapunov {
-            gpu.read_storage(&self.ring, m * R_SLOTS as u64 * fsz)?
-        } else {
-            Vec::new()
-        };
+        // The ring always: the last section values and the torus test's sums are evidence.
+        let ring = gpu.read_storage(&self.ring, m * R_SLOTS as u64 * fsz)?;
         let us = gpu.read_storage(&self.us, U_SLOTS as u64 * m * 4)?;
         let samples = if job.store_samples {
             gpu.read_storage(&self.samples, m * plan.store_bytes)?
@@ -337,7 +339,6 @@ pub(super) struct ReadBack<F> {
     m: usize,
     ys: Vec<F>,
     us: Vec<u32>,
-    /// Empty without the Lyapunov estimate.
     ring: Vec<F>,
     /// Empty unless the job stores samples.
     samples: Vec<F>,
@@ -394,16 +395,40 @@ impl<F: Real> ReadBack<F> {
                 u(U_SAMPLE_IMPACTS) as u64,
                 || PeriodDetector::period_from(possible, count),
             ));
-            // Mean log growth per unit time over the sampled periods.
-            let lyapunov = if spec.settings.lyapunov && u(U_TAN_BAD) == 0 && count > 0 {
-                let eta = job.points.params(&spec.params, self.start + i).eta;
-                let period = 2.0 * std::f64::consts::PI / eta;
-                self.ring[at(R_LOG_SUM, self.m, i)].to_f64() / (count as f64 * period)
+            // Mean log growth per unit time over the sampled periods, and its batch-means
+            // error (the kernel's blocks complete as Growth's do over `count` periods).
+            let ring = |slot| self.ring[at(slot, self.m, i)].to_f64();
+            let (lyapunov, lyapunov_se) =
+                if spec.settings.lyapunov && u(U_TAN_BAD) == 0 && count > 0 {
+                    let eta = job.points.params(&spec.params, self.start + i).eta;
+                    let period = 2.0 * std::f64::consts::PI / eta;
+                    let len = block_len(spec.samples);
+                    let blocks = (count / len).min(BLOCKS);
+                    Growth::exponent_from(
+                        ring(R_LOG_SUM),
+                        count,
+                        len,
+                        blocks,
+                        ring(R_BLOCK_M2),
+                        period,
+                    )
+                } else {
+                    (f64::NAN, f64::NAN)
+                };
+            let complete = count >= 2 * (spec.samples / 2) && spec.samples >= 2;
+            let torus = if complete {
+                birkhoff_digits(ring(R_WB_FIRST), ring(R_WB_SECOND), ring(R_LO), ring(R_HI))
             } else {
                 f64::NAN
             };
+            let tail = (count.saturating_sub(TAIL)..count)
+                .map(|k| ring(k % TAIL))
+                .collect();
             results.push(RunResult {
                 lyapunov,
+                lyapunov_se,
+                torus,
+                tail,
                 samples,
                 sample_impacts: u(U_SAMPLE_IMPACTS) as u64,
                 diag,

@@ -75,10 +75,14 @@ u32_group!(EVENTS, "Event kinds, as method::EV_*." {
 });
 
 u32_group!(LIMITS, "Limits shared with the CPU twin." {
+    /// Blocks of the exponent's batch-means error (classify::BLOCKS).
+    BLOCKS = classify::BLOCKS;
     /// Iteration cap of the root finder.
     MAX_ROOT_ITERS = method::MAX_ROOT_ITERS;
     /// Longest period the detector finds (bits of U_DET_LO/HI, values of its ring).
     MAX_PERIOD = classify::MAX_PERIOD as u32;
+    /// Past section values in the ring (the detector reads the last MAX_PERIOD).
+    TAIL = classify::TAIL as u32;
     /// Components of a state (y1..y4, one vec4).
     STATE_DIM = 4;
 });
@@ -104,14 +108,23 @@ u32_group!(US, "Slots of `us`, u32 per point: us[slot * n_points + i]." {
     U_SLOTS = 12;
 });
 
-// The detector's MAX_PERIOD past section values sit at slots 0..MAX_PERIOD.
+// The last TAIL section values sit at slots 0..TAIL (value k at k % TAIL).
 u32_group!(RING, "Slots of `ring`, F per point: past values, their range, the log sum." {
     /// Range of the values pushed so far (the detector's tolerance scales with it).
-    R_LO = MAX_PERIOD;
-    R_HI = MAX_PERIOD + 1;
+    R_LO = TAIL;
+    R_HI = TAIL + 1;
     /// Sum of the logs of the tangent vector's growth per sampled period (Lyapunov estimate).
-    R_LOG_SUM = MAX_PERIOD + 2;
-    R_SLOTS = MAX_PERIOD + 3;
+    R_LOG_SUM = TAIL + 2;
+    /// classify::Growth: the current block's log sum, the blocks' running mean and Welford M2.
+    R_BLOCK = TAIL + 3;
+    R_BLOCK_MEAN = TAIL + 4;
+    R_BLOCK_M2 = TAIL + 5;
+    /// classify::Birkhoff: weighted sum and weight sum of the current half, the two averages.
+    R_WB_NUM = TAIL + 6;
+    R_WB_DEN = TAIL + 7;
+    R_WB_FIRST = TAIL + 8;
+    R_WB_SECOND = TAIL + 9;
+    R_SLOTS = TAIL + 10;
 });
 
 u32_group!(YS, "Slots of `ys`, F per point: state and Lyapunov tangent, STATE_DIM slots each." {

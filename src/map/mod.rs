@@ -117,11 +117,8 @@ pub fn compute_cells(
     let y0s: Vec<[f64; 4]> = (0..values.len() / 2).map(|i| y0[i % k]).collect();
     let vary = [cfg.map.x, cfg.map.y];
     let points = Points::along(&vary, &values).with_states(&y0s);
-    let (s, t) = if cfg.run.early_stop {
-        crate::adaptive::run_summaries(engine, &spec, &points, progress)?
-    } else {
-        engine.run_summaries(&spec, &points, progress)?
-    };
+    let (s, t) =
+        crate::adaptive::run_summaries(engine, &spec, &points, cfg.run.early_stop, progress)?;
     let out = s
         .chunks(k)
         .map(|g| {
@@ -163,6 +160,18 @@ pub struct Fields {
     pub periods: Vec<u32>,
     /// 1 where `--refine` filled the cell from the corners of a uniform block.
     pub inferred: Vec<u8>,
+    /// Standard error of the exponent (batch means); None where the exponent is.
+    #[serde(default)]
+    pub lyapunov_se: Vec<Option<f64>>,
+    /// Agreeing digits of the torus test over the cell's last window; None without one.
+    #[serde(default)]
+    pub torus: Vec<Option<f64>>,
+    /// The rule that decided the cell (`classify::Rule` code).
+    #[serde(default)]
+    pub rule: Vec<u8>,
+    /// The periods Newton tried, two per cell (0: none).
+    #[serde(default)]
+    pub tried: Vec<u32>,
 }
 
 impl Fields {
@@ -199,6 +208,16 @@ impl Fields {
             cpu_rerun: s.iter().map(|c| c.diag.cpu_rerun as u8).collect(),
             periods: s.iter().map(|c| c.periods).collect(),
             inferred: vec![0; s.len()],
+            lyapunov_se: s
+                .iter()
+                .map(|c| c.lyapunov_se.is_finite().then_some(c.lyapunov_se))
+                .collect(),
+            torus: s
+                .iter()
+                .map(|c| c.torus.is_finite().then_some(c.torus))
+                .collect(),
+            rule: s.iter().map(|c| c.rule.code()).collect(),
+            tried: s.iter().flat_map(|c| c.tried).collect(),
         }
     }
 
@@ -225,6 +244,23 @@ impl Fields {
         self.attractors.extend(o.attractors);
         self.periods.extend(o.periods);
         self.inferred.extend(o.inferred);
+        self.lyapunov_se.extend(o.lyapunov_se);
+        self.torus.extend(o.torus);
+        self.rule.extend(o.rule);
+        self.tried.extend(o.tried);
+    }
+
+    /// Cells per deciding rule, by the rule's name.
+    pub fn rule_counts(&self) -> std::collections::BTreeMap<String, usize> {
+        let mut m = std::collections::BTreeMap::new();
+        for &r in &self.rule {
+            let name = crate::classify::Rule::ALL
+                .iter()
+                .find(|x| x.code() == r)
+                .map_or("inferred".to_string(), |x| x.name().to_string());
+            *m.entry(name).or_default() += 1;
+        }
+        m
     }
 
     pub fn classes(&self) -> Vec<Class> {

@@ -177,6 +177,8 @@ struct MapJson<'a> {
     version: &'static str,
     config: &'a Config,
     class_counts: BTreeMap<String, usize>,
+    /// Cells per rule that decided them (docs/classes.md).
+    rule_counts: BTreeMap<String, usize>,
     class_codes: &'static str,
     axes: Axes,
 }
@@ -198,6 +200,7 @@ fn caption(
     cfg: &Config,
     report: &MapReport,
     counts: &BTreeMap<String, usize>,
+    rules: &BTreeMap<String, usize>,
     coexisting: usize,
 ) -> String {
     let r = &cfg.run;
@@ -233,12 +236,17 @@ fn caption(
     });
     format!(
         "Class map of the attractor reached at each of {grid}. Each cell starts from y0 = {start:?} and is integrated with {how}; {tr} transient periods, then \
-         {sa} sampled periods. Classes: a period <= 64 of the stroboscopic section (tolerance \
-         {tol}), kept only where Newton's method converges to a cycle whose Floquet multipliers \
-         all lie inside the unit circle (a contracting point without a period is tried at \
-         period 1); else quasi-periodic or chaotic by the largest Lyapunov exponent \
-         (|exponent| <= {ltol} per unit time: quasi-periodic; aperiodic where no exponent was \
-         computed); no impact, unresolved and failed as in the README. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64) with \
+         {sa} sampled periods. Classes (docs/classes.md): period-n only where Newton's method \
+         converges to a cycle whose Floquet multipliers all lie inside the unit circle, tried at \
+         the detector's period (tolerance {tol}) and at up to {cand} candidate periods <= {maxp} \
+         that the last section values repeat with (relative tolerance {ctol}); chaotic only \
+         where the largest Lyapunov exponent exceeds {z} standard errors (batch means over \
+         {blocks} blocks); quasi-periodic only where the torus test passes (weighted Birkhoff \
+         averages of y1 over the two halves of the window agree to {digits} digits) with an \
+         exponent shown to be within {bound} of zero (|exponent| + {z} standard errors); aperiodic where no exponent was \
+         computed. A cell still undecided gets doubling windows up to {hz} x the configured \
+         periods (PREFIX-periods.npy) and is unresolved only then. Cells by deciding rule: \
+         {rules}. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64) with \
          lightness steps inside a family; chaotic near-black, quasi-periodic light green. The \
          legend gives the share and the count of every class shown. Most frequent: \
          {top}.{coex}{refined} Raster image, 1100 x 800 px ({RASTER}).",
@@ -248,7 +256,19 @@ fn caption(
         tr = r.transient_periods,
         sa = r.sample_periods,
         tol = r.period_tol,
-        ltol = r.lyapunov_tol,
+        bound = crate::classify::TORUS_BOUND,
+        cand = crate::classify::MAX_CANDIDATES,
+        maxp = crate::classify::MAX_TRIAL_PERIOD,
+        ctol = crate::classify::CANDIDATE_TOL,
+        z = crate::classify::CHAOS_MARGIN,
+        blocks = crate::classify::BLOCKS,
+        digits = crate::classify::TORUS_DIGITS,
+        hz = r.horizon,
+        rules = rules
+            .iter()
+            .map(|(k, v)| format!("{k} {v}"))
+            .collect::<Vec<_>>()
+            .join(", "),
         top = crate::caption::top_classes(counts, 5),
     )
 }
@@ -530,15 +550,30 @@ pub fn write_outputs(
     npy(&mut st, "attractors", &|p| save(p, &shape, &f.attractors))?;
     npy(&mut st, "periods", &|p| save(p, &shape, &f.periods))?;
     npy(&mut st, "inferred", &|p| save(p, &shape, &f.inferred))?;
+    let nan = |v: &[Option<f64>]| -> Vec<f64> { v.iter().map(|x| x.unwrap_or(f64::NAN)).collect() };
+    let se = nan(&f.lyapunov_se);
+    npy(&mut st, "lyapunov_se", &|p| save(p, &shape, &se))?;
+    let torus = nan(&f.torus);
+    npy(&mut st, "torus", &|p| save(p, &shape, &torus))?;
+    npy(&mut st, "rule", &|p| save(p, &shape, &f.rule))?;
+    let shape2 = [ny as u64, nx as u64, 2];
+    npy(&mut st, "tried", &|p| save(p, &shape2, &f.tried))?;
     let coexisting = cells.iter().filter(|&&c| c == COEXISTING).count();
     let j = MapJson {
-        caption: caption(cfg, report, &fields.counts(), coexisting),
+        caption: caption(
+            cfg,
+            report,
+            &fields.counts(),
+            &fields.rule_counts(),
+            coexisting,
+        ),
         caption_lyapunov: lyapunov_caption(cfg, lyap_raw, lim),
         caption_multiplier: multiplier_caption(cfg, &mult),
         report,
         version: env!("CARGO_PKG_VERSION"),
         config: cfg,
         class_counts: fields.counts(),
+        rule_counts: fields.rule_counts(),
         class_codes: "n > 0 period-n, 0 aperiodic, -1 no_impact, -2 failed, -3 quasi_periodic, \
                       -4 chaotic, -5 unresolved",
         axes: Axes {

@@ -100,6 +100,10 @@ impl Part {
             f.attractors.len(),
             f.periods.len(),
             f.inferred.len(),
+            f.lyapunov_se.len(),
+            f.torus.len(),
+            f.rule.len(),
+            f.tried.len() / 2,
         ];
         if lens.iter().any(|&l| l != len) {
             return Err(PartError(format!(
@@ -109,10 +113,11 @@ impl Part {
         if !(1..=64).contains(&self.starts) {
             return Err(PartError(format!("starts {} outside [1, 64]", self.starts)));
         }
-        let total = self.config.run.transient_periods + self.config.run.sample_periods;
+        let total = (self.config.run.transient_periods + self.config.run.sample_periods)
+            * self.config.run.horizon;
         for c in 0..len {
             let class = f.class[c];
-            let bad = if !(-5..=64).contains(&class) {
+            let bad = if !(-5..=crate::classify::MAX_TRIAL_PERIOD as i32).contains(&class) {
                 Some(format!("class code {class}"))
             } else if f.cpu_rerun[c] > 1 {
                 Some(format!("cpu_rerun {}", f.cpu_rerun[c]))

@@ -10,6 +10,7 @@
 use super::events::{clear_of, clear_of_stops};
 use super::tangent::{Leading, Tangent};
 use super::{Integrator, PointState, RunResult};
+use crate::classify::Growth;
 use crate::model::Mode;
 use crate::real::Real;
 
@@ -492,15 +493,16 @@ impl<F: Real, T: LaneTangent<F, N>, const N: usize> Batch<F, T, N> {
 pub fn run_lanes<F: Real>(
     its: &[Integrator<F>],
     y0s: &[[f64; 4]],
+    modes: Option<&[Mode]>,
     transient: u32,
     samples: u32,
 ) -> Vec<RunResult> {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { run_lanes_avx2(its, y0s, transient, samples) };
+        return unsafe { run_lanes_avx2(its, y0s, modes, transient, samples) };
     }
-    run_lanes_portable(its, y0s, transient, samples)
+    run_lanes_portable(its, y0s, modes, transient, samples)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -508,10 +510,11 @@ pub fn run_lanes<F: Real>(
 fn run_lanes_avx2<F: Real>(
     its: &[Integrator<F>],
     y0s: &[[f64; 4]],
+    modes: Option<&[Mode]>,
     transient: u32,
     samples: u32,
 ) -> Vec<RunResult> {
-    run_lanes_portable(its, y0s, transient, samples)
+    run_lanes_portable(its, y0s, modes, transient, samples)
 }
 
 /// Whether [`run_lanes`] batches these points (one chunk of at most [`LANES`]). Naive impacts
@@ -526,26 +529,28 @@ pub fn batches<F: Real>(chunk: &[Integrator<F>]) -> bool {
 pub fn run_lanes_portable<F: Real>(
     its: &[Integrator<F>],
     y0s: &[[f64; 4]],
+    modes: Option<&[Mode]>,
     transient: u32,
     samples: u32,
 ) -> Vec<RunResult> {
     assert_eq!(its.len(), y0s.len());
     let mut out = Vec::with_capacity(its.len());
-    for (chunk, y0) in its.chunks(LANES).zip(y0s.chunks(LANES)) {
+    for (k, (chunk, y0)) in its.chunks(LANES).zip(y0s.chunks(LANES)).enumerate() {
+        let mode = |l: usize| modes.map(|m| m[k * LANES + l.min(chunk.len() - 1)]);
         if !batches(chunk) {
-            out.extend(
-                chunk
-                    .iter()
-                    .zip(y0)
-                    .map(|(it, &y)| it.run(y, transient, samples)),
-            );
+            out.extend(chunk.iter().zip(y0).enumerate().map(|(l, (it, &y))| {
+                let mut st = it.start_in(y, mode(l));
+                it.run_from(&mut st, transient, samples)
+            }));
             continue;
         }
         // A short chunk fills its empty lanes with its first point, never run.
         let its: [&Integrator<F>; LANES] =
             std::array::from_fn(|l| chunk.get(l).unwrap_or(&chunk[0]));
-        let st: [PointState<F>; LANES] =
-            std::array::from_fn(|l| its[l].start(*y0.get(l).unwrap_or(&y0[0])));
+        let st: [PointState<F>; LANES] = std::array::from_fn(|l| {
+            let m = if l < chunk.len() { mode(l) } else { mode(0) };
+            its[l].start_in(*y0.get(l).unwrap_or(&y0[0]), m)
+        });
         let live = std::array::from_fn(|l| l < chunk.len() && !st[l].diag.nonfinite);
         let mut b = Batch {
             q: LaneParams::new(&its),
@@ -565,7 +570,7 @@ pub fn run_lanes_portable<F: Real>(
         let start = Leading::<F>::default().x;
         b.tan = One(std::array::from_fn(|i| [start[i]; LANES]));
         b.tan_ok = std::array::from_fn(|l| its[l].lyapunov);
-        let mut log_sum = [0.0f64; LANES];
+        let mut growth = [Growth::new(samples); LANES];
         let mut taken: Vec<Vec<[f64; 4]>> = (0..LANES)
             .map(|_| Vec::with_capacity(samples as usize))
             .collect();
@@ -582,7 +587,7 @@ pub fn run_lanes_portable<F: Real>(
                     };
                     b.tan_ok[l] = lead.is_finite();
                     if b.tan_ok[l] {
-                        log_sum[l] += lead.renormalize();
+                        growth[l].push(lead.renormalize());
                     }
                     for i in 0..4 {
                         b.tan.0[i][l] = lead.x[i];
@@ -592,8 +597,8 @@ pub fn run_lanes_portable<F: Real>(
         }
         for (l, samples) in taken.into_iter().enumerate().take(chunk.len()) {
             let it = its[l];
-            let lyapunov = it.exponent(b.tan_ok[l], log_sum[l], samples.len());
-            out.push(Integrator::result(&b.st[l], samples, before[l], lyapunov));
+            let exponent = it.exponent(b.tan_ok[l], &growth[l], samples.len() as u32);
+            out.push(Integrator::result(&b.st[l], samples, before[l], exponent));
         }
     }
     out

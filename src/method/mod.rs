@@ -8,6 +8,7 @@
 //! number of events per step. The forcing phase is kept as (step index, fraction of the step),
 //! so no large-argument cosine is ever evaluated.
 
+use crate::classify::{Birkhoff, Growth, tail_of};
 use crate::model::{
     Mode, Params, co_move, field, impact, initial_mode, mode_at_rest, needed_force,
     needed_force_rate,
@@ -542,10 +543,15 @@ impl<F: Real> Integrator<F> {
 
     /// Start state (mode from the at-rest rule when v = 0).
     pub fn start(&self, y0: [f64; 4]) -> PointState<F> {
+        self.start_in(y0, None)
+    }
+
+    /// Start state in `mode` where given (a continued run), else as [`Integrator::start`].
+    pub fn start_in(&self, y0: [f64; 4], mode: Option<Mode>) -> PointState<F> {
         let y = y0.map(F::of);
         PointState {
             y,
-            mode: initial_mode(&self.p, &y, F::one()),
+            mode: mode.unwrap_or_else(|| initial_mode(&self.p, &y, F::one())),
             diag: Diagnostics {
                 // Non-finite input fails the point before it runs.
                 nonfinite: !self.p.is_finite() || !y.iter().all(|v| v.is_finite()),
@@ -581,7 +587,7 @@ impl<F: Real> Integrator<F> {
         // without it), renormalised at each section.
         let mut tangent = tangent::Leading::<F>::default();
         let mut tangent_ok = self.lyapunov;
-        let mut log_sum = 0.0f64;
+        let mut growth = Growth::new(samples);
         for _ in 0..samples {
             if st.diag.nonfinite {
                 break;
@@ -598,28 +604,38 @@ impl<F: Real> Integrator<F> {
             if tangent_ok {
                 tangent_ok = tangent.is_finite();
                 if tangent_ok {
-                    log_sum += tangent.renormalize();
+                    growth.push(tangent.renormalize());
                 }
             }
         }
-        let lyapunov = self.exponent(tangent_ok, log_sum, out.len());
-        Self::result(st, out, before, lyapunov)
+        let exponent = self.exponent(tangent_ok, &growth, samples);
+        Self::result(st, out, before, exponent)
     }
 
-    /// The largest exponent per unit time from the log growth over `n` sampled periods; NaN
-    /// without a running tangent or samples.
-    fn exponent(&self, tangent_ok: bool, log_sum: f64, n: usize) -> f64 {
+    /// The largest exponent and its standard error per unit time from the log growth over the
+    /// sampled periods; NaN without a running tangent or samples.
+    pub(crate) fn exponent(&self, tangent_ok: bool, growth: &Growth, samples: u32) -> (f64, f64) {
         let period = 2.0 * std::f64::consts::PI / self.p.eta.to_f64();
-        if tangent_ok && n > 0 {
-            log_sum / (n as f64 * period)
+        if tangent_ok && samples > 0 {
+            growth.exponent(period)
         } else {
-            f64::NAN
+            (f64::NAN, f64::NAN)
         }
     }
 
     /// The result of a run whose sampling started with `before` impacts.
-    fn result(st: &PointState<F>, samples: Vec<[f64; 4]>, before: u64, lyapunov: f64) -> RunResult {
+    fn result(
+        st: &PointState<F>,
+        samples: Vec<[f64; 4]>,
+        before: u64,
+        (lyapunov, lyapunov_se): (f64, f64),
+    ) -> RunResult {
+        let mut torus = Birkhoff::new(samples.len() as u32);
+        samples.iter().for_each(|s| torus.push(s[0]));
         RunResult {
+            lyapunov_se,
+            torus: torus.digits(),
+            tail: tail_of(&samples),
             samples,
             sample_impacts: st.diag.impacts - before,
             diag: st.diag,

@@ -76,6 +76,14 @@ pub struct RunResult {
     /// Largest Lyapunov exponent per unit time over the sampled periods (NaN when not
     /// computed or when the tangent vector overflowed).
     pub lyapunov: f64,
+    /// Its standard error by batch means ([`crate::classify::Growth`]); NaN with the exponent.
+    pub lyapunov_se: f64,
+    /// Agreeing digits of the torus test over the sampled window
+    /// ([`crate::classify::Birkhoff`]); NaN without two full halves.
+    pub torus: f64,
+    /// The last section values of y1 (at most [`crate::classify::TAIL`], oldest first):
+    /// they propose the candidate periods, also where the samples are not kept.
+    pub tail: Vec<f64>,
 }
 
 impl RunResult {
@@ -98,7 +106,25 @@ impl RunResult {
         }
         if self.diag.nonfinite {
             self.lyapunov = f64::NAN;
+            self.lyapunov_se = f64::NAN;
         }
+    }
+
+    /// What the classifier reads of this run, with `detected` the strict detector's class.
+    pub fn evidence(&self, detected: crate::classify::Class) -> crate::classify::Evidence<'_> {
+        crate::classify::Evidence {
+            detected,
+            tail: &self.tail,
+            lyapunov: self.lyapunov,
+            lyapunov_se: self.lyapunov_se,
+            torus: self.torus,
+        }
+    }
+
+    /// Pools this window's exponent with the windows before it (`pool`), keeping the pooled
+    /// exponent and error.
+    pub fn pool(&mut self, pool: &mut crate::classify::Pool) {
+        (self.lyapunov, self.lyapunov_se) = pool.add(self.lyapunov, self.lyapunov_se);
     }
 
     /// Mean impacts per sampled period.
