@@ -16,7 +16,8 @@ use std::path::{Path, PathBuf};
 /// Category code for the class map (periods keep their number).
 pub fn category(c: Class) -> u16 {
     match c {
-        Class::Periodic(n) => n as u16,
+        Class::Periodic(n) if n as usize <= crate::classify::MAX_PERIOD => n as u16,
+        Class::Periodic(_) => LONG_PERIOD,
         Class::QuasiPeriodic => 100,
         Class::Chaotic => 101,
         Class::NoImpact => 102,
@@ -30,6 +31,7 @@ pub fn category(c: Class) -> u16 {
 fn kind_code(k: ClassKind) -> u16 {
     match k {
         ClassKind::Period(n) => n as u16,
+        ClassKind::LongPeriod => LONG_PERIOD,
         ClassKind::QuasiPeriodic => 100,
         ClassKind::Chaotic => 101,
         ClassKind::NoImpact => 102,
@@ -42,10 +44,13 @@ fn kind_code(k: ClassKind) -> u16 {
 
 /// Code of cells whose starts ended on different attractors (`--starts`).
 const COEXISTING: u16 = 106;
+/// Code of cells with a confirmed cycle longer than the detector's 64 periods.
+const LONG_PERIOD: u16 = 107;
 
 fn kind_label(k: ClassKind) -> String {
     match k {
         ClassKind::Period(n) => format!("period {n}"),
+        ClassKind::LongPeriod => "periods 65-128".into(),
         ClassKind::QuasiPeriodic => "quasi-periodic".into(),
         ClassKind::Chaotic => "chaotic".into(),
         ClassKind::Aperiodic => "aperiodic (no exponent)".into(),
@@ -310,9 +315,10 @@ fn lyapunov_caption(cfg: &Config, values: &[f64], clip: f64) -> Option<String> {
          class map (one tangent vector through the RK4 stages and the saltation matrices of the \
          events; a cell whose cycle Newton confirmed carries ln|mu_1| / P). Diverging colours \
          centred on 0, clipped at the 99th percentile of |exponent| ({clip:.3}); grey: no \
-         exponent (failed, or inferred by refinement). {n} cells with a value, from {lo:.3} to {hi:.3}: {pos} above +{tol} \
-         (chaotic), {zero} within +-{tol} (quasi-periodic or nearly neutral cycles), the rest \
-         contracting. Raster image, 1100 x 800 px ({RASTER}).",
+         exponent (failed, or inferred by refinement). {n} cells with a value, from {lo:.3} to \
+         {hi:.3}: {pos} above +{tol}, {zero} within +-{tol}, the rest below (the classes weigh \
+         each exponent against its standard error, PREFIX-lyapunov_se.npy, not against this \
+         band). Raster image, 1100 x 800 px ({RASTER}).",
         grid = grid_phrase(cfg),
         n = v.len(),
     ))

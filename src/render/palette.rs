@@ -43,6 +43,9 @@ pub const MAX_PERIOD: u32 = 64;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ClassKind {
     Period(u32),
+    /// A confirmed cycle of period 65-128 (a candidate period beyond the detector's), one
+    /// colour for all.
+    LongPeriod,
     QuasiPeriodic,
     Chaotic,
     Aperiodic,
@@ -57,6 +60,7 @@ impl ClassKind {
     pub fn all() -> Vec<ClassKind> {
         let mut v: Vec<ClassKind> = (1..=MAX_PERIOD).map(ClassKind::Period).collect();
         v.extend([
+            ClassKind::LongPeriod,
             ClassKind::QuasiPeriodic,
             ClassKind::Chaotic,
             ClassKind::Aperiodic,
@@ -82,6 +86,7 @@ impl ClassKind {
     pub fn color(self) -> [u8; 3] {
         match self {
             ClassKind::Period(n) => period_color(n),
+            ClassKind::LongPeriod => [0x00, 0x55, 0x55],
             ClassKind::QuasiPeriodic => [0x99, 0xdd, 0x55],
             ClassKind::Chaotic => [0x1a, 0x1a, 0x1a],
             ClassKind::Aperiodic => [0x7a, 0x7a, 0x7a],
