@@ -143,9 +143,10 @@ pub enum Cmd {
     Validate {
         #[command(flatten)]
         common: Common,
-        /// Points for the state-difference rows (the class rows use the whole sweep).
-        #[arg(long, default_value_t = 64)]
-        state_points: usize,
+        /// Points for the state-difference rows (the class rows use the whole sweep); 1 to
+        /// 100000 (none would print an agreement of nothing).
+        #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+        state_points: u64,
     },
     /// Measure RK4 steps/s of every backend and precision in one run.
     Bench {

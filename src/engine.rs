@@ -105,6 +105,10 @@ impl Summary {
 /// Points per CPU block of [`Engine::run_summaries`]: samples of one block only are held.
 const CPU_BLOCK: usize = 4096;
 
+/// Points per GPU job of [`Engine::run_summaries`]: the results of one job only are held
+/// (enough points per job to fill a large GPU).
+pub const GPU_BLOCK: usize = 131_072;
+
 impl Engine {
     /// Opens the configured backend; a GPU request without any adapter falls back to the CPU
     /// with one warning line naming why. An adapter named by WGPU_ADAPTER_NAME that does not
@@ -194,23 +198,45 @@ impl Engine {
     ) -> Result<(Vec<Summary>, Timings), GpuError> {
         match self {
             Engine::Gpu(g) => {
-                let mut out = g.run(&Job::new(spec, *points, false), progress)?;
-                rerun_on_cpu(spec, points, &mut out);
-                let classes: Vec<Class> = out
-                    .results
-                    .iter_mut()
-                    .zip(&out.classes)
-                    .map(|(r, c)| {
-                        r.enforce_failure_rule();
-                        if r.diag.nonfinite { Class::Failed } else { *c }
-                    })
-                    .collect();
-                for (r, p) in out.results.iter_mut().zip(pools.iter_mut()) {
-                    r.pool(p);
+                // In blocks, so that the results in flight (each with its last section values)
+                // stay bounded whatever the number of points (memory::MAP_BLOCK_BYTES_PER_CELL).
+                let n = points.len();
+                let mut all = Vec::with_capacity(n);
+                let mut timings = Timings::default();
+                for start in (0..n).step_by(GPU_BLOCK) {
+                    let end = (start + GPU_BLOCK).min(n);
+                    let block = points.slice(start, end);
+                    let mut out = g.run(&Job::new(spec, block, false), progress)?;
+                    rerun_on_cpu(spec, &block, &mut out);
+                    let classes: Vec<Class> = out
+                        .results
+                        .iter_mut()
+                        .zip(&out.classes)
+                        .map(|(r, c)| {
+                            r.enforce_failure_rule();
+                            if r.diag.nonfinite { Class::Failed } else { *c }
+                        })
+                        .collect();
+                    if start < pools.len() {
+                        let stop = end.min(pools.len());
+                        let bp = &mut pools[start..stop];
+                        for (r, p) in out.results.iter_mut().zip(bp) {
+                            r.pool(p);
+                        }
+                    }
+                    let samples = spec.samples as usize;
+                    let sk = &skip[start.min(skip.len())..end.min(skip.len())];
+                    all.extend(Summary::many(
+                        &classes,
+                        &out.results,
+                        |_| samples,
+                        spec,
+                        &block,
+                        sk,
+                    ));
+                    timings.add(&out.timings);
                 }
-                let samples = spec.samples as usize;
-                let s = Summary::many(&classes, &out.results, |_| samples, spec, points, skip);
-                Ok((s, out.timings))
+                Ok((all, timings))
             }
             Engine::Cpu => {
                 let t = Instant::now();

@@ -40,9 +40,27 @@ fn progress_bar(len: u64, what: &str) -> ProgressBar {
 
 fn main() {
     if let Err(e) = run(Cli::parse()) {
+        // A reader that went away (`rattle point | head -1`) ends the output, quietly, as Unix
+        // tools do; the files, if any, were written before anything was printed.
+        let closed = e
+            .chain()
+            .filter_map(|c| c.downcast_ref::<std::io::Error>())
+            .any(|io| io.kind() == std::io::ErrorKind::BrokenPipe);
+        if closed {
+            std::process::exit(0);
+        }
         eprintln!("error: {e:#}");
         std::process::exit(2);
     }
+}
+
+/// Writes `text` to stdout, returning a closed pipe as an error instead of panicking.
+fn say(text: impl std::fmt::Display) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    write!(out, "{text}")?;
+    out.flush()?;
+    Ok(())
 }
 
 /// Runs a command; returns the files it wrote, printed one per line.
@@ -179,7 +197,7 @@ fn run(cli: Cli) -> Result<()> {
             write_outputs(&out, &cfg, &rows, &reference, t0.elapsed().as_secs_f64())?
         }
         Cmd::Adapters => {
-            print!("{}", rattle::gpu::adapters_report()?);
+            say(rattle::gpu::adapters_report()?)?;
             vec![]
         }
         Cmd::Validate {
@@ -187,7 +205,7 @@ fn run(cli: Cli) -> Result<()> {
             state_points,
         } => {
             let cfg = common.load_sweep()?;
-            print!("{}", rattle::bench::validate(&cfg, state_points)?);
+            say(rattle::bench::validate(&cfg, state_points as usize)?)?;
             vec![]
         }
         Cmd::Bench {
@@ -199,23 +217,20 @@ fn run(cli: Cli) -> Result<()> {
             lyapunov,
         } => {
             let cfg = common.load_sweep()?;
-            print!(
-                "{}",
-                bench::report(
-                    &cfg,
-                    points,
-                    periods,
-                    &common.backends(),
-                    json,
-                    ladder,
-                    lyapunov
-                )?
-            );
+            say(bench::report(
+                &cfg,
+                points,
+                periods,
+                &common.backends(),
+                json,
+                ladder,
+                lyapunov,
+            )?)?;
             vec![]
         }
     };
     for f in files {
-        println!("{}", f.display());
+        say(format_args!("{}\n", f.display()))?;
     }
     Ok(())
 }
@@ -227,9 +242,12 @@ fn point(cfg: &Config, as_json: bool) -> Result<Vec<PathBuf>> {
     let r = rattle::point::run(&engine, cfg, &|n| pb.inc(n))?;
     pb.finish_and_clear();
     if as_json {
-        println!("{}", serde_json::to_string(&serde_json::to_value(&r)?)?);
+        say(format_args!(
+            "{}\n",
+            serde_json::to_string(&serde_json::to_value(&r)?)?
+        ))?;
     } else {
-        print!("{r}");
+        say(&r)?;
     }
     Ok(vec![])
 }

@@ -112,8 +112,9 @@ impl Staged {
             return Ok(Vec::new());
         };
         let _lock = DirLock::acquire(first)?;
-        // Every destination is checked before the first rename: a failure leaves nothing.
-        for (_, dst) in &files {
+        // Every destination, and every stale file to remove, is checked before the first
+        // rename: a failure leaves nothing.
+        for dst in files.iter().map(|f| &f.1).chain(&self.stale) {
             if dst.is_dir() {
                 self.files = files.clone();
                 return Err(other(dst, "a directory is in the way"));
@@ -132,7 +133,56 @@ impl Staged {
                 std::fs::remove_file(p).map_err(io(p))?;
             }
         }
+        remove_orphans(&done);
         Ok(done)
+    }
+}
+
+/// Removes the `.partial` files of `finals` that runs killed before their commit left behind
+/// (their process is gone): `FINAL.PID-N.partial`. Best effort: a file that cannot be removed
+/// stays, and without /proc nothing is removed.
+fn remove_orphans(finals: &[PathBuf]) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let mut dirs: Vec<&Path> = finals
+        .iter()
+        .map(|f| {
+            f.parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .unwrap_or(Path::new("."))
+        })
+        .collect();
+    dirs.dedup();
+    let names: std::collections::HashSet<String> = finals
+        .iter()
+        .filter_map(|f| f.file_name()?.to_str().map(str::to_string))
+        .collect();
+    for dir in dirs {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let name = e.file_name();
+            let Some(name) = name.to_str() else { continue };
+            let Some(stem) = name.strip_suffix(".partial") else {
+                continue;
+            };
+            // FINAL.PID-N: the final name, then the writer's process id.
+            let Some((head, n)) = stem.rsplit_once('-') else {
+                continue;
+            };
+            let Some((final_name, pid)) = head.rsplit_once('.') else {
+                continue;
+            };
+            let ours = pid.parse::<u32>().is_ok_and(|p| p == std::process::id());
+            let gone = pid
+                .parse::<u32>()
+                .is_ok_and(|p| !Path::new("/proc").join(p.to_string()).exists());
+            if names.contains(final_name) && n.parse::<u64>().is_ok() && !ours && gone {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
     }
 }
 
@@ -156,22 +206,47 @@ impl DirLock {
         let dir = file.parent().filter(|p| !p.as_os_str().is_empty());
         let path = dir.unwrap_or(Path::new(".")).join(".rattle-commit.lock");
         let t = Instant::now();
+        let mut told = false;
         loop {
             match std::fs::OpenOptions::new()
                 .write(true)
                 .create_new(true)
                 .open(&path)
             {
-                Ok(_) => return Ok(DirLock(path)),
+                Ok(mut f) => {
+                    // The holder's process id, so that a lock left by a killed run is known
+                    // as stale at once.
+                    let _ = std::io::Write::write_all(
+                        &mut f,
+                        std::process::id().to_string().as_bytes(),
+                    );
+                    return Ok(DirLock(path));
+                }
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
                     let age = std::fs::metadata(&path)
                         .and_then(|m| m.modified())
                         .ok()
                         .and_then(|m| SystemTime::now().duration_since(m).ok());
-                    if age.is_some_and(|a| a > Self::STALE) {
+                    let holder = Self::holder(&path);
+                    if holder == Holder::Gone || age.is_some_and(|a| a > Self::STALE) {
                         let _ = std::fs::remove_file(&path);
-                    } else if t.elapsed() > 2 * Self::STALE {
+                        continue;
+                    }
+                    if t.elapsed() > 2 * Self::STALE {
                         return Err(other(&path, "output directory locked by another run"));
+                    }
+                    if !told && t.elapsed() > Duration::from_secs(1) {
+                        told = true;
+                        let who = match holder {
+                            Holder::Alive(pid) => format!("process {pid}"),
+                            _ => "another run".into(),
+                        };
+                        eprintln!(
+                            "waiting for {who} to finish committing its outputs ({}; a lock \
+                             older than {} s is taken over)",
+                            path.display(),
+                            Self::STALE.as_secs()
+                        );
                     }
                     std::thread::sleep(Duration::from_millis(5));
                 }
@@ -179,6 +254,33 @@ impl DirLock {
             }
         }
     }
+
+    /// Who holds the lock at `path`: a live process, a process that is gone (its id is not
+    /// in /proc), or unknown (no id written yet, or no /proc on this system).
+    fn holder(path: &Path) -> Holder {
+        let Some(pid) = std::fs::read_to_string(path)
+            .ok()
+            .and_then(|t| t.trim().parse::<u32>().ok())
+        else {
+            return Holder::Unknown;
+        };
+        let proc = Path::new("/proc");
+        if !proc.join("self").exists() {
+            Holder::Unknown
+        } else if proc.join(pid.to_string()).exists() {
+            Holder::Alive(pid)
+        } else {
+            Holder::Gone
+        }
+    }
+}
+
+/// See [`DirLock::holder`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Holder {
+    Alive(u32),
+    Gone,
+    Unknown,
 }
 
 impl Drop for DirLock {

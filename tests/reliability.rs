@@ -531,3 +531,204 @@ fn an_adapter_name_that_matches_nothing_is_an_error_not_a_panic() {
         assert!(!e.contains("panicked"), "{e}");
     }
 }
+
+#[test]
+fn a_closed_pipe_ends_the_output_quietly() {
+    // The reader is gone before the first line is written (as after `| head -1`): the writes
+    // fail with a broken pipe, and rattle ends with status 0 and no panic.
+    let mut child = rattle()
+        .args(["point", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args([
+            "--set",
+            "run.transient_periods=10",
+            "--set",
+            "run.sample_periods=4",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {err}", out.status);
+    assert!(
+        !err.contains("panicked") && !err.contains("Broken pipe"),
+        "{err}"
+    );
+}
+
+#[test]
+fn clearances_that_f32_cannot_resolve_are_refused_with_the_key() {
+    // In f32 the largest exponent at Fig. 2's eta = 1.5 drifts at r = 1e-11 and is NaN from
+    // 1e-12 (f64 unaffected): below 1e-9 f32 is refused, wherever r is set, before anything
+    // runs; f64 accepts the same values.
+    let d = scratch("clearance");
+    let cases: [(&[&str], &str); 3] = [
+        (&["point", "--set", "r=1e-12"], "model.r"),
+        (
+            &[
+                "map",
+                "--set",
+                "map.x=\"r\"",
+                "--set",
+                "map.x_from=1e-16",
+                "--set",
+                "map.x_to=1e-14",
+                "--set",
+                "map.x_points=2",
+                "--set",
+                "map.y_points=2",
+            ],
+            "map.x_from",
+        ),
+        (
+            &[
+                "bifurcation",
+                "--set",
+                "sweep.param=\"r\"",
+                "--set",
+                "sweep.from=1e-12",
+                "--set",
+                "sweep.to=0.5",
+                "--set",
+                "sweep.points=3",
+            ],
+            "sweep.from",
+        ),
+    ];
+    for (args, key) in cases {
+        let mut cmd = rattle();
+        cmd.args(args)
+            .args(["--backend", "cpu", "--precision", "f32", "--config"])
+            .arg(common::config("fig2.toml"));
+        if args[0] != "point" {
+            cmd.arg("--out").arg(d.join("x"));
+        }
+        let out = cmd.output().unwrap();
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(key) && err.contains("1e-9"), "{args:?}: {err}");
+    }
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+    let out = rattle()
+        .args([
+            "point",
+            "--set",
+            "r=1e-12",
+            "--backend",
+            "cpu",
+            "--precision",
+            "f64",
+            "--json",
+        ])
+        .args(["--set", "run.tangent=\"largest\"", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args(["--eta", "1.5"])
+        .output()
+        .unwrap();
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["class"], "period-1", "{}", stderr(&out));
+    assert!(
+        j["lyapunov"]
+            .as_f64()
+            .is_some_and(|l| (l + 0.0295).abs() < 1e-3)
+    );
+}
+
+#[test]
+fn validate_refuses_zero_state_points() {
+    let out = rattle()
+        .args(["validate", "--state-points", "0", "--config"])
+        .arg(common::config("fig2.toml"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("--state-points"), "{}", stderr(&out));
+}
+
+#[test]
+fn all_adapters_with_the_cpu_backend_is_refused() {
+    // `--adapters all` runs on GPUs; with the CPU backend asked for it used to run on the GPU
+    // anyway and write a JSON whose backend and config disagree.
+    let (d, cfg) = setup("adapters-cpu");
+    let out = map(&cfg, &d.join("m"), &["--adapters", "all"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert!(
+        err.contains("--adapters all") && err.contains("cpu"),
+        "{err}"
+    );
+    assert!(!d.join("m.json").exists());
+}
+
+/// The id of a process that has ended (as a killed run's is).
+fn gone_pid() -> u32 {
+    let mut gone = std::process::Command::new("true").spawn().unwrap();
+    let pid = gone.id();
+    gone.wait().unwrap();
+    pid
+}
+
+#[test]
+fn a_lock_left_by_a_killed_run_is_taken_over_at_once() {
+    // A run killed during its commit leaves `.rattle-commit.lock` holding its process id: the
+    // next run sees that the process is gone and takes the lock over instead of waiting 60 s
+    // without a word.
+    let (d, cfg) = setup("stale-lock");
+    let pid = gone_pid();
+    let lock = d.join(".rattle-commit.lock");
+    std::fs::write(&lock, pid.to_string()).unwrap();
+    let t = std::time::Instant::now();
+    let out = map(&cfg, &d.join("m"), &[]);
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    assert!(!err.contains("waiting"), "{err}");
+    // Not a speed claim: the old behaviour waited for the lock's 60 s age limit.
+    assert!(t.elapsed() < std::time::Duration::from_secs(30));
+    assert!(d.join("m.json").exists() && !lock.exists());
+}
+
+#[test]
+fn a_directory_in_the_way_of_a_stale_file_fails_before_any_commit() {
+    // A map without exponents removes the stale exponent images of the prefix; a directory
+    // there used to fail that removal after all the new files were committed.
+    let (d, cfg) = setup("stale-dir");
+    std::fs::create_dir(d.join("m-multiplier.png")).unwrap();
+    let out = map(&cfg, &d.join("m"), &["--set", "run.tangent=\"none\""]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("m-multiplier.png"),
+        "{}",
+        stderr(&out)
+    );
+    let left: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n != "c.toml" && n != "m-multiplier.png")
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
+fn partial_files_of_killed_runs_are_removed_by_the_next_commit() {
+    // A run killed before its commit leaves `FINAL.PID-N.partial` files; the next run that
+    // commits the same files removes those whose process is gone, and no others.
+    let (d, cfg) = setup("orphans");
+    let pid = gone_pid();
+    let orphan = d.join(format!("m.json.{pid}-3.partial"));
+    let other = d.join(format!("x.json.{pid}-3.partial"));
+    let live = d.join(format!("m.json.{}-0.partial", std::process::id()));
+    for f in [&orphan, &other, &live] {
+        std::fs::write(f, "partial").unwrap();
+    }
+    let out = map(&cfg, &d.join("m"), &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!orphan.exists(), "an orphan of the committed set stays");
+    assert!(other.exists(), "a file of another prefix was removed");
+    assert!(
+        live.exists(),
+        "the partial file of a live process was removed"
+    );
+}

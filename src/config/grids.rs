@@ -158,6 +158,9 @@ impl Config {
             name.set(&mut p, v);
             p.validate()
                 .map_err(|e| ConfigError::range(key, v, &format!("{} for `{name}`", e.range)))?;
+            if name == Param::Clearance {
+                self.check_clearance(key, v)?;
+            }
         }
         self.check_precision([
             ("map.x_from", m.x_from),

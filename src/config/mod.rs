@@ -506,6 +506,7 @@ impl Config {
                 "(0, inf)",
             ));
         }
+        self.check_clearance("model.r", m.r)?;
         self.check_precision(
             [
                 ("model.eta", m.eta),
@@ -537,6 +538,24 @@ impl Config {
 
     /// Refuses values the configured precision cannot represent (f32: nonzero magnitudes
     /// outside [1.2e-38, 3.4e38] would become 0 or infinite).
+    /// The smallest clearance the f32 integrator resolves: below it the guards of the stops
+    /// compare positions whose rounding exceeds the clearance (measured at Fig. 2's eta = 1.5:
+    /// the exponent drifts at r = 1e-11 and is NaN from r = 1e-12; f64 is unaffected).
+    pub const F32_MIN_CLEARANCE: f64 = 1e-9;
+
+    /// Refuses a clearance `v` (at key `key`) that f32 cannot resolve.
+    fn check_clearance(&self, key: &str, v: f64) -> Result<(), ConfigError> {
+        if self.method.precision == Precision::F32 && v < Self::F32_MIN_CLEARANCE {
+            return Err(ConfigError::range(
+                key,
+                v,
+                "r >= 1e-9 with method.precision = \"f32\" (below it the stops' guards lose the \
+                 clearance to the rounding of the positions; use \"f64\")",
+            ));
+        }
+        Ok(())
+    }
+
     fn check_precision<'a>(
         &self,
         values: impl IntoIterator<Item = (&'a str, f64)>,
@@ -572,6 +591,10 @@ impl Config {
             ));
         }
         self.check_precision([("sweep.from", s.from), ("sweep.to", s.to)])?;
+        if s.param == Param::Clearance {
+            self.check_clearance("sweep.from", s.from)?;
+            self.check_clearance("sweep.to", s.to)?;
+        }
         if s.param == Param::Lambda && m.friction != FrictionLaw::Coulomb {
             return Err(ConfigError::range(
                 "sweep.param",

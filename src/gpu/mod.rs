@@ -89,6 +89,22 @@ pub struct Timings {
     pub batches: u32,
 }
 
+impl Timings {
+    /// Adds the times of another run (kernel time only where both have it).
+    pub fn add(&mut self, o: &Timings) {
+        self.setup_s += o.setup_s;
+        self.integration_s += o.integration_s;
+        self.readback_s += o.readback_s;
+        self.kernel_s = match (self.kernel_s, o.kernel_s) {
+            (Some(a), Some(b)) => Some(a + b),
+            (None, b) if self.dispatches == 0 => b,
+            _ => None,
+        };
+        self.dispatches += o.dispatches;
+        self.batches += o.batches;
+    }
+}
+
 pub struct GpuOutput {
     pub results: Vec<RunResult>,
     /// Classes from the on-GPU period detector.

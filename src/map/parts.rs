@@ -585,6 +585,13 @@ pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> Result<MapS
                 .into(),
         ));
     }
+    if cfg.method.backend == crate::config::Backend::Cpu {
+        return Err(MapError::Options(
+            "--adapters all splits the cells over the machine's GPU adapters and cannot run with \
+             method.backend = \"cpu\" (drop --adapters all for the CPU, or use --backend gpu)"
+                .into(),
+        ));
+    }
     o.check(cfg)?;
     let starts = o.starts;
     let gpus = crate::gpu::Gpu::all()?;
