@@ -428,6 +428,7 @@ pub fn report(
     ladder: bool,
     lyapunov: bool,
 ) -> Result<String> {
+    crate::memory::check_points("--points x --periods", "--points", points as u64, periods)?;
     if ladder {
         return self::ladder(cfg, points, periods, lyapunov);
     }

@@ -732,3 +732,94 @@ fn partial_files_of_killed_runs_are_removed_by_the_next_commit() {
         "the partial file of a live process was removed"
     );
 }
+
+#[test]
+fn every_command_that_holds_one_result_per_point_goes_through_the_memory_guard() {
+    // With 3 GB available: the issue's 3e6-point sweep (measured at 1,829 B per point, estimated
+    // 2,208) is refused, as are a bench and an accuracy ensemble of unbounded size, each before
+    // computing, naming what sets the size.
+    let cases: [(&[&str], &str); 3] = [
+        (
+            &[
+                "bifurcation",
+                "--set",
+                "sweep.points=3000000",
+                "--set",
+                "run.sample_periods=2",
+                "--set",
+                "run.transient_periods=0",
+                "--set",
+                "method.steps_per_period=8",
+            ],
+            "sweep.points",
+        ),
+        (&["bench", "--points", "99999999999"], "--points"),
+        (&["accuracy", "--ensemble", "100000000"], "--ensemble"),
+    ];
+    let d = scratch("guard");
+    for (args, key) in cases {
+        let t = std::time::Instant::now();
+        let out = rattle()
+            .env("RATTLE_MEMORY_LIMIT", "3000000000")
+            .args(args)
+            .args(["--backend", "cpu", "--config"])
+            .arg(common::config("fig2.toml"))
+            .current_dir(&d)
+            .output()
+            .unwrap();
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(key) && err.contains("available"), "{err}");
+        // Refused before computing (not a speed claim: any computation of these takes minutes).
+        assert!(t.elapsed() < std::time::Duration::from_secs(20), "{args:?}");
+    }
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+}
+
+#[test]
+fn a_start_outside_the_stops_of_a_swept_clearance_is_refused() {
+    // `point` refuses a start with |y3 - y1| > r; a sweep or a map over r starts every value
+    // from the same state, so it must lie inside the smallest r swept.
+    let d = scratch("start-r");
+    let start = "initial.y=[0.0, 0.0, 0.5, 0.0]";
+    let cases: [(&[&str], &str); 2] = [
+        (
+            &[
+                "bifurcation",
+                "--set",
+                "sweep.param=\"r\"",
+                "--set",
+                "sweep.from=0.1",
+                "--set",
+                "sweep.to=0.8",
+            ],
+            "sweep.from",
+        ),
+        (
+            &[
+                "map",
+                "--set",
+                "map.x=\"r\"",
+                "--set",
+                "map.x_from=0.9",
+                "--set",
+                "map.x_to=0.2",
+            ],
+            "map.x_to",
+        ),
+    ];
+    for (args, key) in cases {
+        let out = rattle()
+            .args(args)
+            .args(["--set", start, "--backend", "cpu", "--config"])
+            .arg(common::config("fig2.toml"))
+            .arg("--out")
+            .arg(d.join("x"))
+            .output()
+            .unwrap();
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("initial.y") && err.contains(key), "{err}");
+    }
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+}

@@ -169,6 +169,7 @@ pub fn study(
             "--ensemble >= 1, --failure-points >= 2".into(),
         ));
     }
+    crate::memory::check_points("--ensemble", "--ensemble", o.ensemble as u64, 1)?;
     let mut rows = Vec::new();
     let engines: Vec<Engine> = o
         .backends

@@ -543,8 +543,17 @@ impl Config {
     /// the exponent drifts at r = 1e-11 and is NaN from r = 1e-12; f64 is unaffected).
     pub const F32_MIN_CLEARANCE: f64 = 1e-9;
 
-    /// Refuses a clearance `v` (at key `key`) that f32 cannot resolve.
+    /// Refuses a clearance `v` (at key `key`) that f32 cannot resolve, or that the initial
+    /// state lies outside of (a sweep or a map over r starts every value from `initial.y`).
     fn check_clearance(&self, key: &str, v: f64) -> Result<(), ConfigError> {
+        let z0 = (self.initial.y[2] - self.initial.y[0]).abs();
+        if z0 > v {
+            return Err(ConfigError::range(
+                "initial.y",
+                format!("{:?} (|y3 - y1| = {z0})", self.initial.y),
+                &format!("|y3 - y1| <= r for every r swept, and {key} = {v}"),
+            ));
+        }
         if self.method.precision == Precision::F32 && v < Self::F32_MIN_CLEARANCE {
             return Err(ConfigError::range(
                 key,
