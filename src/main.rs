@@ -39,6 +39,12 @@ fn progress_bar(len: u64, what: &str) -> ProgressBar {
 }
 
 fn main() {
+    // Ctrl-C or SIGTERM: wait for a set being renamed into place, then end (the commit lock is
+    // released by the next run, which sees that this process is gone).
+    let _ = ctrlc::set_handler(|| {
+        let _held = rattle::output::interrupt_guard();
+        std::process::exit(rattle::output::INTERRUPTED);
+    });
     if let Err(e) = run(Cli::parse()) {
         // A reader that went away (`rattle point | head -1`) ends the output, quietly, as Unix
         // tools do; the files, if any, were written before anything was printed.

@@ -62,6 +62,21 @@ pub struct Staged {
 /// Distinguishes the sets of one process.
 static SET: AtomicU64 = AtomicU64::new(0);
 
+/// Held while a set is renamed into place. An interrupt handler takes it before it ends the
+/// process ([`interrupt_guard`]), so an interrupt during a commit waits for the whole set to be
+/// in place: an interrupted run never leaves its set mixed with an older run's (its `.partial`
+/// files, if any, are removed by the next commit on the prefix).
+static RENAMING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Waits for a commit under way, then holds off the next one: take it in an interrupt handler
+/// before ending the process.
+pub fn interrupt_guard() -> std::sync::MutexGuard<'static, ()> {
+    RENAMING.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Exit status of a process ended by an interrupt (128 + SIGINT).
+pub const INTERRUPTED: i32 = 130;
+
 impl Staged {
     pub fn new() -> Self {
         Staged::default()
@@ -111,7 +126,17 @@ impl Staged {
         let Some((_, first)) = files.first() else {
             return Ok(Vec::new());
         };
-        let _lock = DirLock::acquire(first)?;
+        let lock = DirLock::acquire(first)?;
+        let renaming = interrupt_guard();
+        let result = self.rename_all(files);
+        // The lock file goes before an interrupt waiting on `renaming` may end the process.
+        drop(lock);
+        drop(renaming);
+        result
+    }
+
+    /// The renames of [`Staged::commit`], under its lock.
+    fn rename_all(&mut self, files: Vec<(PathBuf, PathBuf)>) -> Result<Vec<PathBuf>, OutputError> {
         // Every destination, and every stale file to remove, is checked before the first
         // rename: a failure leaves nothing.
         for dst in files.iter().map(|f| &f.1).chain(&self.stale) {

@@ -823,3 +823,113 @@ fn a_start_outside_the_stops_of_a_swept_clearance_is_refused() {
     }
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
 }
+
+/// The files of an output set in `dir` (no `.partial` files, no lock), name -> bytes; the
+/// JSON's run-specific timings are left out.
+fn output_set(dir: &Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .filter_map(|p| {
+            let name = p.file_name()?.to_str()?.to_string();
+            if name.ends_with(".partial") || name.starts_with('.') {
+                return None;
+            }
+            let bytes = std::fs::read(&p).ok()?;
+            let bytes = if name.ends_with(".json") {
+                let j: serde_json::Value = serde_json::from_slice(&bytes).ok()?;
+                j["config"].to_string().into_bytes()
+            } else {
+                bytes
+            };
+            Some((name, bytes))
+        })
+        .collect()
+}
+
+#[test]
+fn an_interrupted_run_leaves_one_runs_whole_set() {
+    // Two deterministic maps (eta 1.26 and 1.3) write the same 21 files of prefix m. The
+    // second is interrupted (SIGINT) at many moments over its run, writes and commit included,
+    // each time over the first's set: the files on disk are always all of one run's set,
+    // never a mix, whatever the moment.
+    let d = scratch("sigint");
+    let run = |dir: &Path, eta: &str| {
+        let mut c = rattle();
+        c.args(["map", "--backend", "cpu", "--precision", "f64", "--config"])
+            .arg(common::config("r_lambda.toml"))
+            .args(["--eta", eta])
+            .args([
+                "--set",
+                "run.transient_periods=0",
+                "--set",
+                "run.sample_periods=4",
+            ])
+            .args(["--set", "method.steps_per_period=8"])
+            .args(["--set", "map.x_points=256", "--set", "map.y_points=256"])
+            .arg("--out")
+            .arg(dir.join("m"));
+        c
+    };
+    let sets: Vec<_> = ["1.26", "1.3"]
+        .iter()
+        .map(|eta| {
+            let dir = d.join(format!("ref-{eta}"));
+            std::fs::create_dir(&dir).unwrap();
+            let t = std::time::Instant::now();
+            ok(&mut run(&dir, eta));
+            (output_set(&dir), t.elapsed())
+        })
+        .collect();
+    let (a, b) = (&sets[0].0, &sets[1].0);
+    assert_eq!(a.len(), 21);
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    let full = sets[1].1;
+    let work = d.join("work");
+    std::fs::create_dir(&work).unwrap();
+    let (mut whole_a, mut whole_b) = (0, 0);
+    // Delays: at once, then densely over the end of the run (the writes and the commit), then
+    // after its end.
+    let delays: Vec<f64> = std::iter::once(0.0)
+        .chain((0..16).map(|k| 0.7 + 0.025 * f64::from(k)))
+        .chain(std::iter::once(2.0))
+        .collect();
+    for (k, &delay) in delays.iter().enumerate() {
+        // Start from the first run's set.
+        for (name, _) in a.iter() {
+            std::fs::copy(d.join("ref-1.26").join(name), work.join(name)).unwrap();
+        }
+        let mut child = run(&work, "1.3");
+        let mut child = child
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(full.mul_f64(delay));
+        let _ = std::process::Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status();
+        child.wait().unwrap();
+        let now = output_set(&work);
+        if now == *a {
+            whole_a += 1;
+        } else if now == *b {
+            whole_b += 1;
+        } else {
+            let mixed: Vec<_> = now
+                .iter()
+                .filter(|(n, v)| a.get(*n) == Some(v))
+                .map(|(n, _)| n)
+                .collect();
+            panic!(
+                "interrupt {k}: a mixed set ({} of {} files from the first run: {mixed:?})",
+                mixed.len(),
+                now.len()
+            );
+        }
+    }
+    eprintln!("interrupted runs: {whole_a} left the first set, {whole_b} the second");
+    // The first interrupt comes before anything is written, the last after the end.
+    assert!(whole_a > 0 && whole_b > 0, "{whole_a} {whole_b}");
+}
