@@ -135,16 +135,29 @@ impl fmt::Display for PointReport {
             self.period.map_or("-".into(), |n| n.to_string())
         )?;
         writeln!(f, "impacts per period {:.4}", self.impacts_per_period)?;
+        if self.lyapunov.is_nan() {
+            writeln!(
+                f,
+                "lyapunov exponent  - (none: run.tangent = \"none\", or a failed run)"
+            )?;
+        } else {
+            writeln!(
+                f,
+                "lyapunov exponent  {:.5} +- {:.5} (per unit time, standard error)",
+                self.lyapunov, self.lyapunov_se
+            )?;
+        }
+        if self.torus_digits.is_nan() {
+            writeln!(f, "torus test         - (no two halves of the window)")?;
+        } else {
+            writeln!(f, "torus test         {:.1} digits", self.torus_digits)?;
+        }
         writeln!(
             f,
-            "lyapunov exponent  {:.5} +- {:.5} (per unit time, standard error)",
-            self.lyapunov, self.lyapunov_se
-        )?;
-        writeln!(f, "torus test         {:.1} digits", self.torus_digits)?;
-        writeln!(
-            f,
-            "decided by         {:?} after {} periods (Newton tried {:?})",
-            self.rule, self.periods, self.tried_periods
+            "decided by         {} after {} periods (Newton tried {:?})",
+            self.rule.name(),
+            self.periods,
+            self.tried_periods
         )?;
         if let Some(s) = &self.lyapunov_spectrum {
             let spec: Vec<String> = s.iter().map(|l| format!("{l:.5}")).collect();
