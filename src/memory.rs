@@ -7,23 +7,28 @@ use crate::config::{Config, ConfigError};
 /// driver's staging and allocator overhead).
 const USABLE: f64 = 0.8;
 
-/// Bytes of host memory available to a run: `RATTLE_MEMORY_LIMIT` (bytes) if set, else the
-/// kernel's MemAvailable, else 4 GiB.
-pub fn available() -> u64 {
-    if let Some(v) = std::env::var("RATTLE_MEMORY_LIMIT")
-        .ok()
-        .and_then(|v| v.trim().parse().ok())
-    {
-        return v;
+/// Bytes of host memory available to a run: `RATTLE_MEMORY_LIMIT` (bytes) if set (a value that
+/// is not a positive whole number of bytes is an error, not ignored), else the kernel's
+/// MemAvailable, else 4 GiB.
+pub fn available() -> Result<u64, ConfigError> {
+    if let Ok(v) = std::env::var("RATTLE_MEMORY_LIMIT") {
+        return match v.trim().parse::<u64>() {
+            Ok(b) if b > 0 => Ok(b),
+            _ => Err(ConfigError::Range {
+                key: "RATTLE_MEMORY_LIMIT".into(),
+                value: format!("{v:?}"),
+                range: "a positive whole number of bytes, e.g. 4000000000".into(),
+            }),
+        };
     }
-    std::fs::read_to_string("/proc/meminfo")
+    Ok(std::fs::read_to_string("/proc/meminfo")
         .ok()
         .and_then(|m| {
             m.lines()
                 .find(|l| l.starts_with("MemAvailable:"))
                 .and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok())
         })
-        .map_or(4 << 30, |kib| kib * 1024)
+        .map_or(4 << 30, |kib| kib * 1024))
 }
 
 fn gib(b: f64) -> String {
@@ -60,7 +65,7 @@ pub fn check_bifurcation(cfg: &Config, chains: usize) -> Result<(), ConfigError>
 pub fn check_points(key: &str, count: &str, points: u64, samples: u32) -> Result<(), ConfigError> {
     let per = bifurcation_bytes_per_point(samples);
     let need = per as f64 * points as f64;
-    let have = available() as f64 * USABLE;
+    let have = available()? as f64 * USABLE;
     if need > have {
         return Err(ConfigError::Range {
             key: key.into(),
@@ -89,7 +94,7 @@ pub fn check_map(cfg: &Config, cells: usize, starts: usize) -> Result<(), Config
     let per = map_bytes_per_cell(starts.max(1));
     let block = cells.min(crate::engine::GPU_BLOCK) as f64 * MAP_BLOCK_BYTES_PER_CELL as f64;
     let need = per as f64 * cells as f64 + block;
-    let have = available() as f64 * USABLE;
+    let have = available()? as f64 * USABLE;
     if need > have {
         return Err(ConfigError::Range {
             key: "map.x_points x map.y_points".into(),
@@ -127,7 +132,7 @@ pub fn check_basin(cfg: &Config, chunk: usize) -> Result<(), ConfigError> {
     let cells = b.x_points as f64 * b.y_points as f64;
     let need = BASIN_BYTES_PER_CELL as f64 * cells
         + basin_chunk_bytes(chunk, cfg.run.sample_periods) as f64;
-    let have = available() as f64 * USABLE;
+    let have = available()? as f64 * USABLE;
     if need > have {
         return Err(ConfigError::Range {
             key: "basin.x_points x basin.y_points".into(),

@@ -933,3 +933,25 @@ fn an_interrupted_run_leaves_one_runs_whole_set() {
     // The first interrupt comes before anything is written, the last after the end.
     assert!(whole_a > 0 && whole_b > 0, "{whole_a} {whole_b}");
 }
+
+#[test]
+fn a_bad_memory_limit_is_an_error_not_ignored() {
+    let d = scratch("bad-limit");
+    for v in ["4GB", "0", "-1"] {
+        let out = rattle()
+            .env("RATTLE_MEMORY_LIMIT", v)
+            .args(["bifurcation", "--backend", "cpu", "--config"])
+            .arg(common::config("fig2.toml"))
+            .arg("--out")
+            .arg(d.join("x"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{v}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains("RATTLE_MEMORY_LIMIT"),
+            "{}",
+            stderr(&out)
+        );
+    }
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+}
