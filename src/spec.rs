@@ -19,8 +19,6 @@ pub struct RunSpec {
     pub samples: u32,
     /// Period test tolerance relative to the attractor size.
     pub period_tol: f64,
-    /// |Lyapunov exponent| below this counts as zero.
-    pub lyapunov_tol: f64,
     /// An undecided point may run this many times the configured periods in all
     /// (`run.horizon`, [`crate::adaptive::extensions`]).
     pub horizon: u32,
@@ -36,7 +34,6 @@ impl RunSpec {
             transient: cfg.run.transient_periods,
             samples: cfg.run.sample_periods,
             period_tol: cfg.run.period_tol,
-            lyapunov_tol: cfg.run.lyapunov_tol,
             horizon: cfg.run.horizon,
             precision: cfg.method.precision,
         }

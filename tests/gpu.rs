@@ -43,7 +43,6 @@ fn eta_spec(s: Settings, transient: u32, samples: u32, f64: bool) -> RunSpec {
         transient,
         samples,
         period_tol: 1e-4,
-        lyapunov_tol: 0.01,
         horizon: 1,
         precision: if f64 { Precision::F64 } else { Precision::F32 },
     }

@@ -43,6 +43,14 @@ fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// Runs `cmd`, which must be refused before computing: exit 2 with every key in the message.
+fn refused(cmd: &mut std::process::Command, keys: &[&str]) {
+    let out = cmd.output().unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{cmd:?}: {err}");
+    assert!(keys.iter().all(|k| err.contains(k)), "{cmd:?}: {err}");
+}
+
 #[test]
 fn checkpoints_of_another_run_are_recomputed_not_reused() {
     let (d, cfg) = setup("ident-ckpt");
@@ -606,10 +614,7 @@ fn clearances_that_f32_cannot_resolve_are_refused_with_the_key() {
         if args[0] != "point" {
             cmd.arg("--out").arg(d.join("x"));
         }
-        let out = cmd.output().unwrap();
-        let err = stderr(&out);
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
-        assert!(err.contains(key) && err.contains("1e-9"), "{args:?}: {err}");
+        refused(&mut cmd, &[key, "1e-9"]);
     }
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
     let out = rattle()
@@ -759,17 +764,15 @@ fn every_command_that_holds_one_result_per_point_goes_through_the_memory_guard()
     let d = scratch("guard");
     for (args, key) in cases {
         let t = std::time::Instant::now();
-        let out = rattle()
-            .env("RATTLE_MEMORY_LIMIT", "3000000000")
-            .args(args)
-            .args(["--backend", "cpu", "--config"])
-            .arg(common::config("fig2.toml"))
-            .current_dir(&d)
-            .output()
-            .unwrap();
-        let err = stderr(&out);
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
-        assert!(err.contains(key) && err.contains("available"), "{err}");
+        refused(
+            rattle()
+                .env("RATTLE_MEMORY_LIMIT", "3000000000")
+                .args(args)
+                .args(["--backend", "cpu", "--config"])
+                .arg(common::config("fig2.toml"))
+                .current_dir(&d),
+            &[key, "available"],
+        );
         // Refused before computing (not a speed claim: any computation of these takes minutes).
         assert!(t.elapsed() < std::time::Duration::from_secs(20), "{args:?}");
     }
@@ -809,17 +812,15 @@ fn a_start_outside_the_stops_of_a_swept_clearance_is_refused() {
         ),
     ];
     for (args, key) in cases {
-        let out = rattle()
-            .args(args)
-            .args(["--set", start, "--backend", "cpu", "--config"])
-            .arg(common::config("fig2.toml"))
-            .arg("--out")
-            .arg(d.join("x"))
-            .output()
-            .unwrap();
-        let err = stderr(&out);
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
-        assert!(err.contains("initial.y") && err.contains(key), "{err}");
+        refused(
+            rattle()
+                .args(args)
+                .args(["--set", start, "--backend", "cpu", "--config"])
+                .arg(common::config("fig2.toml"))
+                .arg("--out")
+                .arg(d.join("x")),
+            &["initial.y", key],
+        );
     }
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
 }
@@ -938,19 +939,14 @@ fn an_interrupted_run_leaves_one_runs_whole_set() {
 fn a_bad_memory_limit_is_an_error_not_ignored() {
     let d = scratch("bad-limit");
     for v in ["4GB", "0", "-1"] {
-        let out = rattle()
-            .env("RATTLE_MEMORY_LIMIT", v)
-            .args(["bifurcation", "--backend", "cpu", "--config"])
-            .arg(common::config("fig2.toml"))
-            .arg("--out")
-            .arg(d.join("x"))
-            .output()
-            .unwrap();
-        assert_eq!(out.status.code(), Some(2), "{v}: {}", stderr(&out));
-        assert!(
-            stderr(&out).contains("RATTLE_MEMORY_LIMIT"),
-            "{}",
-            stderr(&out)
+        refused(
+            rattle()
+                .env("RATTLE_MEMORY_LIMIT", v)
+                .args(["bifurcation", "--backend", "cpu", "--config"])
+                .arg(common::config("fig2.toml"))
+                .arg("--out")
+                .arg(d.join("x")),
+            &["RATTLE_MEMORY_LIMIT"],
         );
     }
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
