@@ -110,9 +110,10 @@ pub enum Cmd {
         /// copies of configs/).
         #[arg(long)]
         configs: Option<PathBuf>,
-        /// Parameter points per panel (overrides sweep.points).
-        #[arg(long)]
+        /// Parameter points per panel (overrides sweep.points), 1 to 10000000.
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=10_000_000))]
         points: Option<u32>,
+        /// The PNG file (its name must end in .png).
         #[arg(long, default_value = "paper.png")]
         out: PathBuf,
         #[arg(long, value_enum)]
@@ -219,6 +220,23 @@ impl Common {
 
     /// The configuration of `path` with this command line's overrides, validated.
     pub fn load_from(&self, path: &Path) -> Result<Config> {
+        // A flag and a `--set` of the same key: one would be dropped unread (and unchecked).
+        let flags = [
+            ("--eta", "model.eta", self.eta.is_some()),
+            ("--R", "model.R", self.restitution.is_some()),
+            ("--lambda", "model.lambda", self.lambda.is_some()),
+            ("--precision", "method.precision", self.precision.is_some()),
+            ("--backend", "method.backend", self.backend.is_some()),
+        ];
+        for set in &self.set {
+            let key = set.split('=').next().unwrap_or("").trim();
+            for (flag, full, given) in flags {
+                let short = full.split('.').nth(1).unwrap_or(full);
+                if given && (key == full || key == short) {
+                    anyhow::bail!("{flag} and --set {set} both set `{full}`: give one of them");
+                }
+            }
+        }
         let o = Overrides {
             eta: self.eta,
             restitution: self.restitution,

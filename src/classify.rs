@@ -491,6 +491,10 @@ fn clearly_positive(e: &Evidence) -> bool {
     e.lyapunov_se.is_finite() && e.lyapunov > CHAOS_MARGIN * e.lyapunov_se
 }
 
+fn clearly_negative(e: &Evidence) -> bool {
+    e.lyapunov_se.is_finite() && e.lyapunov < -CHAOS_MARGIN * e.lyapunov_se
+}
+
 /// The periods Newton is to try, in order: the strict detector's (its cycle needs no more than
 /// stability), then the candidates (not where the exponent is clearly positive: a chaotic
 /// window's near-repeats are not cycles, and trying them cost more than the map's integration).
@@ -513,9 +517,10 @@ pub fn proposals(e: &Evidence) -> Vec<(u32, Option<Candidate>)> {
             out.push((c.period, Some(c)));
         }
     }
-    // Without an exponent, also period 1 (Newton at a long lag may not converge from a wide
-    // spiral that Newton at period 1 follows in).
-    if e.lyapunov.is_nan()
+    // Without an exponent, or with one clearly negative (a stable cycle not yet settled enough
+    // for the detector), also period 1: Newton at a long lag may not converge from a wide
+    // spiral that Newton at period 1 follows in.
+    if (e.lyapunov.is_nan() || clearly_negative(e))
         && !out.iter().any(|t| t.0 == 1)
         && let Some(c) = candidate_at(e.tail, 1)
     {

@@ -18,10 +18,16 @@ pub enum Error {
     Map(#[from] crate::map::MapError),
     #[error(transparent)]
     Reference(#[from] crate::reference::ReferenceError),
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}")]
     Csv { path: String, source: csv::Error },
     #[error("JSON: {0}")]
     Json(#[from] serde_json::Error),
+    /// Every point of a sweep ended in a non-finite state: there is nothing to draw.
+    #[error(
+        "every one of the {points} points failed (non-finite state); nothing written: \
+         check the model's levels and method.steps_per_period"
+    )]
+    AllFailed { points: usize },
     /// A request the library cannot serve (wrong option combination, missing adapter).
     #[error("{0}")]
     Invalid(String),

@@ -165,6 +165,15 @@ fn run(cli: Cli) -> Result<()> {
             backend,
             precision,
         } => {
+            if out
+                .extension()
+                .is_none_or(|e| !e.eq_ignore_ascii_case("png"))
+            {
+                anyhow::bail!(
+                    "--out {}: the figure is a PNG image; name a file ending in .png",
+                    out.display()
+                );
+            }
             check_prefix(&out, &[])?;
             let pb = progress_bar(4 * points.unwrap_or(2000) as u64, "figure");
             let files = bifurcation::paper_figure(

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant, SystemTime};
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}")]
     Io {
         path: String,
         source: std::io::Error,
@@ -346,6 +346,10 @@ pub fn check_prefix(prefix: &Path, exts: &[&str]) -> Result<(), OutputError> {
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     if !dir.is_dir() {
+        // Name what is wrong: a file where a directory should be, or a directory missing.
+        if let Some(file) = dir.ancestors().find(|a| a.exists()).filter(|a| !a.is_dir()) {
+            return Err(other(file, "a file is in the way of the output directory"));
+        }
         return Err(other(dir, "the output directory does not exist"));
     }
     let probe = dir.join(format!(".rattle-probe-{}", std::process::id()));

@@ -951,3 +951,122 @@ fn a_bad_memory_limit_is_an_error_not_ignored() {
     }
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
 }
+
+/// Issue item: a map without exponents (`run.tangent = "none"`) still confirms cycles through
+/// Newton, and the map with exponents decides no cell differently from it.
+#[test]
+fn a_map_without_exponents_confirms_the_cycles_the_default_map_finds() {
+    let d = scratch("tangent_none");
+    let short = [
+        "--set",
+        "run.transient_periods=20",
+        "--set",
+        "run.sample_periods=16",
+        "--set",
+        "method.steps_per_period=64",
+        "--set",
+        "map.x_points=8",
+        "--set",
+        "map.y_points=8",
+    ];
+    let run = |out: &str, extra: &[&str]| {
+        ok(rattle()
+            .args(["map", "--backend", "cpu", "--config"])
+            .arg(common::config("r_lambda.toml"))
+            .args(short)
+            .args(extra)
+            .arg("--out")
+            .arg(d.join(out)));
+        let class: Vec<i32> = npy(&d.join(format!("{out}-class.npy")));
+        class
+    };
+    let none = run("none", &["--set", "run.tangent=\"none\""]);
+    let full = run("full", &[]);
+    let cycles = |c: &[i32]| c.iter().filter(|&&k| k >= 1).count();
+    // Six cells settle on a cycle within these 36 periods (Newton at their periods).
+    assert!(cycles(&none) >= 5, "{none:?}");
+    assert!(cycles(&full) >= 5, "{full:?}");
+    for (i, (&a, &b)) in none.iter().zip(&full).enumerate() {
+        if b >= 1 {
+            assert_eq!(
+                a, b,
+                "cell {i}: period {b} with exponents, class {a} without"
+            );
+        }
+    }
+}
+
+/// Low items: every message names the key or flag at fault, in a form a person reads.
+#[test]
+fn messages_name_the_key_at_fault_in_readable_form() {
+    let d = scratch("messages");
+    let fig2 = common::config("fig2.toml");
+    let cmd = |args: &[&str]| {
+        let mut c = rattle();
+        c.args(args).current_dir(&d);
+        c
+    };
+    let point = |extra: &[&str]| {
+        let mut c = cmd(&["point", "--backend", "cpu", "--config"]);
+        c.arg(&fig2).args(extra);
+        c
+    };
+    // A huge number in exponent form, not 309 digits.
+    let o = point(&["--set", "eta=1e308"]).output().unwrap();
+    assert!(stderr(&o).contains("1e308") && !stderr(&o).contains("00000000"));
+    refused(&mut point(&["--set", "eta=1e308"]), &["model.eta"]);
+    // A flag and a --set of the same key: neither is dropped unread.
+    refused(
+        &mut point(&["--eta", "1.2", "--set", "eta=0"]),
+        &["--eta", "model.eta"],
+    );
+    // A level the friction law ignores is checked like the one it reads.
+    refused(&mut point(&["--set", "fs=-1"]), &["model.fs"]);
+    // A map range of zero width names its keys.
+    let mut c = cmd(&["map", "--backend", "cpu", "--config"]);
+    c.arg(common::config("r_lambda.toml")).args([
+        "--set",
+        "map.x_from=0.6",
+        "--set",
+        "map.x_to=0.6",
+    ]);
+    refused(&mut c, &["map.x_to", "map.x_from"]);
+    // The error chain says each cause once.
+    let o = cmd(&["point", "--config"])
+        .arg(d.join("none.toml"))
+        .output();
+    let e = stderr(&o.unwrap());
+    assert_eq!(e.matches("os error 2").count(), 1, "{e}");
+    // A file in the way of the output directory is named as such.
+    std::fs::write(d.join("file"), "").unwrap();
+    let mut c = cmd(&["bifurcation", "--backend", "cpu", "--config"]);
+    c.arg(&fig2).arg("--out").arg(d.join("file/m"));
+    refused(&mut c, &["file is in the way"]);
+    // The paper figure: its flag, and a PNG under a PNG name only.
+    refused(
+        &mut cmd(&["figure", "paper", "--points", "0"]),
+        &["--points"],
+    );
+    refused(&mut cmd(&["figure", "paper", "--out", "x.jpg"]), &[".png"]);
+    assert!(!d.join("x.jpg").exists());
+}
+
+/// A sweep in which every point fails says so, and writes nothing.
+#[test]
+fn a_sweep_where_every_point_fails_is_an_error_that_says_so() {
+    let d = scratch("all_failed");
+    let cfg = d.join("c.toml");
+    std::fs::write(
+        &cfg,
+        "[model]\nfriction = \"stribeck\"\nl2 = 1e6\n[method]\nsteps_per_period = 64\n\
+         [run]\ntransient_periods = 30\nsample_periods = 10\n[sweep]\npoints = 20\n",
+    )
+    .unwrap();
+    let mut c = rattle();
+    c.args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(d.join("b"));
+    refused(&mut c, &["every one of the 20 points failed"]);
+    assert!(!d.join("b.json").exists() && !d.join("b.csv").exists());
+}

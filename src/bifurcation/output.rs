@@ -2,6 +2,7 @@
 
 use super::{Bifurcation, Continuation, Direction, SweepPoint, plot_value};
 use crate::caption::{computed_with, top_classes};
+use crate::classify::Class;
 use crate::config::{Config, FrictionLaw};
 use crate::error::{Error, Result};
 use crate::method::Diagnostics;
@@ -279,6 +280,10 @@ impl Serialize for Chain<'_> {
 pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
     let cfg = &b.cfg;
     let cont = b.continuation.is_some();
+    let all: Vec<_> = b.runs.iter().flat_map(|r| &r.1).collect();
+    if all.iter().all(|pt| pt.class == Class::Failed) {
+        return Err(Error::AllFailed { points: all.len() });
+    }
     let mut staged = Staged::new();
     let csv_path = with_ext(out, "csv");
     {

@@ -168,12 +168,18 @@ impl Config {
             ("map.y_from", m.y_from),
             ("map.y_to", m.y_to),
         ])?;
-        if m.x_from == m.x_to || m.y_from == m.y_to {
-            return Err(ConfigError::range(
-                "map range",
-                format!("x [{}, {}], y [{}, {}]", m.x_from, m.x_to, m.y_from, m.y_to),
-                "ranges of non-zero width",
-            ));
+        for (key, from, to) in [
+            ("map.x_to", m.x_from, m.x_to),
+            ("map.y_to", m.y_from, m.y_to),
+        ] {
+            if from == to {
+                let from_key = key.replace("_to", "_from");
+                return Err(ConfigError::range(
+                    key,
+                    to,
+                    &format!("values other than {from_key} = {from} (a range of non-zero width)"),
+                ));
+            }
         }
         Ok(())
     }

@@ -15,7 +15,7 @@ use overrides::apply_override;
 
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
-    #[error("cannot read config {path}: {source}")]
+    #[error("cannot read config {path}")]
     Read {
         path: String,
         source: std::io::Error,
@@ -32,9 +32,15 @@ pub enum ConfigError {
 
 impl ConfigError {
     fn range(key: &str, value: impl std::fmt::Display, range: &str) -> Self {
+        // Rust writes 1e308 with all its 309 digits: long numbers read better in exponent form.
+        let value = value.to_string();
+        let value = match value.parse::<f64>() {
+            Ok(v) if value.len() > 16 => format!("{v:e}"),
+            _ => value,
+        };
         ConfigError::Range {
             key: key.into(),
-            value: value.to_string(),
+            value,
             range: range.into(),
         }
     }
@@ -437,6 +443,18 @@ impl Config {
         let m = &self.model;
         if !(m.lambda.is_finite() && m.lambda >= 0.0) {
             return Err(ConfigError::range("model.lambda", m.lambda, "[0, inf)"));
+        }
+        // Levels that the friction law ignores are still checked: an impossible value is a
+        // mistake whichever law reads it.
+        for (key, v) in [
+            ("model.fs", m.fs),
+            ("model.fk", m.fk),
+            ("model.l1", m.l1),
+            ("model.l2", m.l2),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(ConfigError::range(key, v, "[0, inf)"));
+            }
         }
         self.params().validate()?;
         for (i, v) in self.initial.y.iter().enumerate() {

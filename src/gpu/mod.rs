@@ -179,7 +179,18 @@ fn select(instance: &wgpu::Instance) -> Result<wgpu::Adapter, GpuError> {
             });
     }
     pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
-        .map_err(|e| GpuError::NoAdapter(e.to_string()))
+        .map_err(|e| GpuError::NoAdapter(format!("{e}{}", backend_note())))
+}
+
+/// The backend selection from the environment, which an unknown name empties silently.
+fn backend_note() -> String {
+    match std::env::var("WGPU_BACKEND") {
+        Ok(b) => format!(
+            " (WGPU_BACKEND = \"{b}\"; wgpu knows vulkan, metal, dx12, gl, webgpu, \
+             comma-separated)"
+        ),
+        Err(_) => String::new(),
+    }
 }
 
 fn instance() -> wgpu::Instance {
@@ -211,7 +222,10 @@ impl Gpu {
         let instance = instance();
         let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
         if adapters.is_empty() {
-            return Err(GpuError::NoAdapter("no adapter enumerated".into()));
+            return Err(GpuError::NoAdapter(format!(
+                "no adapter enumerated{}",
+                backend_note()
+            )));
         }
         adapters.into_iter().map(Gpu::open).collect()
     }

@@ -281,7 +281,7 @@ pub fn merge(mut parts: Vec<Part>) -> Result<(Config, Fields, Vec<Part>), MapErr
     for p in &parts {
         if p.range.0 != at || p.fields.len() != p.range.1 - p.range.0 {
             return Err(MapError::Merge(format!(
-                "cells {}..{} missing or duplicated (part {} of {} covers {}..{})",
+                "cells {}..{} missing or duplicated (shard {}/{} covers {}..{})",
                 at, p.range.0, p.shard.0, n, p.range.0, p.range.1
             )));
         }
@@ -410,7 +410,7 @@ impl MapSummary {
     pub fn report(&self, cfg: &Config) -> String {
         let mut s = String::new();
         for (i, n, p) in &self.resumed {
-            s += &format!("shard {}/{n} already done: {}\n", i + 1, p.display());
+            s += &format!("shard {i}/{n} already done: {}\n", p.display());
         }
         if let Some((changed, cells)) = self.changed {
             s += &format!(
