@@ -48,49 +48,124 @@ impl Mode {
     }
 }
 
-/// Model parameters in the precision of the integrator.
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct Params<F> {
-    /// Forcing frequency.
-    pub eta: F,
-    /// Restitution coefficient R.
-    pub restitution: F,
-    /// Static friction limit.
-    pub fs: F,
-    /// Kinetic friction level.
-    pub fk: F,
-    /// Stribeck decay rate.
-    pub l1: F,
-    /// Quadratic (viscous-like) friction growth.
-    pub l2: F,
-    /// Clearance: |z| <= r.
-    pub r: F,
-    /// Damper ratio c2/c1 between the masses.
-    pub delta: F,
-    /// Damping of m1.
-    pub b1: F,
-    /// Mass ratio m2/m1.
-    pub mu: F,
+/// The model's parameters, declared once: each row is the [`Params`] field, its [`Param`]
+/// variant, the config and command-line key, the default (the paper's value), the allowed
+/// range (as text and as a test), and what it is. [`model_params!`] hands the table to a macro that generates from it: here
+/// `Params`, its checks and conversions and the `Param` vocabulary; in `config` the `[model]`
+/// keys; in `gpu::layout` the kernel's slots, its `Params` struct, accessors and `set_param`.
+/// A new parameter is one row here plus its physics.
+macro_rules! model_params {
+    ($then:ident) => {
+        $then! {
+            eta, Eta, "eta", 1.5, "(0, inf)", |v| v > 0.0, "Forcing frequency.";
+            restitution, R, "R", 0.6, "[0, 1]", |v| (0.0..=1.0).contains(&v), "Restitution coefficient.";
+            fs, Fs, "fs", 0.25, "[0, inf)", |v| v >= 0.0, "Static friction limit (Stribeck).";
+            fk, Fk, "fk", 0.05, "[0, inf)", |v| v >= 0.0, "Kinetic friction level (Stribeck).";
+            l1, L1, "l1", 1.42, "[0, inf)", |v| v >= 0.0, "Stribeck decay rate.";
+            l2, L2, "l2", 0.005, "[0, inf)", |v| v >= 0.0, "Quadratic (viscous-like) friction growth.";
+            r, Clearance, "r", 0.8, "(0, inf)", |v| v > 0.0, "Clearance: |z| <= r.";
+            delta, Delta, "delta", 0.5, "[0, inf)", |v| v >= 0.0, "Damper ratio c2/c1 between the masses.";
+            b1, B1, "b1", 0.1, "[0, inf)", |v| v >= 0.0, "Damping of m1.";
+            mu, Mu, "mu", 0.693, "(0, inf)", |v| v > 0.0, "Mass ratio m2/m1.";
+        }
+    };
 }
+pub(crate) use model_params;
 
-impl<F: Real> Params<F> {
-    pub fn is_finite(&self) -> bool {
-        [
-            self.eta,
-            self.restitution,
-            self.fs,
-            self.fk,
-            self.l1,
-            self.l2,
-            self.r,
-            self.delta,
-            self.b1,
-            self.mu,
-        ]
-        .iter()
-        .all(|v| v.is_finite())
-    }
+macro_rules! define_params {
+    ($($field:ident, $variant:ident, $key:literal, $default:literal, $range:literal, |$v:ident| $ok:expr, $doc:literal;)*) => {
+        /// Number of fields of [`Params`].
+        pub const N_PARAMS: usize = [$(stringify!($field)),*].len();
+
+        /// Model parameters in the precision of the integrator (the rows of [`model_params!`]).
+        #[derive(Clone, Copy, Debug, Serialize)]
+        pub struct Params<F> {
+            $(#[doc = $doc] pub $field: F,)*
+        }
+
+        impl<F: Copy> Params<F> {
+            /// Field names in declaration order (the kernel's `Params` and slots).
+            pub const FIELDS: &'static [&'static str] = &[$(stringify!($field)),*];
+
+            /// Values in the order of [`Params::FIELDS`].
+            pub fn values(&self) -> Vec<F> {
+                vec![$(self.$field),*]
+            }
+        }
+
+        impl<F: Real> Params<F> {
+            pub fn is_finite(&self) -> bool {
+                [$(self.$field),*].iter().all(|v| v.is_finite())
+            }
+        }
+
+        impl Params<f64> {
+            /// Checks every parameter; the error names the first one out of range.
+            pub fn validate(&self) -> Result<(), ParamError> {
+                $(
+                    let $v = self.$field;
+                    if !($v.is_finite() && $ok) {
+                        return Err(ParamError { name: $key, value: $v, range: $range });
+                    }
+                )*
+                Ok(())
+            }
+
+            /// Every parameter at its default (the paper's values; Stribeck friction levels).
+            pub fn defaults() -> Self {
+                Params { $($field: $default,)* }
+            }
+
+            pub fn cast<F: Real>(&self) -> Params<F> {
+                Params { $($field: F::of(self.$field),)* }
+            }
+        }
+
+        /// A model parameter that sweeps and maps vary: the one vocabulary of config keys,
+        /// command line, kernel codes and plot labels. The code of a field's variant is its
+        /// position in [`Params::FIELDS`]; `Lambda` (the Coulomb coefficient) sets fs and fk.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+        #[repr(u32)]
+        pub enum Param {
+            $(#[doc = $doc] #[serde(rename = $key)] $variant,)*
+            /// Coulomb coefficient: sets both Stribeck levels fs and fk.
+            #[serde(rename = "lambda")]
+            Lambda,
+        }
+
+        impl Param {
+            pub const ALL: [Param; N_PARAMS + 1] = [$(Param::$variant,)* Param::Lambda];
+
+            /// The config and command-line name.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Param::$variant => $key,)*
+                    Param::Lambda => "lambda",
+                }
+            }
+
+            /// Sets this parameter of `p` (the host twin of the kernel's `set_param`).
+            pub fn set<F: Copy>(self, p: &mut Params<F>, v: F) {
+                match self {
+                    $(Param::$variant => p.$field = v,)*
+                    Param::Lambda => {
+                        p.fs = v;
+                        p.fk = v;
+                    }
+                }
+            }
+
+            /// The [`Params`] field this parameter sets (`None` for `Lambda`, which sets two).
+            pub fn field(self) -> Option<&'static str> {
+                match self {
+                    $(Param::$variant => Some(stringify!($field)),)*
+                    Param::Lambda => None,
+                }
+            }
+        }
+    };
 }
+model_params!(define_params);
 
 /// A parameter that is out of its allowed range.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -107,127 +182,18 @@ impl Params<f64> {
         self.l1 == 0.0 && self.l2 == 0.0 && self.fs == self.fk
     }
 
-    /// The paper's Fig. 2 point (Coulomb friction), at the given eta.
+    /// The paper's Fig. 2 point (Coulomb friction, lambda = 0.02), at the given eta.
     pub fn paper(eta: f64) -> Self {
-        Params {
-            eta,
-            restitution: 0.6,
-            fs: 0.02,
-            fk: 0.02,
-            l1: 0.0,
-            l2: 0.0,
-            r: 0.8,
-            delta: 0.5,
-            b1: 0.1,
-            mu: 0.693,
-        }
+        let mut p = Params::defaults();
+        p.eta = eta;
+        Param::Lambda.set(&mut p, 0.02);
+        p.l1 = 0.0;
+        p.l2 = 0.0;
+        p
     }
-
-    /// Checks every parameter; the error names the first one out of range.
-    pub fn validate(&self) -> Result<(), ParamError> {
-        let check = |name, value: f64, ok: bool, range| {
-            if value.is_finite() && ok {
-                Ok(())
-            } else {
-                Err(ParamError { name, value, range })
-            }
-        };
-        check("eta", self.eta, self.eta > 0.0, "(0, inf)")?;
-        check(
-            "R",
-            self.restitution,
-            (0.0..=1.0).contains(&self.restitution),
-            "[0, 1]",
-        )?;
-        check("fs", self.fs, self.fs >= 0.0, "[0, inf)")?;
-        check("fk", self.fk, self.fk >= 0.0, "[0, inf)")?;
-        check("l1", self.l1, self.l1 >= 0.0, "[0, inf)")?;
-        check("l2", self.l2, self.l2 >= 0.0, "[0, inf)")?;
-        check("r", self.r, self.r > 0.0, "(0, inf)")?;
-        check("delta", self.delta, self.delta >= 0.0, "[0, inf)")?;
-        check("b1", self.b1, self.b1 >= 0.0, "[0, inf)")?;
-        check("mu", self.mu, self.mu > 0.0, "(0, inf)")?;
-        Ok(())
-    }
-
-    pub fn cast<F: Real>(&self) -> Params<F> {
-        Params {
-            eta: F::of(self.eta),
-            restitution: F::of(self.restitution),
-            fs: F::of(self.fs),
-            fk: F::of(self.fk),
-            l1: F::of(self.l1),
-            l2: F::of(self.l2),
-            r: F::of(self.r),
-            delta: F::of(self.delta),
-            b1: F::of(self.b1),
-            mu: F::of(self.mu),
-        }
-    }
-}
-
-/// A model parameter that sweeps and maps vary: the one vocabulary of config keys, command
-/// line, kernel codes and plot labels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum Param {
-    #[serde(rename = "eta")]
-    Eta,
-    /// Restitution coefficient.
-    R,
-    /// Coulomb coefficient: sets both Stribeck levels fs and fk.
-    #[serde(rename = "lambda")]
-    Lambda,
-    #[serde(rename = "fs")]
-    Fs,
-    #[serde(rename = "fk")]
-    Fk,
-    #[serde(rename = "l1")]
-    L1,
-    #[serde(rename = "l2")]
-    L2,
-    /// Clearance.
-    #[serde(rename = "r")]
-    Clearance,
-    #[serde(rename = "delta")]
-    Delta,
-    #[serde(rename = "b1")]
-    B1,
-    #[serde(rename = "mu")]
-    Mu,
 }
 
 impl Param {
-    pub const ALL: [Param; 11] = [
-        Param::Eta,
-        Param::R,
-        Param::Lambda,
-        Param::Fs,
-        Param::Fk,
-        Param::L1,
-        Param::L2,
-        Param::Clearance,
-        Param::Delta,
-        Param::B1,
-        Param::Mu,
-    ];
-
-    /// The config and command-line name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Param::Eta => "eta",
-            Param::R => "R",
-            Param::Lambda => "lambda",
-            Param::Fs => "fs",
-            Param::Fk => "fk",
-            Param::L1 => "l1",
-            Param::L2 => "l2",
-            Param::Clearance => "r",
-            Param::Delta => "delta",
-            Param::B1 => "b1",
-            Param::Mu => "mu",
-        }
-    }
-
     /// Axis label of plots.
     pub fn label(self) -> String {
         match self {
@@ -238,21 +204,10 @@ impl Param {
         }
     }
 
-    /// Code of the parameter in the kernel's `set_param` (`VARY_*` in the shader).
+    /// Code of the parameter in the kernel's `set_param` (`VARY_*` in the shader): a field's
+    /// position in [`Params::FIELDS`], then `Lambda`.
     pub fn code(self) -> u32 {
-        match self {
-            Param::Eta => 0,
-            Param::R => 1,
-            Param::Fs => 2,
-            Param::Fk => 3,
-            Param::L1 => 4,
-            Param::L2 => 5,
-            Param::Clearance => 6,
-            Param::Delta => 7,
-            Param::B1 => 8,
-            Param::Mu => 9,
-            Param::Lambda => 10,
-        }
+        self as u32
     }
 
     /// Whether a map over `self` and `other` varies one quantity twice (lambda is fs and fk).
@@ -260,26 +215,6 @@ impl Param {
         let fric = |p: Param| matches!(p, Param::Lambda | Param::Fs | Param::Fk);
         self == other
             || (fric(self) && fric(other) && (self == Param::Lambda || other == Param::Lambda))
-    }
-
-    /// Sets this parameter of `p` (the host twin of the kernel's `set_param`).
-    pub fn set<F: Copy>(self, p: &mut Params<F>, v: F) {
-        match self {
-            Param::Eta => p.eta = v,
-            Param::R => p.restitution = v,
-            Param::Lambda => {
-                p.fs = v;
-                p.fk = v;
-            }
-            Param::Fs => p.fs = v,
-            Param::Fk => p.fk = v,
-            Param::L1 => p.l1 = v,
-            Param::L2 => p.l2 = v,
-            Param::Clearance => p.r = v,
-            Param::Delta => p.delta = v,
-            Param::B1 => p.b1 = v,
-            Param::Mu => p.mu = v,
-        }
     }
 }
 
@@ -291,7 +226,7 @@ impl std::fmt::Display for Param {
 
 /// An unknown parameter name.
 #[derive(Debug, thiserror::Error, PartialEq)]
-#[error("unknown parameter `{0}` (one of eta, R, lambda, fs, fk, l1, l2, r, delta, b1, mu)")]
+#[error("unknown parameter `{0}` (one of {names})", names = Param::ALL.iter().map(|p| p.name()).collect::<Vec<_>>().join(", "))]
 pub struct UnknownParam(pub String);
 
 impl std::str::FromStr for Param {

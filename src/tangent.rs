@@ -3,7 +3,7 @@
 //! re-exported here): Newton refinement of cycles of the stroboscopic map ([`refine`]) and the
 //! Lyapunov spectrum ([`spectrum`]).
 
-use crate::method::tangent::dot;
+use crate::method::tangent::dot4;
 pub use crate::method::tangent::{
     Jump, Leading, Saltation, Tangent, collapse_floor, flow, tangent_event, tangent_renormalize,
     tangent_substep,
@@ -305,12 +305,12 @@ pub fn orthonormalize<F: Real>(t: &mut Tangent<F>, sums: &mut [f64]) {
         let (done, rest) = t.v.split_at_mut(c);
         let x = &mut rest[0];
         for b in done.iter() {
-            let a = dot(b, x);
+            let a = dot4(b, x);
             for i in 0..4 {
                 x[i] = x[i] - a * b[i];
             }
         }
-        let mut norm = dot(x, x).sqrt();
+        let mut norm = dot4(x, x).sqrt();
         if norm <= floor {
             // A collapsed direction: continue from a unit vector orthogonal to the others.
             let mut best = [F::zero(); 4];
@@ -319,12 +319,12 @@ pub fn orthonormalize<F: Real>(t: &mut Tangent<F>, sums: &mut [f64]) {
                 let mut y = [F::zero(); 4];
                 y[e] = F::one();
                 for b in done.iter() {
-                    let a = dot(b, &y);
+                    let a = dot4(b, &y);
                     for i in 0..4 {
                         y[i] = y[i] - a * b[i];
                     }
                 }
-                let ny = dot(&y, &y).sqrt();
+                let ny = dot4(&y, &y).sqrt();
                 if ny > best_norm {
                     best = y;
                     best_norm = ny;

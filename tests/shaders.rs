@@ -60,12 +60,17 @@ fn kernel_body_declares_none_of_the_contract() {
     // The precision and the contract come only from the generated prelude.
     // Declarations only, not the comments that mention them.
     let code: Vec<&str> = rattle::gpu::SHADER
-        .lines()
+        .iter()
+        .flat_map(|(_, text)| text.lines())
         .map(|l| l.split("//").next().unwrap().trim())
         .collect();
     let declares = |start: &str| code.iter().any(|l| l.starts_with(start));
     assert!(!declares("alias F"), "the kernel declares its precision");
     assert!(!declares("struct Control"), "the kernel declares Control");
+    assert!(
+        !declares("struct Params"),
+        "the kernel declares the model's parameters"
+    );
     for (name, _) in layout::constants() {
         assert!(
             !declares(&format!("const {name}:")),
@@ -84,7 +89,7 @@ fn kernel_constants_have_the_host_values() {
             let (_, c) = module
                 .constants
                 .iter()
-                .find(|(_, c)| c.name.as_deref() == Some(name))
+                .find(|(_, c)| c.name.as_deref() == Some(name.as_str()))
                 .unwrap_or_else(|| panic!("{name} is not a constant of the kernel"));
             match module.global_expressions[c.init] {
                 naga::Expression::Literal(naga::Literal::U32(v)) => {
@@ -174,4 +179,138 @@ fn kernel_bindings_match_the_host_layout() {
         .collect();
     host.sort_by_key(|(_, b)| *b);
     assert_eq!(bound, host, "kernel bindings vs gpu::layout::BINDINGS");
+}
+
+/// The Rust functions of `path` (`fn name`, or `Type::name` for a method of `impl Type`) in
+/// the order they are written, each with its byte offset.
+fn rust_functions(path: &str) -> Vec<(String, usize)> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut out = Vec::new();
+    let mut owner: Option<String> = None;
+    let mut at = 0;
+    for line in text.lines() {
+        let t = line.trim_start();
+        if line.starts_with("impl") {
+            // `impl<F: Real> Growth<F> {`, `impl Birkhoff {`: the type is the last word
+            // before `{` or `<` that is not a trait of `for`.
+            let head = line.split('{').next().unwrap_or("");
+            let head = head.rsplit(" for ").next().unwrap_or(head);
+            let words: Vec<&str> = head
+                .split(|c: char| !c.is_alphanumeric() && c != '_')
+                .collect();
+            owner = words
+                .iter()
+                .skip(1)
+                .find(|w| w.chars().next().is_some_and(|c| c.is_uppercase()) && **w != "Real")
+                .map(|w| w.to_string());
+        } else if !line.starts_with([' ', '/', '#']) && !line.is_empty() {
+            // Any other item at the left margin ends the impl block.
+            owner = None;
+        }
+        let f = t
+            .strip_prefix("pub(crate) fn ")
+            .or_else(|| t.strip_prefix("pub(super) fn "))
+            .or_else(|| t.strip_prefix("pub fn "))
+            .or_else(|| t.strip_prefix("fn "))
+            .or_else(|| t.strip_prefix("pub const fn "));
+        if let Some(f) = f {
+            let name: String = f
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            out.push((name.clone(), at));
+            if let Some(o) = &owner {
+                out.push((format!("{o}::{name}"), at));
+            }
+        }
+        at += line.len() + 1;
+    }
+    out
+}
+
+/// The kernel's pieces and their Rust twins: every function of a piece has a twin of the same
+/// name (or the one its `// twin:` line names) in the piece's twin file, and the twins come in
+/// the same order; a function with no twin is declared `// shader-only:` with the reason.
+/// The functions are those naga finds in the whole kernel, so none escapes the check.
+#[test]
+fn every_shader_function_has_its_rust_twin_in_the_same_order() {
+    let module = parse(&shader_source(Precision::F32));
+    let kernel: Vec<String> = module
+        .functions
+        .iter()
+        .filter_map(|(_, f)| f.name.clone())
+        .chain(module.entry_points.iter().map(|e| e.name.clone()))
+        .collect();
+    let generated = rattle::gpu::layout::prelude(Precision::F32);
+    let mut seen = Vec::new();
+    for (piece, text) in rattle::gpu::SHADER {
+        let lines: Vec<&str> = text.lines().collect();
+        let twin_file = lines[0]
+            .strip_prefix("// twin: ")
+            .unwrap_or_else(|| panic!("{piece}: the first line names no twin"));
+        let rust = (twin_file.starts_with("src/")).then(|| rust_functions(twin_file));
+        let mut last = 0;
+        for (i, line) in lines.iter().enumerate() {
+            let Some(rest) = line.strip_prefix("fn ") else {
+                continue;
+            };
+            let name: String = rest
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            seen.push(name.clone());
+            // The comment block above the function.
+            let above: Vec<&str> = lines[..i]
+                .iter()
+                .rev()
+                .take_while(|l| l.starts_with("//") || l.starts_with('@'))
+                .copied()
+                .collect();
+            if above.iter().any(|l| l.starts_with("// shader-only: ")) {
+                continue;
+            }
+            let rust = rust.as_ref().unwrap_or_else(|| {
+                panic!("{piece}: `{name}` has no twin file and is not declared shader-only")
+            });
+            let twin = above
+                .iter()
+                .find_map(|l| l.strip_prefix("// twin: "))
+                .map_or(name.clone(), str::to_string);
+            // The first twin after the previous function's: the pieces follow their files.
+            assert!(
+                rust.iter().any(|(n, _)| *n == twin),
+                "{piece}: `{name}` has no twin `{twin}` in {twin_file}"
+            );
+            last = rust
+                .iter()
+                .find(|(n, at)| *n == twin && *at >= last)
+                .unwrap_or_else(|| {
+                    panic!("{piece}: `{name}` is out of the order of `{twin}` in {twin_file}")
+                })
+                .1;
+        }
+    }
+    for name in &kernel {
+        let in_prelude = generated.contains(&format!("fn {name}("));
+        assert!(
+            in_prelude || seen.contains(name),
+            "naga finds `{name}`, which no piece declares at the start of a line"
+        );
+    }
+}
+
+/// Comments of the pieces cite Rust files that exist.
+#[test]
+fn shader_comments_cite_files_that_exist() {
+    for (piece, text) in rattle::gpu::SHADER {
+        for word in text.split(|c: char| c.is_whitespace() || "`(),:;".contains(c)) {
+            if word.ends_with(".rs") {
+                let found = std::path::Path::new(word).exists()
+                    || std::path::Path::new("src").join(word).exists()
+                    || std::path::Path::new("src/method").join(word).exists()
+                    || std::path::Path::new("src/gpu").join(word).exists();
+                assert!(found, "{piece} cites {word}, which does not exist");
+            }
+        }
+    }
 }

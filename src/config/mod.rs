@@ -92,47 +92,46 @@ pub enum Backend {
     Cpu,
 }
 
-#[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ModelConfig {
-    pub eta: f64,
-    #[serde(rename = "R")]
-    pub restitution: f64,
-    pub friction: FrictionLaw,
-    /// Coulomb coefficient.
-    pub lambda: f64,
-    /// Stribeck static level (paper's mu0 in the usual reading).
-    pub fs: f64,
-    /// Stribeck kinetic level (paper's mu1 in the usual reading).
-    pub fk: f64,
-    /// Stribeck decay (paper's lambda1).
-    pub l1: f64,
-    /// Stribeck quadratic term (paper's lambda2).
-    pub l2: f64,
-    pub r: f64,
-    pub delta: f64,
-    pub b1: f64,
-    pub mu: f64,
-}
-
-impl Default for ModelConfig {
-    fn default() -> Self {
-        ModelConfig {
-            eta: 1.5,
-            restitution: 0.6,
-            friction: FrictionLaw::Coulomb,
-            lambda: 0.02,
-            fs: 0.25,
-            fk: 0.05,
-            l1: 1.42,
-            l2: 0.005,
-            r: 0.8,
-            delta: 0.5,
-            b1: 0.1,
-            mu: 0.693,
+/// The `[model]` section: the friction law, the Coulomb coefficient, and one key per row of
+/// the model's parameter table (`model::model_params!`).
+macro_rules! model_config {
+    ($($field:ident, $variant:ident, $key:literal, $default:literal, $range:literal, |$v:ident| $ok:expr, $doc:literal;)*) => {
+        #[derive(Clone, Debug, Serialize, Deserialize)]
+        #[serde(deny_unknown_fields, default)]
+        pub struct ModelConfig {
+            pub friction: FrictionLaw,
+            /// Coulomb coefficient (fs = fk = lambda, l1 = l2 = 0 with friction = "coulomb").
+            pub lambda: f64,
+            $(#[doc = $doc] #[serde(rename = $key)] pub $field: f64,)*
         }
-    }
+
+        impl Default for ModelConfig {
+            fn default() -> Self {
+                ModelConfig {
+                    friction: FrictionLaw::Coulomb,
+                    lambda: 0.02,
+                    $($field: $default,)*
+                }
+            }
+        }
+
+        impl ModelConfig {
+            /// The keys of `[model]` (also accepted unqualified by `--set`).
+            pub const KEYS: &'static [&'static str] = &["friction", "lambda", $($key),*];
+
+            /// Every numeric key, `model.`-qualified, with its value.
+            pub fn values(&self) -> Vec<(&'static str, f64)> {
+                vec![("model.lambda", self.lambda), $((concat!("model.", $key), self.$field)),*]
+            }
+
+            /// The parameters as given, whether the friction law reads them or not.
+            pub fn given(&self) -> Params<f64> {
+                Params { $($field: self.$field,)* }
+            }
+        }
+    };
 }
+crate::model::model_params!(model_config);
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -368,22 +367,13 @@ impl Config {
     /// Model parameters in the integrator's form.
     pub fn params(&self) -> Params<f64> {
         let m = &self.model;
-        let (fs, fk, l1, l2) = match m.friction {
-            FrictionLaw::Coulomb => (m.lambda, m.lambda, 0.0, 0.0),
-            FrictionLaw::Stribeck => (m.fs, m.fk, m.l1, m.l2),
-        };
-        Params {
-            eta: m.eta,
-            restitution: m.restitution,
-            fs,
-            fk,
-            l1,
-            l2,
-            r: m.r,
-            delta: m.delta,
-            b1: m.b1,
-            mu: m.mu,
+        let mut p = m.given();
+        if m.friction == FrictionLaw::Coulomb {
+            Param::Lambda.set(&mut p, m.lambda);
+            p.l1 = 0.0;
+            p.l2 = 0.0;
         }
+        p
     }
 
     pub fn settings(&self) -> Settings {
@@ -446,16 +436,7 @@ impl Config {
         }
         // Levels that the friction law ignores are still checked: an impossible value is a
         // mistake whichever law reads it.
-        for (key, v) in [
-            ("model.fs", m.fs),
-            ("model.fk", m.fk),
-            ("model.l1", m.l1),
-            ("model.l2", m.l2),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(ConfigError::range(key, v, "[0, inf)"));
-            }
-        }
+        m.given().validate()?;
         self.params().validate()?;
         for (i, v) in self.initial.y.iter().enumerate() {
             if !v.is_finite() {
@@ -526,21 +507,7 @@ impl Config {
         }
         self.check_clearance("model.r", m.r)?;
         self.check_precision(
-            [
-                ("model.eta", m.eta),
-                ("model.R", m.restitution),
-                ("model.lambda", m.lambda),
-                ("model.fs", m.fs),
-                ("model.fk", m.fk),
-                ("model.l1", m.l1),
-                ("model.l2", m.l2),
-                ("model.r", m.r),
-                ("model.delta", m.delta),
-                ("model.b1", m.b1),
-                ("model.mu", m.mu),
-            ]
-            .into_iter()
-            .chain(
+            m.values().into_iter().chain(
                 [
                     "initial.y[0]",
                     "initial.y[1]",

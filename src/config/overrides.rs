@@ -2,9 +2,7 @@
 
 use super::ConfigError;
 
-const MODEL_KEYS: &[&str] = &[
-    "eta", "R", "friction", "lambda", "fs", "fk", "l1", "l2", "r", "delta", "b1", "mu",
-];
+const MODEL_KEYS: &[&str] = super::ModelConfig::KEYS;
 
 /// Applies one `key=value` override to the raw TOML table; the value is parsed as TOML
 /// (numbers, strings, arrays), falling back to a bare string.

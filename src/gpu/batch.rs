@@ -2,12 +2,12 @@
 //! one batch's buffers and bind group, and the decoding of what a batch reads back.
 
 use super::layout::{
-    B_CONSTS, B_CONTROL, B_PVALS, B_RING, B_SAMPLES, B_US, B_UTAB, B_YS, C_B1, C_DELTA, C_DPHI,
-    C_ETA, C_FK, C_FS, C_HALF_COS, C_HALF_SIN, C_L1, C_L2, C_MU, C_PERIOD_TOL, C_R, C_RESTITUTION,
-    C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_BLOCK_M2, R_HI, R_LO, R_LOG_SUM, R_SLOTS,
-    R_WB_FIRST, R_WB_SECOND, STATE_DIM, TAIL, U_DET_COUNT, U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS,
-    U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED,
-    UTAB_BYTES, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
+    B_CONSTS, B_CONTROL, B_PVALS, B_RING, B_SAMPLES, B_US, B_UTAB, B_YS, C_DPHI, C_HALF_COS,
+    C_HALF_SIN, C_PARAMS, C_PERIOD_TOL, C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_BLOCK_M2,
+    R_HI, R_LO, R_LOG_SUM, R_SLOTS, R_WB_FIRST, R_WB_SECOND, STATE_DIM, TAIL, U_DET_COUNT,
+    U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS,
+    U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED, UTAB_BYTES, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS,
+    at,
 };
 use super::{Gpu, GpuError, Job};
 use crate::classify::{
@@ -134,17 +134,10 @@ fn consts<F: Real>(spec: &RunSpec, table: &[F]) -> Vec<F> {
     let b = &spec.params;
     let nsteps = s.steps_per_period;
     let mut c = vec![F::zero(); C_TABLE as usize];
+    for (i, v) in b.values().into_iter().enumerate() {
+        c[C_PARAMS as usize + i] = F::of(v);
+    }
     for (slot, v) in [
-        (C_ETA, b.eta),
-        (C_RESTITUTION, b.restitution),
-        (C_FS, b.fs),
-        (C_FK, b.fk),
-        (C_L1, b.l1),
-        (C_L2, b.l2),
-        (C_R, b.r),
-        (C_DELTA, b.delta),
-        (C_B1, b.b1),
-        (C_MU, b.mu),
         (C_ZENO, s.zeno_speed),
         (C_PERIOD_TOL, spec.period_tol),
         (C_DPHI, 2.0 * std::f64::consts::PI / nsteps as f64),

@@ -5,14 +5,28 @@ use crate::config::Precision;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
-/// The kernel body as written. It does not compile alone: the precision alias, the constants
-/// and `Control` come from the prelude (see [`shader_source`]).
-pub const SHADER: &str = include_str!("../../shaders/integrate.wgsl");
+/// The kernel as written, in pieces named like their Rust twins (file name, text). It does not
+/// compile alone: the precision alias, the constants, `Control` and the model's parameters
+/// come from the prelude (see [`shader_source`]).
+pub const SHADER: [(&str, &str); 7] = [
+    ("kernel.wgsl", include_str!("../../shaders/kernel.wgsl")),
+    ("model.wgsl", include_str!("../../shaders/model.wgsl")),
+    ("events.wgsl", include_str!("../../shaders/events.wgsl")),
+    ("method.wgsl", include_str!("../../shaders/method.wgsl")),
+    ("tangent.wgsl", include_str!("../../shaders/tangent.wgsl")),
+    ("detector.wgsl", include_str!("../../shaders/detector.wgsl")),
+    ("main.wgsl", include_str!("../../shaders/main.wgsl")),
+];
 
 /// The kernel source in a precision: the generated contract of `layout`, then the body.
 /// The one way to get the kernel text, for the runner and the tests alike.
 pub fn shader_source(precision: Precision) -> String {
-    layout::prelude(precision) + SHADER
+    let mut src = layout::prelude(precision);
+    for (name, text) in SHADER {
+        src += &format!("\n// ---- shaders/{name} ----\n");
+        src += text;
+    }
+    src
 }
 
 /// Rungs of the kernel ladder (`rattle bench --ladder`): the kernel compiled with its pieces

@@ -1,7 +1,8 @@
 //! The host/kernel contract, written once: precision, storage slots, codes and the `Control`
 //! uniform. The kernel does not declare any of it: `prelude` generates the WGSL declarations
-//! from the Rust definitions below and `kernel::shader_source` prepends them to
-//! `shaders/integrate.wgsl`, so a slot renumbered here moves on both sides at once.
+//! from the Rust definitions below (and the model's parameter table) and
+//! `kernel::shader_source` prepends them to the pieces of `shaders/`, so a slot renumbered
+//! here moves on both sides at once.
 //! tests/shaders.rs parses the generated source with naga and checks every constant's value
 //! and the `Control` member offsets against this file.
 //!
@@ -11,7 +12,7 @@
 use crate::classify;
 use crate::config::Precision;
 use crate::method;
-use crate::model::{Mode, Param};
+use crate::model::{Mode, N_PARAMS, Param, Params};
 use std::fmt::Write;
 
 /// A commented group of u32 constants of the prelude.
@@ -136,30 +137,22 @@ u32_group!(YS, "Slots of `ys`, F per point: state and Lyapunov tangent, STATE_DI
 // Base parameters in the order of the kernel's Params, method constants, then the forcing
 // table: (cos, sin) at phases 2*pi*j/(2N), j = 0..2N.
 u32_group!(CONSTS, "Slots of `consts`, F shared by all points." {
-    C_ETA = 0;
-    C_RESTITUTION = 1;
-    C_FS = 2;
-    C_FK = 3;
-    C_L1 = 4;
-    C_L2 = 5;
-    C_R = 6;
-    C_DELTA = 7;
-    C_B1 = 8;
-    C_MU = 9;
+    /// The model's parameters, in the order of `model::Params::FIELDS`.
+    C_PARAMS = 0;
     /// Relative speed below which an impact ends in co-motion.
-    C_ZENO = 10;
+    C_ZENO = C_PARAMS + N_PARAMS as u32;
     /// Root finder tolerance in theta, 16 epsilon of F.
-    C_TOL = 11;
-    C_PERIOD_TOL = 12;
+    C_TOL = C_ZENO + 1;
+    C_PERIOD_TOL = C_ZENO + 2;
     /// Forcing phase of one RK4 step, 2 pi / N.
-    C_DPHI = 13;
+    C_DPHI = C_ZENO + 3;
     /// Norm below which the Lyapunov tangent vector counts as collapsed (eps^2 of F).
-    C_TAN_FLOOR = 14;
+    C_TAN_FLOOR = C_ZENO + 4;
     /// cos and sin of half a step's forcing phase (`method::half_step`).
-    C_HALF_COS = 15;
-    C_HALF_SIN = 16;
-    /// Start of the forcing table (slot 17 is unused).
-    C_TABLE = 18;
+    C_HALF_COS = C_ZENO + 5;
+    C_HALF_SIN = C_ZENO + 6;
+    /// Start of the forcing table, at an even slot (a vec2<F> per entry).
+    C_TABLE = (C_ZENO + 8) & !1;
 });
 
 /// Bytes of `utab`, the uniform copy of the forcing table's step ends: WebGPU's minimum (and
@@ -181,20 +174,8 @@ pub const VARY_NONE: u32 = 255;
 
 /// Kernel name of a parameter's code (`Param::code`), after the field it sets in the kernel's
 /// Params (exhaustive, so a new parameter cannot be forgotten here).
-fn vary_name(p: Param) -> &'static str {
-    match p {
-        Param::Eta => "VARY_ETA",
-        Param::R => "VARY_RESTITUTION",
-        Param::Fs => "VARY_FS",
-        Param::Fk => "VARY_FK",
-        Param::L1 => "VARY_L1",
-        Param::L2 => "VARY_L2",
-        Param::Clearance => "VARY_R",
-        Param::Delta => "VARY_DELTA",
-        Param::B1 => "VARY_B1",
-        Param::Mu => "VARY_MU",
-        Param::Lambda => "VARY_LAMBDA",
-    }
+fn vary_name(p: Param) -> String {
+    format!("VARY_{}", p.field().unwrap_or("lambda").to_uppercase())
 }
 
 const GROUPS: [Group; 8] = [DISPATCH, MODES, EVENTS, LIMITS, US, RING, YS, CONSTS];
@@ -254,12 +235,14 @@ pub fn at(slot: u32, n: usize, i: usize) -> usize {
 }
 
 /// Every generated u32 constant, name and value.
-pub fn constants() -> Vec<(&'static str, u32)> {
-    let fixed = GROUPS.iter().flat_map(|g| g.items.iter().copied());
+pub fn constants() -> Vec<(String, u32)> {
+    let fixed = GROUPS
+        .iter()
+        .flat_map(|g| g.items.iter().map(|&(n, v)| (n.to_string(), v)));
     let vary = Param::ALL.iter().map(|&p| (vary_name(p), p.code()));
     fixed
         .chain(vary)
-        .chain([("VARY_NONE", VARY_NONE)])
+        .chain([("VARY_NONE".to_string(), VARY_NONE)])
         .collect()
 }
 
@@ -312,5 +295,44 @@ fn write_prelude(s: &mut String, precision: Precision) -> std::fmt::Result {
     for (name, _) in Control::MEMBERS {
         writeln!(s, "    {name}: u32,")?;
     }
-    writeln!(s, "}}\n")
+    writeln!(s, "}}")?;
+    write_params(s)
+}
+
+/// The model's parameters as the kernel sees them (model::Params, from the parameter table):
+/// the struct, one accessor per field, the load from `consts` and `set_param`, the twin of
+/// `Param::set`. Scalars rather than an array, so that the per-point override does not force
+/// every access through dynamically indexed memory.
+fn write_params(s: &mut String) -> std::fmt::Result {
+    let fields = Params::<f64>::FIELDS;
+    writeln!(s, "\n// The model's parameters (model::Params).")?;
+    writeln!(s, "struct Params {{")?;
+    for f in fields {
+        writeln!(s, "    {f}: F,")?;
+    }
+    writeln!(s, "}}")?;
+    for f in fields {
+        writeln!(s, "fn {f}() -> F {{ return prm.{f}; }}")?;
+    }
+    let loads: Vec<String> = (0..fields.len())
+        .map(|i| format!("consts[C_PARAMS + {i}u]"))
+        .collect();
+    writeln!(
+        s,
+        "fn load_params() -> Params {{ return Params({}); }}",
+        loads.join(", ")
+    )?;
+    writeln!(
+        s,
+        "// model::Param::set.\nfn set_param(code: u32, v: F) {{\n    switch code {{"
+    )?;
+    for &p in &Param::ALL {
+        let body = match p.field() {
+            Some(f) => format!("prm.{f} = v;"),
+            // Lambda: the Coulomb coefficient is both Stribeck levels.
+            None => "prm.fs = v; prm.fk = v;".to_string(),
+        };
+        writeln!(s, "        case {}: {{ {body} }}", vary_name(p))?;
+    }
+    writeln!(s, "        default: {{}}\n    }}\n}}\n")
 }

@@ -29,7 +29,7 @@ use crate::real::Real;
 use nalgebra::Matrix4;
 
 #[inline(always)]
-pub(crate) fn dot<F: Real>(a: &[F; 4], b: &[F; 4]) -> F {
+pub(crate) fn dot4<F: Real>(a: &[F; 4], b: &[F; 4]) -> F {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
 }
 
@@ -119,14 +119,14 @@ impl<F: Real> Saltation<F> {
             jump,
             n,
             u,
-            d: dot(&n, &fm) + ht,
+            d: dot4(&n, &fm) + ht,
         }
     }
 
     /// Maps a tangent vector across the event.
     #[inline(always)]
     pub fn apply(&self, p: &Params<F>, x: &mut [F; 4]) {
-        let a = dot(&self.n, x) / self.d;
+        let a = dot4(&self.n, x) / self.d;
         jump_apply(p, self.jump, x);
         for (xi, ui) in x.iter_mut().zip(&self.u) {
             *xi += *ui * a;
@@ -335,7 +335,7 @@ pub fn tangent_event<F: Real>(it: &Integrator<F>, e: &Event<F>, x: &mut [F; 4]) 
 /// or lock removes its direction) restarts along y1 and counts at the floor, as in
 /// [`orthonormalize`].
 pub fn tangent_renormalize<F: Real>(x: &mut [F; 4]) -> f64 {
-    let norm = dot(x, x).sqrt();
+    let norm = dot4(x, x).sqrt();
     let floor = collapse_floor::<F>();
     if norm <= floor {
         *x = Leading::default().x;

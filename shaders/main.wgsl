@@ -1,0 +1,123 @@
+// twin: none (the entry point: one invocation runs one point for the periods of one dispatch)
+// Loads a point's state and parameters, runs its periods, stores what the host reads back.
+
+// shader-only: buffer access (the host side is src/gpu/layout.rs).
+// A vector in `ys` from slot `base` on (Y_MAIN or Y_TAN).
+fn load_y(base: u32, i: u32) -> vec4<F> {
+    let n = ctl.n_points;
+    return vec4<F>(ys[base * n + i], ys[(base + 1u) * n + i], ys[(base + 2u) * n + i],
+                   ys[(base + 3u) * n + i]);
+}
+
+// shader-only: buffer access.
+fn store_y(base: u32, i: u32, y: vec4<F>) {
+    let n = ctl.n_points;
+    ys[base * n + i] = y.x;
+    ys[(base + 1u) * n + i] = y.y;
+    ys[(base + 2u) * n + i] = y.z;
+    ys[(base + 3u) * n + i] = y.w;
+}
+
+// shader-only: the entry point; its host side is gpu/batch.rs (buffers) and gpu/dispatch.rs.
+@compute @workgroup_size(WORKGROUP)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x + gid.y * ctl.row;
+    let n = ctl.n_points;
+    if (i >= n) {
+        return;
+    }
+    prm = load_params();
+    if (ctl.n_vary > 0u) {
+        set_param(ctl.vary0, pvals[i * ctl.n_vary]);
+    }
+    if (ctl.n_vary > 1u) {
+        set_param(ctl.vary1, pvals[i * ctl.n_vary + 1u]);
+    }
+    zeno = consts[C_ZENO];
+    tol = consts[C_TOL];
+    dphi = consts[C_DPHI];
+    half = vec2<F>(consts[C_HALF_COS], consts[C_HALF_SIN]);
+    h = dphi / eta();
+    inv_mu = F(1.0) / mu();
+    inv_1pmu = F(1.0) / (F(1.0) + mu());
+
+    st.y = load_y(Y_MAIN, i);
+    st.mode = us[U_MODE * n + i];
+    st.impacts = us[U_IMPACTS * n + i];
+    st.sticks = us[U_STICKS * n + i];
+    st.locks = us[U_LOCKS * n + i];
+    st.overflows = us[U_OVERFLOWS * n + i];
+    st.nonfinite = us[U_NONFINITE * n + i];
+    var sample_impacts = us[U_SAMPLE_IMPACTS * n + i];
+    var tan_bad = 1u;
+    var log_sum = F(0.0);
+    if (TANGENT) {
+        tvec = load_y(Y_TAN, i);
+        tan_bad = us[U_TAN_BAD * n + i];
+        log_sum = ring[R_LOG_SUM * n + i];
+    }
+
+    var q = 0u;
+    for (; q < ctl.periods; q++) {
+        if (st.nonfinite != 0u) {
+            break;
+        }
+        let idx = ctl.period0 + q;
+        if (TANGENT && idx == ctl.transient) {
+            // The tangent vector starts along y1 with sampling.
+            tvec = vec4<F>(F(1.0), F(0.0), F(0.0), F(0.0));
+            tan_bad = 0u;
+            log_sum = F(0.0);
+        }
+        tan_on = TANGENT && idx >= ctl.transient && tan_bad == 0u;
+        let before = st.impacts;
+        if (!period() && st.nonfinite == 0u) {
+            us[U_TRUNCATED * n + i] = 1u;
+            break;
+        }
+        if (idx >= ctl.transient && st.nonfinite == 0u) {
+            let s = idx - ctl.transient;
+            sample_impacts += st.impacts - before;
+            if (LADDER_DETECTOR && ctl.store != 0u) {
+                let o = (i * ctl.samples + s) * STATE_DIM;
+                samples[o] = st.y.x;
+                samples[o + 1u] = st.y.y;
+                samples[o + 2u] = st.y.z;
+                samples[o + 3u] = st.y.w;
+            }
+            if (LADDER_DETECTOR) {
+                detector_push(i, st.y.x);
+                birkhoff_push(i, s, st.y.x);
+            }
+            if (tan_on) {
+                if (finite_state(tvec)) {
+                    let l = F(tangent_renormalize());
+                    log_sum += l;
+                    growth_push(i, s, l);
+                } else {
+                    tan_bad = 1u;
+                }
+            }
+        }
+    }
+    if (q != ctl.periods && st.nonfinite == 0u) {
+        us[U_TRUNCATED * n + i] = 1u;
+    }
+
+    store_y(Y_MAIN, i, st.y);
+    if (ctl.lyap != 0u) {
+        // Without the tangent compiled in (ladder rungs below it) the point has no exponent.
+        if (TANGENT) {
+            store_y(Y_TAN, i, tvec);
+            ring[R_LOG_SUM * n + i] = log_sum;
+        }
+        us[U_TAN_BAD * n + i] = tan_bad;
+    }
+    us[U_MODE * n + i] = st.mode;
+    us[U_IMPACTS * n + i] = st.impacts;
+    us[U_SAMPLE_IMPACTS * n + i] = sample_impacts;
+    us[U_STICKS * n + i] = st.sticks;
+    us[U_LOCKS * n + i] = st.locks;
+    us[U_OVERFLOWS * n + i] = st.overflows;
+    us[U_NONFINITE * n + i] = st.nonfinite;
+}
