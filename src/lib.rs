@@ -1,7 +1,7 @@
 //! rattle: parameter sweeps of an impact oscillator with dry friction, on GPU and CPU.
 //!
 //! One module per concept: [`model`] (equations), [`method`] (the CPU integrator and its tangent
-//! dynamics, twin of `shaders/integrate.wgsl`), [`cpu`] and [`gpu`] (the backends) under
+//! dynamics, twin of the kernel's pieces in `shaders/`), [`cpu`] and [`gpu`] (the backends) under
 //! [`engine`], [`classify`] and [`stability`] (what a run is), [`bifurcation`], [`map`], [`basin`]
 //! and [`point`] (the commands), [`config`], [`render`], [`output`].
 

@@ -622,7 +622,7 @@ fn tangent_exponents_agree_with_cpu_at_periodic_points_of_fig2() {
     // stage points, same saltations, f32 logarithms of the norms on both sides). On periodic
     // attractors the states agree to round-off, so the exponents do: in f64 to the f32
     // logarithms' rounding (a few 1e-8 per period, averaging out over 200 periods); in f32 the
-    // states differ by up to 1.6e-5 (README, `rattle validate`), which moves the per-period
+    // states differ by up to 1.6e-5 (docs/performance.md, `rattle validate`), which moves the per-period
     // log growth by about that much times the orbit's sensitivity; 200 periods of P ~ 4 average
     // it to a few 1e-7, and 3e-6 leaves a margin of ten while a wrong saltation or stage
     // (1e-3 and more) fails.

@@ -1,4 +1,4 @@
-//! GPU runner: the integrator kernel `shaders/integrate.wgsl` on any wgpu adapter.
+//! GPU runner: the integrator kernel (`shaders/`, assembled by `kernel::shader_source`) on any wgpu adapter.
 //!
 //! Data flow: per-point parameters and initial states are uploaded once per batch of points;
 //! the state stays on the GPU while the kernel is dispatched repeatedly, each dispatch advancing

@@ -6,7 +6,7 @@
 //!
 //! The risk is stated, not hidden: an island of another class smaller than the coarse spacing
 //! that touches no corner of its block is missed. The agreement with the full computation is
-//! measured (README, "Early termination").
+//! measured (docs/maps.md, "Early termination").
 
 use super::{MapError, compute_cells};
 use crate::classify::Class;

@@ -1,6 +1,6 @@
 //! The pieces of an event-located step that need no integrator: the forcing table and its
 //! small-angle rotation, the guard bracket on the cubic Hermite interpolant, the quiet-step
-//! bound and the Illinois root refinement (`shaders/integrate.wgsl` has them in this order).
+//! bound and the Illinois root refinement (`shaders/events.wgsl` is the twin).
 
 use super::{EV_NONE, MAX_ROOT_ITERS};
 use crate::real::Real;

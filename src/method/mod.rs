@@ -1,4 +1,4 @@
-//! The integration method shared by the CPU and the GPU (`shaders/integrate.wgsl` is its twin:
+//! The integration method shared by the CPU and the GPU (`shaders/method.wgsl` is its twin:
 //! same function names, same order, same event rules).
 //!
 //! Fixed grid of N steps per forcing period. Each step is one RK4 step in the current mode;
