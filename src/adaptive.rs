@@ -4,7 +4,7 @@
 //! The run proceeds in rounds on any backend. Round k integrates the live points for
 //! `50 * 2^k` more transient periods and a window of [`WINDOW`] sampled periods from where the
 //! previous round left them; a point whose window shows a period that Newton's method confirms
-//! as a stable cycle ([`crate::stability::confirm`]) is decided and keeps its cycle's n section
+//! as a stable cycle ([`crate::decide::confirm`]) is decided and keeps its cycle's n section
 //! points (the picture of a cycle needs no more), and a point without impacts whose window
 //! repeats is decided `no_impact`. Rounds stop while there is still room for the configured
 //! sampling window; the undecided points then finish with the remaining transient and the
@@ -15,13 +15,12 @@
 //! measured, not assumed.
 
 use crate::classify::{Class, Pool, detect_period};
-use crate::engine::{Engine, Summary};
-use crate::gpu::{GpuError, Timings};
+use crate::decide::{Proposal, Summary, Verdict, confirm_many};
+use crate::engine::{Engine, EngineError, Timings};
 use crate::method::{Diagnostics, RunResult};
 use crate::model::Mode;
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
-use crate::stability::{Proposal, Verdict, confirm_many};
 use std::time::Instant;
 
 /// Sampled periods of a round's window (periods up to WINDOW / 2 can be decided in a round).
@@ -143,7 +142,7 @@ pub fn run(
     spec: &RunSpec,
     points: &Points,
     progress: &dyn Progress,
-) -> Result<Adaptive, GpuError> {
+) -> Result<Adaptive, EngineError> {
     let n = points.len();
     let mut y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
     let mut modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
@@ -299,6 +298,23 @@ fn decide(
     }
 }
 
+/// Runs `points` once for the configured periods, without early termination or extra windows,
+/// and decides each ([`crate::decide::summaries`]): the plain run the adaptive ones are
+/// measured against.
+pub fn run_once(
+    engine: &Engine,
+    spec: &RunSpec,
+    points: &Points,
+    progress: &dyn Progress,
+) -> Result<(Vec<Summary>, Timings), EngineError> {
+    let mut out = Vec::with_capacity(points.len());
+    let timings = engine.run_lean(spec, points, progress, &mut |start, mut rs| {
+        let part = points.slice(start, start + rs.len());
+        out.extend(crate::decide::summaries(spec, &part, &mut rs, &mut [], &[]));
+    })?;
+    Ok((out, timings))
+}
+
 /// The extra windows of sampled periods an undecided point gets after the configured run (the
 /// adaptive horizon): doubling from twice the sampled window, until the point has had
 /// `spec.horizon` times the configured periods (transient + sampled) in all.
@@ -331,8 +347,8 @@ enum Stage {
     Extra(u32),
 }
 
-/// [`run`] for maps: no samples are kept, and the engine's summaries (decided by
-/// [`crate::stability::confirm`]) say which points leave. With `early` the points run the early
+/// [`run`] for maps: no samples are kept, and the summaries of each block the engine runs
+/// ([`crate::decide::summaries`]) say which points leave. With `early` the points run the early
 /// rounds first; every point then runs the configured stretch, and a point still undecided
 /// gets the windows of [`extensions`], and is `unresolved` only after the last of them.
 pub fn run_summaries(
@@ -341,7 +357,7 @@ pub fn run_summaries(
     points: &Points,
     early: bool,
     progress: &dyn Progress,
-) -> Result<(Vec<Summary>, Timings), GpuError> {
+) -> Result<(Vec<Summary>, Timings), EngineError> {
     let n = points.len();
     let mut y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
     let mut modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
@@ -382,7 +398,17 @@ pub fn run_summaries(
         let sub = lv.points(points);
         let mut live_pools: Vec<Pool> = live.iter().map(|&i| pools[i]).collect();
         let live_skip: Vec<[u32; 2]> = live.iter().map(|&i| skip[i]).collect();
-        let (ss, tm) = engine.run_summaries(&round, &sub, &mut live_pools, &live_skip, progress)?;
+        let mut ss = Vec::with_capacity(live.len());
+        let tm = engine.run_lean(&round, &sub, progress, &mut |start, mut rs| {
+            let end = start + rs.len();
+            ss.extend(crate::decide::summaries(
+                &round,
+                &sub.slice(start, end),
+                &mut rs,
+                &mut live_pools[start..end],
+                &live_skip[start..end],
+            ));
+        })?;
         for (&i, p) in live.iter().zip(live_pools) {
             pools[i] = p;
         }
@@ -432,7 +458,7 @@ pub fn extend(
     verdicts: &mut [Verdict],
     periods: &mut [u32],
     progress: &dyn Progress,
-) -> Result<Timings, GpuError> {
+) -> Result<Timings, EngineError> {
     let mut timings = Timings::default();
     let mut pools = vec![Pool::default(); results.len()];
     for (r, p) in results.iter().zip(&mut pools) {

@@ -4,8 +4,9 @@
 use crate::classify::Class;
 use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
+use crate::engine::Timings;
 use crate::error::{Error, Result};
-use crate::gpu::{Job, Rung, Timings};
+use crate::gpu::Rung;
 use crate::method::{Diagnostics, RunResult};
 use crate::model::Param;
 use crate::progress::Silent;
@@ -448,11 +449,12 @@ pub fn report(
 /// and those above it carry the tangent).
 pub fn ladder(cfg: &Config, points: usize, periods: u32, lyapunov: bool) -> Result<String> {
     let engine = Engine::open(Backend::Gpu)?;
-    let Engine::Gpu(gpu) = &engine else {
-        return Err(Error::Invalid(
-            "the ladder needs a GPU adapter (none found)".into(),
-        ));
-    };
+    if !matches!(engine, Engine::Gpu(_)) {
+        return Err(crate::engine::EngineError::NeedsGpu {
+            what: "the kernel ladder",
+        }
+        .into());
+    }
     let (mut spec, values) = bench_sweep(cfg, points, periods, lyapunov)?;
     spec.settings.lyapunov = lyapunov;
     let steps = points as f64 * periods as f64 * spec.settings.steps_per_period as f64;
@@ -466,7 +468,7 @@ pub fn ladder(cfg: &Config, points: usize, periods: u32, lyapunov: bool) -> Resu
         } else {
             String::new()
         },
-        gpu.adapter_name()
+        engine.device()
     );
     let _ = writeln!(
         s,
@@ -474,19 +476,14 @@ pub fn ladder(cfg: &Config, points: usize, periods: u32, lyapunov: bool) -> Resu
         "rung", "prec", "steps/s", "vs bare"
     );
     for prec in [Precision::F32, Precision::F64] {
-        if prec == Precision::F64 && !gpu.has_f64() {
+        if prec == Precision::F64 && !engine.has_f64() {
             continue;
         }
         spec.precision = prec;
         let mut bare = None;
         for rung in Rung::ALL {
-            let job = Job {
-                rung,
-                ..Job::new(&spec, Points::along(&[Param::Eta], &values), false)
-            };
-            // The first run of a rung compiles its pipeline; time the second.
-            gpu.run(&job, &Silent)?;
-            let rate = steps / gpu.run(&job, &Silent)?.timings.integration_s;
+            let points = Points::along(&[Param::Eta], &values);
+            let rate = steps / engine.time_rung(&spec, points, rung)?;
             let base = *bare.get_or_insert(rate);
             let _ = writeln!(
                 s,

@@ -1,13 +1,16 @@
 //! Backend selection and running a set of parameter points on it: the GPU kernel by default,
-//! the CPU twin on request or as the fallback when no adapter exists.
+//! the CPU twin on request or as the fallback when no adapter exists. The engine only runs
+//! points and returns their results ([`RunResult`]: samples or the detector's view, exponent,
+//! torus test, last section values) with its own error and timing types; what the points are
+//! is decided in [`crate::decide`], and [`crate::adaptive`] combines the two. Nothing else
+//! calls a backend.
 
-use crate::classify::{Class, Pool, Rule};
 use crate::config::Backend;
-use crate::gpu::{Gpu, GpuError, Job, Timings};
-use crate::method::{Diagnostics, RunResult};
+use crate::gpu::{Gpu, GpuError, Job, Rung};
+use crate::method::RunResult;
+pub use crate::method::Timings;
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
-use crate::stability::{Verdict, confirm, confirm_all};
 use std::time::Instant;
 
 /// An opened backend.
@@ -16,117 +19,58 @@ pub enum Engine {
     Cpu,
 }
 
-/// What a map keeps of one point.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Summary {
-    pub class: Class,
-    pub impacts_per_period: f64,
-    /// Largest Lyapunov exponent per unit time (NaN when not available).
-    pub lyapunov: f64,
-    /// Largest Floquet multiplier modulus of the confirmed (stable) cycle; NaN where the class
-    /// is not periodic.
-    pub multiplier: f64,
-    /// Standard error of `lyapunov` (batch means; NaN without it).
-    pub lyapunov_se: f64,
-    /// Agreeing digits of the torus test (NaN without two full halves).
-    pub torus: f64,
-    /// The rule that decided the class.
-    pub rule: Rule,
-    /// The periods Newton tried (0: none).
-    pub tried: [u32; 2],
-    pub diag: Diagnostics,
-    pub final_y: [f64; 4],
-    pub final_mode: crate::model::Mode,
-    /// Forcing periods integrated.
-    pub periods: u32,
+/// Why a run could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum EngineError {
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    /// A GPU-only measurement (the kernel ladder) asked of the CPU backend.
+    #[error("{what} needs a GPU adapter; the cpu backend has no kernel")]
+    NeedsGpu { what: &'static str },
 }
 
-impl Summary {
-    /// The summary of run `r` whose strict detector said `detected`, decided by
-    /// [`crate::stability::confirm`] (the same evidence and rule as every command).
-    pub fn new(
-        detected: Class,
-        r: &RunResult,
-        samples: usize,
-        spec: &RunSpec,
-        params: &crate::model::Params<f64>,
-    ) -> Summary {
-        let v = confirm(params, &spec.settings, r, detected);
-        Summary::of(v, r, samples, spec)
-    }
-
-    /// [`Summary::new`] of every point of a run (`detected[i]` for `results[i]`, which kept
-    /// `samples(r)` samples), the same summaries bit for bit, with the Newton trials on the
-    /// lanes ([`confirm_all`]).
-    pub fn many(
-        detected: &[Class],
-        results: &[RunResult],
-        samples: impl Fn(&RunResult) -> usize,
-        spec: &RunSpec,
-        points: &Points,
-        skip: &[[u32; 2]],
-    ) -> Vec<Summary> {
-        confirm_all(
-            |i| points.params(&spec.params, i),
-            &spec.settings,
-            results,
-            detected,
-            skip,
-        )
-        .into_iter()
-        .zip(results)
-        .map(|(v, r)| Summary::of(v, r, samples(r), spec))
-        .collect()
-    }
-
-    fn of(v: Verdict, r: &RunResult, samples: usize, spec: &RunSpec) -> Summary {
-        let multiplier = match (v.class, &v.cycle) {
-            (Class::Periodic(_), Some(c)) => c.leading_modulus(),
-            _ => f64::NAN,
-        };
-        let tried = [0, 1].map(|k| v.tried.get(k).copied().unwrap_or(0));
-        Summary {
-            class: v.class,
-            impacts_per_period: r.sample_impacts as f64 / samples.max(1) as f64,
-            lyapunov: r.lyapunov,
-            multiplier,
-            lyapunov_se: r.lyapunov_se,
-            torus: r.torus,
-            rule: v.rule,
-            tried,
-            diag: r.diag,
-            final_y: r.final_y,
-            final_mode: r.final_mode,
-            periods: spec.periods(),
-        }
-    }
-}
-
-/// Points per CPU block of [`Engine::run_summaries`]: samples of one block only are held.
+/// Points per CPU block of [`Engine::run_lean`]: samples of one block only are held.
 const CPU_BLOCK: usize = 4096;
 
-/// Points per GPU job of [`Engine::run_summaries`]: the results of one job only are held
-/// (enough points per job to fill a large GPU).
+/// Points per GPU job of [`Engine::run_lean`]: the results of one job only are held (enough
+/// points per job to fill a large GPU).
 pub const GPU_BLOCK: usize = 131_072;
 
 impl Engine {
     /// Opens the configured backend; a GPU request without any adapter falls back to the CPU
     /// with one warning line naming why. An adapter named by WGPU_ADAPTER_NAME that does not
     /// exist is an error (the user asked for that device).
-    pub fn open(backend: Backend) -> Result<Engine, GpuError> {
+    pub fn open(backend: Backend) -> Result<Engine, EngineError> {
         match backend {
             Backend::Cpu => Ok(Engine::Cpu),
             Backend::Gpu => match Gpu::new() {
                 Ok(g) => {
-                    eprintln!("adapter: {}", crate::gpu::describe(&g.info));
+                    log::info!("adapter: {}", crate::gpu::describe(&g.info));
                     Ok(Engine::Gpu(Box::new(g)))
                 }
-                Err(e @ GpuError::NoSuchAdapter { .. }) => Err(e),
+                Err(e @ GpuError::NoSuchAdapter { .. }) => Err(e.into()),
                 Err(e) => {
-                    eprintln!("warning: {e}; falling back to the cpu backend");
+                    log::warn!("{e}; falling back to the cpu backend");
                     Ok(Engine::Cpu)
                 }
             },
+        }
+    }
+
+    /// One engine per adapter of the selected backends (`--adapters all`).
+    pub fn all() -> Result<Vec<Engine>, EngineError> {
+        let gpus = Gpu::all()?;
+        for g in &gpus {
+            log::info!("adapter: {}", crate::gpu::describe(&g.info));
+        }
+        Ok(gpus.into_iter().map(|g| Engine::Gpu(Box::new(g))).collect())
+    }
+
+    /// Whether the engine runs f64 (the CPU always does).
+    pub fn has_f64(&self) -> bool {
+        match self {
+            Engine::Gpu(g) => g.has_f64(),
+            Engine::Cpu => true,
         }
     }
 
@@ -160,7 +104,7 @@ impl Engine {
         spec: &RunSpec,
         points: &Points,
         progress: &dyn Progress,
-    ) -> Result<(Vec<RunResult>, Timings), GpuError> {
+    ) -> Result<(Vec<RunResult>, Timings), EngineError> {
         match self {
             Engine::Gpu(g) => {
                 let mut out = g.run(&Job::new(spec, *points, true), progress)?;
@@ -183,86 +127,65 @@ impl Engine {
         }
     }
 
-    /// Runs points and keeps only their class, exponent and diagnostics (no samples), so that
-    /// maps of millions of points fit in memory. Classes use the Lyapunov exponent when the
-    /// spec estimates it. `pools` (one per point, or empty) carries each point's exponent over
-    /// the windows it ran before: the summaries decide with the pooled exponent; `skip` (one per
-    /// point, or empty) names candidate periods a point tried in vain before.
-    pub fn run_summaries(
+    /// Runs points without keeping their samples (the kernel's detector, the exponent, the
+    /// torus test and the last section values say what the classifier needs), so that maps of
+    /// millions of points fit in memory: in blocks, each handed to `block` with the index of
+    /// its first point, so that the results in flight stay bounded whatever the number of
+    /// points (memory::MAP_BLOCK_BYTES_PER_CELL). The CPU twin keeps its samples within a
+    /// block (its detector reads them).
+    pub fn run_lean(
         &self,
         spec: &RunSpec,
         points: &Points,
-        pools: &mut [Pool],
-        skip: &[[u32; 2]],
         progress: &dyn Progress,
-    ) -> Result<(Vec<Summary>, Timings), GpuError> {
+        block: &mut dyn FnMut(usize, Vec<RunResult>),
+    ) -> Result<Timings, EngineError> {
+        let n = points.len();
+        let mut timings = Timings::default();
         match self {
             Engine::Gpu(g) => {
-                // In blocks, so that the results in flight (each with its last section values)
-                // stay bounded whatever the number of points (memory::MAP_BLOCK_BYTES_PER_CELL).
-                let n = points.len();
-                let mut all = Vec::with_capacity(n);
-                let mut timings = Timings::default();
                 for start in (0..n).step_by(GPU_BLOCK) {
-                    let end = (start + GPU_BLOCK).min(n);
-                    let block = points.slice(start, end);
-                    let mut out = g.run(&Job::new(spec, block, false), progress)?;
-                    rerun_on_cpu(spec, &block, &mut out);
-                    let classes: Vec<Class> = out
-                        .results
+                    let part = points.slice(start, (start + GPU_BLOCK).min(n));
+                    let mut out = g.run(&Job::new(spec, part, false), progress)?;
+                    rerun_on_cpu(spec, &part, &mut out);
+                    out.results
                         .iter_mut()
-                        .zip(&out.classes)
-                        .map(|(r, c)| {
-                            r.enforce_failure_rule();
-                            if r.diag.nonfinite { Class::Failed } else { *c }
-                        })
-                        .collect();
-                    if start < pools.len() {
-                        let stop = end.min(pools.len());
-                        let bp = &mut pools[start..stop];
-                        for (r, p) in out.results.iter_mut().zip(bp) {
-                            r.pool(p);
-                        }
-                    }
-                    let samples = spec.samples as usize;
-                    let sk = &skip[start.min(skip.len())..end.min(skip.len())];
-                    all.extend(Summary::many(
-                        &classes,
-                        &out.results,
-                        |_| samples,
-                        spec,
-                        &block,
-                        sk,
-                    ));
+                        .for_each(RunResult::enforce_failure_rule);
                     timings.add(&out.timings);
+                    block(start, out.results);
                 }
-                Ok((all, timings))
             }
             Engine::Cpu => {
-                let t = Instant::now();
-                let n = points.len();
-                let mut out = Vec::with_capacity(n);
                 for start in (0..n).step_by(CPU_BLOCK) {
-                    let block = points.slice(start, (start + CPU_BLOCK).min(n));
-                    let (mut rs, _) = self.run(spec, &block, progress)?;
-                    let end = (start + CPU_BLOCK).min(pools.len());
-                    if start < end {
-                        for (r, p) in rs.iter_mut().zip(&mut pools[start..end]) {
-                            r.pool(p);
-                        }
-                    }
-                    let classes: Vec<Class> = rs.iter().map(|r| r.class(spec.period_tol)).collect();
-                    let sk = &skip[start.min(skip.len())..(start + CPU_BLOCK).min(skip.len())];
-                    let sums = Summary::many(&classes, &rs, |r| r.samples.len(), spec, &block, sk);
-                    out.extend(sums);
+                    let part = points.slice(start, (start + CPU_BLOCK).min(n));
+                    let (rs, t) = self.run(spec, &part, progress)?;
+                    timings.add(&t);
+                    block(start, rs);
                 }
-                let timings = Timings {
-                    integration_s: t.elapsed().as_secs_f64(),
-                    ..Timings::default()
-                };
-                Ok((out, timings))
             }
         }
+        Ok(timings)
+    }
+
+    /// Times one rung of the kernel ladder (`rattle bench --ladder`) on `points`: seconds of
+    /// integration of the second of two runs (the first compiles).
+    pub fn time_rung(
+        &self,
+        spec: &RunSpec,
+        points: Points,
+        rung: Rung,
+    ) -> Result<f64, EngineError> {
+        let Engine::Gpu(g) = self else {
+            return Err(EngineError::NeedsGpu {
+                what: "the kernel ladder",
+            });
+        };
+        let job = Job {
+            rung,
+            ..Job::new(spec, points, false)
+        };
+        g.run(&job, &crate::progress::Silent)?;
+        Ok(g.run(&job, &crate::progress::Silent)?.timings.integration_s)
     }
 }
 
@@ -286,9 +209,9 @@ fn rerun_on_cpu(spec: &RunSpec, points: &Points, out: &mut crate::gpu::GpuOutput
         y0s: Some(&y0s),
         modes: modes.as_deref(),
     };
-    eprintln!(
-        "warning: {} point(s) exceeded the GPU driver's loop budget and were computed by the \
-         CPU twin (diagnostics: cpu_rerun)",
+    log::warn!(
+        "{} point(s) exceeded the GPU driver's loop budget and were computed by the CPU twin \
+         (diagnostics: cpu_rerun)",
         idx.len()
     );
     for (k, mut r) in crate::cpu::run(spec, &sub, &crate::progress::Silent)
@@ -296,7 +219,6 @@ fn rerun_on_cpu(spec: &RunSpec, points: &Points, out: &mut crate::gpu::GpuOutput
         .enumerate()
     {
         r.diag.cpu_rerun = true;
-        out.classes[idx[k]] = r.class(spec.period_tol);
         out.results[idx[k]] = r;
     }
 }

@@ -9,7 +9,7 @@ pub enum Error {
     #[error(transparent)]
     Param(#[from] crate::model::UnknownParam),
     #[error(transparent)]
-    Gpu(#[from] crate::gpu::GpuError),
+    Engine(#[from] crate::engine::EngineError),
     #[error(transparent)]
     Output(#[from] crate::output::OutputError),
     #[error(transparent)]

@@ -14,6 +14,7 @@ pub mod caption;
 pub mod classify;
 pub mod config;
 pub mod cpu;
+pub mod decide;
 pub mod engine;
 pub mod error;
 pub mod gpu;

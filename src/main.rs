@@ -38,7 +38,28 @@ fn progress_bar(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
+/// Messages of the library through `log`: information as plain lines, warnings and errors with
+/// their level, as users have always seen them; RUST_LOG changes the level (`RUST_LOG=warn`
+/// keeps the warnings only).
+fn init_log() {
+    use std::io::Write;
+    env_logger::Builder::new()
+        .filter_level(log::LevelFilter::Info)
+        // wgpu and naga speak at info and warn about things that are not the user's concern.
+        .filter_module("wgpu_core", log::LevelFilter::Error)
+        .filter_module("wgpu_hal", log::LevelFilter::Error)
+        .filter_module("naga", log::LevelFilter::Error)
+        .parse_default_env()
+        .format(|f, r| match r.level() {
+            log::Level::Info => writeln!(f, "{}", r.args()),
+            log::Level::Warn => writeln!(f, "warning: {}", r.args()),
+            l => writeln!(f, "{}: {}", l.as_str().to_lowercase(), r.args()),
+        })
+        .init();
+}
+
 fn main() {
+    init_log();
     // Ctrl-C or SIGTERM: wait for a set being renamed into place, then end (the commit lock is
     // released by the next run, which sees that this process is gone).
     let _ = ctrlc::set_handler(|| {

@@ -266,7 +266,7 @@ impl DirLock {
                             Holder::Alive(pid) => format!("process {pid}"),
                             _ => "another run".into(),
                         };
-                        eprintln!(
+                        log::info!(
                             "waiting for {who} to finish committing its outputs ({}; a lock \
                              older than {} s is taken over)",
                             path.display(),

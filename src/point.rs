@@ -6,13 +6,13 @@ pub mod plot;
 
 use crate::classify::Class;
 use crate::config::{Config, Tangent};
+use crate::decide::confirm;
 use crate::engine::Engine;
 use crate::error::Result;
 use crate::method::{Diagnostics, Integrator, PointState, RunResult};
 use crate::model::{Mode, Params};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
-use crate::stability::confirm;
 use crate::tangent::{Cycle, modulus, spectrum};
 use serde::Serialize;
 use std::fmt;

@@ -1,4 +1,4 @@
-//! The classifier (src/classify.rs, decided through stability::confirm): its torus test and
+//! The classifier (src/classify.rs, decided through decide::confirm): its torus test and
 //! exponent error bar on sequences whose answer is known, and its classes on map cells against
 //! an independent judge (long f64 runs, examples/judge.rs; docs/classes.md).
 
@@ -6,7 +6,8 @@ use rattle::classify::{
     Birkhoff, CHAOS_MARGIN, Class, Evidence, Growth, Rule, TORUS_DIGITS, conclude,
 };
 use rattle::config::{Config, Precision};
-use rattle::engine::{Engine, Summary};
+use rattle::decide::Summary;
+use rattle::engine::Engine;
 use rattle::progress::Silent;
 use std::path::Path;
 

@@ -3,6 +3,7 @@
 
 use rattle::classify::{Class, classify};
 use rattle::config::Precision;
+use rattle::decide::confirm;
 use rattle::engine::Engine;
 use rattle::gpu::{Gpu, GpuOutput, Job};
 use rattle::method::{Integrator, RunResult, Settings};
@@ -10,7 +11,6 @@ use rattle::model::{Param, Params};
 use rattle::progress::Silent;
 use rattle::real::Real;
 use rattle::spec::{Points, RunSpec};
-use rattle::stability::confirm;
 use std::sync::{Mutex, OnceLock};
 
 mod common;
@@ -146,9 +146,13 @@ fn classes_agree_at_periodic_points_of_fig2() {
             // The on-GPU detector and the host rule on the GPU's samples agree with each other,
             // and with the CPU reference, including the impact count per period.
             let host = classify(&r.samples, r.sample_impacts, r.diag.nonfinite, 1e-4);
-            assert_eq!(g.classes[i], host, "eta {eta}: detector vs samples");
             assert_eq!(
-                g.classes[i],
+                g.results[i].detector_class().unwrap(),
+                host,
+                "eta {eta}: detector vs samples"
+            );
+            assert_eq!(
+                g.results[i].detector_class().unwrap(),
                 cpu,
                 "eta {eta} ({}): GPU vs CPU",
                 if f64 { "f64" } else { "f32" }
@@ -209,21 +213,29 @@ fn non_finite_parameters_fail_the_point_only() {
         return;
     };
     let alone = run_gpu(&[1.5, 1.4], s, 300, 100, false).unwrap();
-    assert_eq!(g.classes[1], Class::Failed);
+    assert_eq!(g.results[1].detector_class().unwrap(), Class::Failed);
     assert!(g.results[1].diag.nonfinite);
     assert!(g.results[1].final_y.iter().any(|v| !v.is_finite()) || g.results[1].samples.is_empty());
     for (i, j, eta) in [(0, 0, 1.5), (2, 1, 1.4)] {
         let (r, a) = (&g.results[i], &alone.results[j]);
         assert_eq!(r.final_y, a.final_y, "eta {eta}");
         assert_eq!(r.samples, a.samples, "eta {eta}");
-        assert_eq!(g.classes[i], alone.classes[j], "eta {eta}");
+        assert_eq!(
+            g.results[i].detector_class().unwrap(),
+            alone.results[j].detector_class().unwrap(),
+            "eta {eta}"
+        );
         let c = run_cpu::<f32>(eta, &s, 300, 100);
         let cpu_class = classify(&c.samples, c.sample_impacts, c.diag.nonfinite, 1e-4);
         assert!(
             matches!(cpu_class, Class::Periodic(_)),
             "eta {eta}: {cpu_class:?}"
         );
-        assert_eq!(g.classes[i], cpu_class, "eta {eta}");
+        assert_eq!(
+            g.results[i].detector_class().unwrap(),
+            cpu_class,
+            "eta {eta}"
+        );
     }
 }
 
@@ -233,7 +245,7 @@ fn lyapunov_exponents_and_classes_agree_with_cpu() {
     // = 0.994, a complex pair: the detector misses it, a candidate period whose near-repeats
     // shrink as the multiplier predicts is confirmed by Newton) and chaotic again; then the
     // torus just past the point, which needs a long run for its torus test. Every class from
-    // the evidence of each backend by the one classifier (stability::confirm).
+    // the evidence of each backend by the one classifier (decide::confirm).
     let cases: [(&[f64], u32, u32, &[Class]); 2] = [
         (
             &[1.10, 1.50, 1.71, 1.74],
@@ -266,7 +278,12 @@ fn lyapunov_exponents_and_classes_agree_with_cpu() {
                     &c,
                     classify(&c.samples, c.sample_impacts, false, 1e-4),
                 );
-                let gv = confirm(&p, &s, &g.results[i], g.classes[i]);
+                let gv = confirm(
+                    &p,
+                    &s,
+                    &g.results[i],
+                    g.results[i].detector_class().unwrap(),
+                );
                 eprintln!(
                     "eta {eta} ({}): GPU {:?} {:.5} +- {:.5} torus {:.1}, CPU f64 {:?} {:.5} +- \
                      {:.5} torus {:.1}",
@@ -316,7 +333,7 @@ fn small_map_classes_agree_with_cpu() {
                 .map(|c| c.0)
                 .collect();
         // The same map on the GPU: the kernel's evidence, decided by the same classifier
-        // (stability::confirm) through the same adaptive loop.
+        // (decide::confirm) through the same adaptive loop.
         let engine = common::gpu_engine().expect("an adapter (checked above)");
         let gpu: Vec<_> = rattle::map::compute(&engine, &cfg, 0..cells, 1, &Silent)
             .unwrap()

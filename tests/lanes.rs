@@ -5,13 +5,13 @@
 //! refined cycle is that of the scalar `tangent::refine`.
 
 use rattle::classify::Class;
+use rattle::decide::{Proposal, confirm, confirm_many};
 use rattle::method::{
     FlowTask, ImpactMethod, Integrator, LANES, PointState, RunResult, Settings, batches, run_flows,
     run_flows_portable, run_lanes, run_lanes_portable,
 };
 use rattle::model::Params;
 use rattle::real::Real;
-use rattle::stability::{Proposal, confirm, confirm_many};
 use rattle::tangent::{Cycle, Refine, refine};
 
 /// Points that between them stick, lock after chattering, impact, slip with Stribeck friction,

@@ -2,10 +2,10 @@
 //! in tests/gpu.rs).
 
 use rattle::classify::{Class, classify};
+use rattle::decide::confirm;
 use rattle::method::{Integrator, PointState, Settings};
 use rattle::model::Params;
 use rattle::real::Real;
-use rattle::stability::confirm;
 use rattle::tangent::{modulus, refine, spectrum};
 
 fn settings() -> Settings {

@@ -95,7 +95,7 @@ fn sharded_and_merged_map_equals_the_single_run() {
 }
 
 /// A cell has a multiplier exactly when its class is periodic, and it lies inside the circle.
-fn multipliers_only_on_cycles(s: &[rattle::engine::Summary]) -> bool {
+fn multipliers_only_on_cycles(s: &[rattle::decide::Summary]) -> bool {
     s.iter().all(|c| match c.class {
         Class::Periodic(_) => (0.0..1.0).contains(&c.multiplier),
         _ => c.multiplier.is_nan(),
@@ -110,8 +110,7 @@ fn failed_cells_are_never_a_valid_class() {
     let spec = RunSpec::new(&cfg).with_lyapunov();
     let vary = [Param::R, Param::Lambda];
     let run = |values: &[f64]| {
-        Engine::Cpu
-            .run_summaries(&spec, &Points::along(&vary, values), &mut [], &[], &Silent)
+        rattle::adaptive::run_once(&Engine::Cpu, &spec, &Points::along(&vary, values), &Silent)
             .unwrap()
             .0
     };
@@ -434,9 +433,9 @@ fn map_titles_name_the_parameters_of_the_friction_law() {
 
 /// A synthetic cell: `class` with an exponent or multiplier that makes it clear of the
 /// refinement thresholds unless given otherwise.
-fn cell(class: Class, lyapunov: f64, multiplier: f64) -> (rattle::engine::Summary, u8) {
+fn cell(class: Class, lyapunov: f64, multiplier: f64) -> (rattle::decide::Summary, u8) {
     (
-        rattle::engine::Summary {
+        rattle::decide::Summary {
             class,
             impacts_per_period: 1.0,
             lyapunov,
@@ -460,7 +459,7 @@ fn refine_synthetic(
     (nx, ny): (usize, usize),
     k: usize,
     chaotic: f64,
-    truth: &dyn Fn(usize, usize) -> (rattle::engine::Summary, u8),
+    truth: &dyn Fn(usize, usize) -> (rattle::decide::Summary, u8),
 ) -> (Vec<Class>, Vec<u8>, usize) {
     let mut seen = vec![false; nx * ny];
     let r = rattle::map::refine::refine_grid((nx, ny), k, 0.01, chaotic, |todo| {

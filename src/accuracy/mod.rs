@@ -394,7 +394,7 @@ pub fn study(
 }
 
 /// The f32 run's section point refined in f64 by Newton's method at the run's own N (the
-/// CPU's confirmation of every periodic point, `stability::confirm`): the f32 run finds the
+/// CPU's confirmation of every periodic point, `decide::confirm`): the f32 run finds the
 /// attractor, the f64 iteration removes its round-off. Its cost is the f32 run's plus the
 /// Newton iteration of one point on one thread.
 fn polished(

@@ -4,14 +4,15 @@
 
 use crate::classify::Class;
 use crate::config::Config;
+use crate::decide::confirm_all;
 use crate::engine::Engine;
+use crate::engine::{EngineError, Timings};
 use crate::error::Result;
-use crate::gpu::{GpuError, Timings};
 use crate::method::{PointState, RunResult};
 use crate::model::Mode;
 use crate::progress::{Progress, Silent};
 use crate::spec::{Points, RunSpec};
-use crate::stability::{BifurcationPoint, Branch, bifurcation_points, confirm_all};
+use crate::stability::{BifurcationPoint, Branch, bifurcation_points};
 use crate::tangent::Cycle;
 use std::time::Instant;
 
@@ -27,7 +28,7 @@ pub struct SweepPoint {
     pub value: f64,
     pub class: Class,
     pub result: RunResult,
-    /// The Newton-refined cycle behind the class (see [`crate::stability::confirm`]).
+    /// The Newton-refined cycle behind the class (see [`crate::decide::confirm`]).
     pub cycle: Option<Cycle>,
     /// Forcing periods integrated (fewer than transient + samples where the point left the
     /// run early, see [`crate::adaptive`]).
@@ -145,7 +146,7 @@ pub fn continuation_chains(
     cfg: &Config,
     directions: &[Direction],
     progress: &dyn Progress,
-) -> Result<Vec<Vec<RunResult>>, GpuError> {
+) -> Result<Vec<Vec<RunResult>>, EngineError> {
     let spec = RunSpec::new(cfg);
     let values = cfg.sweep_values();
     let n = values.len();

@@ -10,9 +10,7 @@ use super::layout::{
     at,
 };
 use super::{Gpu, GpuError, Job};
-use crate::classify::{
-    BLOCKS, Class, Growth, PeriodDetector, birkhoff_digits, block_len, class_of,
-};
+use crate::classify::{BLOCKS, Growth, PeriodDetector, birkhoff_digits, block_len};
 use crate::method::{Diagnostics, ImpactMethod, RunResult, forcing_table, half_step};
 use crate::model::{Mode, Params, initial_mode};
 use crate::real::Real;
@@ -349,8 +347,8 @@ impl<F: Real> ReadBack<F> {
             .map(|i| self.start + i)
     }
 
-    /// Appends the batch's results and on-GPU classes, in point order.
-    pub(super) fn decode(&self, job: &Job, results: &mut Vec<RunResult>, classes: &mut Vec<Class>) {
+    /// Appends the batch's results, in point order.
+    pub(super) fn decode(&self, job: &Job, results: &mut Vec<RunResult>) {
         let spec = job.spec;
         let per_point = spec.samples as usize;
         let dim = STATE_DIM as usize;
@@ -382,12 +380,7 @@ impl<F: Real> ReadBack<F> {
                 Vec::new()
             };
             let possible = u(U_DET_LO) as u64 | ((u(U_DET_HI) as u64) << 32);
-            classes.push(class_of(
-                diag.nonfinite,
-                count as usize,
-                u(U_SAMPLE_IMPACTS) as u64,
-                || PeriodDetector::period_from(possible, count),
-            ));
+            let period = PeriodDetector::period_from(possible, count);
             // Mean log growth per unit time over the sampled periods, and its batch-means
             // error (the kernel's blocks complete as Growth's do over `count` periods).
             let ring = |slot| self.ring[at(slot, self.m, i)].to_f64();
@@ -427,6 +420,7 @@ impl<F: Real> ReadBack<F> {
                 diag,
                 final_y: [0, 1, 2, 3].map(|c| self.ys[at(Y_MAIN + c, self.m, i)].to_f64()),
                 final_mode: Mode::from_u32(u(U_MODE)),
+                detector: Some((count as usize, period)),
             });
         }
     }

@@ -18,9 +18,8 @@ pub mod layout;
 
 pub use kernel::{SHADER, shader_source};
 
-use crate::classify::Class;
 use crate::config::Precision;
-use crate::method::RunResult;
+use crate::method::{RunResult, Timings};
 use crate::progress::Progress;
 use crate::real::Real;
 use crate::spec::{Points, RunSpec};
@@ -77,38 +76,8 @@ impl<'a> Job<'a> {
     }
 }
 
-/// Timings of a GPU run, seconds.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct Timings {
-    pub setup_s: f64,
-    pub integration_s: f64,
-    pub readback_s: f64,
-    /// Kernel time from timestamp queries, when the adapter has them.
-    pub kernel_s: Option<f64>,
-    pub dispatches: u32,
-    pub batches: u32,
-}
-
-impl Timings {
-    /// Adds the times of another run (kernel time only where both have it).
-    pub fn add(&mut self, o: &Timings) {
-        self.setup_s += o.setup_s;
-        self.integration_s += o.integration_s;
-        self.readback_s += o.readback_s;
-        self.kernel_s = match (self.kernel_s, o.kernel_s) {
-            (Some(a), Some(b)) => Some(a + b),
-            (None, b) if self.dispatches == 0 => b,
-            _ => None,
-        };
-        self.dispatches += o.dispatches;
-        self.batches += o.batches;
-    }
-}
-
 pub struct GpuOutput {
     pub results: Vec<RunResult>,
-    /// Classes from the on-GPU period detector.
-    pub classes: Vec<Class>,
     pub timings: Timings,
     /// Points whose loops the driver cut short (llvmpipe ends an invocation's loops after
     /// 65535 iterations, which a chattering point can exceed within one dispatch): their
@@ -358,7 +327,6 @@ impl Gpu {
 
         let n = job.points.len();
         let mut results = Vec::with_capacity(n);
-        let mut classes = Vec::with_capacity(n);
         let mut truncated = Vec::new();
         for range in plan.batches(n) {
             let t_batch = Instant::now();
@@ -383,13 +351,12 @@ impl Gpu {
             let t_read = Instant::now();
             let read = batch.read_back(self, job, &plan)?;
             truncated.extend(read.truncated());
-            read.decode(job, &mut results, &mut classes);
+            read.decode(job, &mut results);
             timings.readback_s += t_read.elapsed().as_secs_f64();
         }
         timings.kernel_s = timer.and_then(|t| t.seconds());
         Ok(GpuOutput {
             results,
-            classes,
             timings,
             truncated,
         })

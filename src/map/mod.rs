@@ -17,8 +17,9 @@ pub use parts::{
 
 use crate::classify::Class;
 use crate::config::Config;
-use crate::engine::{Engine, Summary};
-use crate::gpu::Timings;
+use crate::decide::Summary;
+use crate::engine::Engine;
+use crate::engine::Timings;
 use crate::method::Diagnostics;
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
@@ -28,7 +29,7 @@ use std::ops::Range;
 #[derive(Debug, thiserror::Error)]
 pub enum MapError {
     #[error("{0}")]
-    Gpu(#[from] crate::gpu::GpuError),
+    Engine(#[from] crate::engine::EngineError),
     #[error("{0}")]
     Output(#[from] crate::output::OutputError),
     #[error("{0}")]

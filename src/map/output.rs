@@ -459,8 +459,8 @@ pub fn write_outputs(
      -> Result<(), MapError> {
         let path = with_ext(&crate::output::with_suffix(prefix, name), "png");
         if !values.iter().any(|v| v.is_finite()) {
-            eprintln!(
-                "warning: no cell has a value of {name}; {} is not drawn",
+            log::warn!(
+                "no cell has a value of {name}; {} is not drawn",
                 path.display()
             );
             st.remove_stale(&path);

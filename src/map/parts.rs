@@ -6,7 +6,7 @@ use super::{
 };
 use crate::config::Config;
 use crate::engine::Engine;
-use crate::gpu::Timings;
+use crate::engine::Timings;
 use crate::output::{Staged, with_ext};
 use crate::progress::Progress;
 use serde::{Deserialize, Serialize};
@@ -195,7 +195,7 @@ fn refined_part(
 ) -> Result<Part, MapError> {
     let r = super::refine::compute_refined(engine, cfg, k, chaotic, starts, progress)?;
     let cells = cell_count(cfg);
-    eprintln!(
+    log::info!(
         "refine: {} of {cells} cells integrated, {} inferred from uniform blocks",
         r.computed,
         r.inferred.iter().filter(|&&v| v == 1).count()
@@ -594,11 +594,7 @@ pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> Result<MapS
     }
     o.check(cfg)?;
     let starts = o.starts;
-    let gpus = crate::gpu::Gpu::all()?;
-    for g in &gpus {
-        eprintln!("adapter: {}", crate::gpu::describe(&g.info));
-    }
-    let engines: Vec<Engine> = gpus.into_iter().map(|g| Engine::Gpu(Box::new(g))).collect();
+    let engines = Engine::all()?;
     run_shared(&engines, cfg, out, starts)
 }
 

@@ -11,8 +11,9 @@
 use super::{MapError, compute_cells};
 use crate::classify::Class;
 use crate::config::Config;
-use crate::engine::{Engine, Summary};
-use crate::gpu::Timings;
+use crate::decide::Summary;
+use crate::engine::Engine;
+use crate::engine::Timings;
 use crate::progress::Progress;
 
 /// A finished coarse-to-fine map: every cell's summary and attractor count, and 1 where the

@@ -28,7 +28,7 @@ pub use events::{
 };
 pub use flows::{FlowTask, NEWTON_LANES, Queue, run_flows, run_flows_portable, run_queue};
 pub use lanes::{LANES, batches, run_lanes, run_lanes_portable};
-pub use result::{Diagnostics, ImpactMethod, PointState, RunResult, Settings};
+pub use result::{Diagnostics, ImpactMethod, PointState, RunResult, Settings, Timings};
 
 /// Event kinds; the numeric values are shared with the shader (`EV_*`).
 pub const EV_NONE: u32 = 0;
@@ -642,6 +642,7 @@ impl<F: Real> Integrator<F> {
             final_y: st.y.map(|v| v.to_f64()),
             final_mode: st.mode,
             lyapunov,
+            detector: None,
         }
     }
 }

@@ -84,17 +84,31 @@ pub struct RunResult {
     /// The last section values of y1 (at most [`crate::classify::TAIL`], oldest first):
     /// they propose the candidate periods, also where the samples are not kept.
     pub tail: Vec<f64>,
+    /// Where the samples are not kept, what the kernel's period detector saw: the samples it
+    /// counted and the period it found ([`crate::classify::PeriodDetector`]).
+    pub detector: Option<(usize, Option<u32>)>,
 }
 
 impl RunResult {
-    /// Class of the run by its samples (period detector, impacts, finiteness).
+    /// The strict period detector's class of the run (period, impacts, finiteness): by its
+    /// samples, or where they were not kept by what the kernel's detector saw.
     pub fn class(&self, period_tol: f64) -> crate::classify::Class {
-        crate::classify::classify(
-            &self.samples,
-            self.sample_impacts,
-            self.diag.nonfinite,
-            period_tol,
-        )
+        match self.detector_class() {
+            Some(c) if self.samples.is_empty() => c,
+            _ => crate::classify::classify(
+                &self.samples,
+                self.sample_impacts,
+                self.diag.nonfinite,
+                period_tol,
+            ),
+        }
+    }
+
+    /// The class the kernel's detector saw (GPU runs only), whether or not samples were kept.
+    pub fn detector_class(&self) -> Option<crate::classify::Class> {
+        self.detector.map(|(count, period)| {
+            crate::classify::class_of(self.diag.nonfinite, count, self.sample_impacts, || period)
+        })
     }
 
     /// The failure rule shared by every backend: a run whose state or samples left the finite
@@ -130,5 +144,34 @@ impl RunResult {
     /// Mean impacts per sampled period.
     pub fn impacts_per_period(&self) -> f64 {
         self.sample_impacts as f64 / self.samples.len().max(1) as f64
+    }
+}
+
+/// Timings of a run, seconds (the setup, readback and kernel times are the GPU's; the CPU
+/// reports its integration time only).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct Timings {
+    pub setup_s: f64,
+    pub integration_s: f64,
+    pub readback_s: f64,
+    /// Kernel time from timestamp queries, when the adapter has them.
+    pub kernel_s: Option<f64>,
+    pub dispatches: u32,
+    pub batches: u32,
+}
+
+impl Timings {
+    /// Adds the times of another run (kernel time only where both have it).
+    pub fn add(&mut self, o: &Timings) {
+        self.setup_s += o.setup_s;
+        self.integration_s += o.integration_s;
+        self.readback_s += o.readback_s;
+        self.kernel_s = match (self.kernel_s, o.kernel_s) {
+            (Some(a), Some(b)) => Some(a + b),
+            (None, b) if self.dispatches == 0 => b,
+            _ => None,
+        };
+        self.dispatches += o.dispatches;
+        self.batches += o.batches;
     }
 }

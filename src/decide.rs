@@ -1,0 +1,258 @@
+//! The one place that decides what a run is: the classifier's proposals ([`proposals`]) tried
+//! by Newton's method ([`crate::tangent::Refine`]), then its conclusion ([`conclude`]) from the
+//! evidence and the stable cycle found, if any. Every command decides through [`confirm`] or
+//! its batched forms, so the same evidence gives the same class whatever the command; the
+//! engine only runs points, and the adaptive loop combines the two.
+//!
+//! The refinement runs on the CPU in f64 whatever backend and precision integrated the point:
+//! it judges the backend's answer with the reference arithmetic (an f32 round-off cycle near an
+//! unstable orbit converges to that orbit, whose multipliers reject it).
+
+use crate::classify::{Candidate, Class, Pool, Rule, approaches, conclude, proposals};
+use crate::method::{Diagnostics, Integrator, PointState, RunResult, Settings};
+use crate::model::{Mode, Params};
+use crate::spec::{Points, RunSpec};
+use crate::tangent::{Cycle, Refine, run_parallel};
+
+/// A point's class after the multipliers had their say, and the cycle behind it.
+#[derive(Clone, Debug)]
+pub struct Verdict {
+    pub class: Class,
+    /// The refined cycle: stable for `period-n`; otherwise the first cycle tried (unstable or
+    /// not converged); `None` where no cycle was tried.
+    pub cycle: Option<Cycle>,
+    /// The rule of [`crate::classify::conclude`] that decided.
+    pub rule: Rule,
+    /// The periods Newton tried, in order.
+    pub tried: Vec<u32>,
+}
+
+/// Decides the run `r` of parameters `p` whose strict detector said `detected`: Newton's method
+/// tries the periods [`proposals`] names (the detector's, then the candidates of the last
+/// section values) from the final state, in f64 on the CPU, and [`conclude`] weighs the
+/// stable cycle it found, if any, with the exponent and the torus test. Every command decides
+/// through here, so the same evidence gives the same class whatever the command.
+pub fn confirm(p: &Params<f64>, settings: &Settings, r: &RunResult, detected: Class) -> Verdict {
+    confirm_many(
+        settings,
+        &[Proposal {
+            params: *p,
+            run: r,
+            class: detected,
+            candidates: true,
+            skip: [0; 2],
+        }],
+    )
+    .pop()
+    .expect("one point, one verdict")
+}
+
+/// A point for [`confirm_many`]: the arguments of [`confirm`] that differ between points.
+pub struct Proposal<'a> {
+    pub params: Params<f64>,
+    pub run: &'a RunResult,
+    /// The strict detector's class.
+    pub class: Class,
+    /// Whether the candidate periods are tried too (the adaptive loop's early rounds try the
+    /// detector's period only: a point they leave undecided runs on anyway).
+    pub candidates: bool,
+    /// Candidate periods not to try again (those a continued point tried in its previous
+    /// window without finding its cycle; 0: none).
+    pub skip: [u32; 2],
+}
+
+/// [`confirm`] of many points: their Newton trials run [`LANES`](crate::method::LANES) at a
+/// time on the lanes of [`run_flows`], in parallel, one pass per proposed period (a point
+/// leaves once a stable cycle is found).
+pub fn confirm_many(settings: &Settings, points: &[Proposal]) -> Vec<Verdict> {
+    let periods: Vec<Vec<(u32, Option<Candidate>)>> = points
+        .iter()
+        .map(|q| {
+            let r = q.run;
+            if r.diag.nonfinite || !r.final_y.iter().all(|v| v.is_finite()) {
+                return Vec::new();
+            }
+            let mut p = proposals(&r.evidence(q.class));
+            if !q.candidates {
+                p.truncate(q.class.period().map_or(0, |_| 1));
+            }
+            p.retain(|t| t.1.is_none() || !q.skip.contains(&t.0));
+            p
+        })
+        .collect();
+    let mut first: Vec<Option<Cycle>> = vec![None; points.len()];
+    let mut stable: Vec<Option<Cycle>> = vec![None; points.len()];
+    let mut tried: Vec<Vec<u32>> = vec![Vec::new(); points.len()];
+    let passes = periods.iter().map(Vec::len).max().unwrap_or(0);
+    for pass in 0..passes {
+        let (idx, tasks): (Vec<usize>, Vec<Refine>) = points
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| stable[i].is_none())
+            .filter_map(|(i, q)| {
+                let n = periods[i].get(pass)?.0;
+                let start = PointState {
+                    y: q.run.final_y,
+                    mode: q.run.final_mode,
+                    diag: Default::default(),
+                };
+                let it = Integrator::<f64>::new(&q.params, settings);
+                Some((i, Refine::new(it, &start, n)))
+            })
+            .unzip();
+        let tasks = run_parallel(tasks, |t| u64::from(t.period()));
+        for (i, t) in idx.into_iter().zip(tasks) {
+            let cand = periods[i][pass].1;
+            tried[i].push(t.period());
+            let c = t.cycle();
+            let r = points[i].run;
+            let on_it = |cand: &Candidate| {
+                approaches(&r.tail, &r.final_y, cand, &c.point, c.leading_modulus())
+            };
+            if c.is_stable() && cand.as_ref().is_none_or(on_it) {
+                stable[i] = Some(c);
+            } else if first[i].is_none() {
+                first[i] = Some(c);
+            }
+        }
+    }
+    points
+        .iter()
+        .enumerate()
+        .map(|(i, q)| {
+            let found = stable[i].take();
+            let (class, rule) =
+                conclude(&q.run.evidence(q.class), found.as_ref().map(|c| c.period));
+            Verdict {
+                class,
+                cycle: found.or(first[i].take()),
+                rule,
+                tried: std::mem::take(&mut tried[i]),
+            }
+        })
+        .collect()
+}
+
+/// [`confirm`] for every point of a run (`params(i)` and the detector's `classes[i]` for
+/// `results[i]`), the Newton trials on the lanes ([`confirm_many`]).
+pub fn confirm_all(
+    params: impl Fn(usize) -> Params<f64>,
+    settings: &Settings,
+    results: &[RunResult],
+    classes: &[Class],
+    skip: &[[u32; 2]],
+) -> Vec<Verdict> {
+    let points: Vec<Proposal> = results
+        .iter()
+        .zip(classes)
+        .enumerate()
+        .map(|(i, (r, c))| Proposal {
+            params: params(i),
+            run: r,
+            class: *c,
+            candidates: true,
+            skip: skip.get(i).copied().unwrap_or([0; 2]),
+        })
+        .collect();
+    confirm_many(settings, &points)
+}
+
+/// What a map keeps of one point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Summary {
+    pub class: Class,
+    pub impacts_per_period: f64,
+    /// Largest Lyapunov exponent per unit time (NaN when not available).
+    pub lyapunov: f64,
+    /// Largest Floquet multiplier modulus of the confirmed (stable) cycle; NaN where the class
+    /// is not periodic.
+    pub multiplier: f64,
+    /// Standard error of `lyapunov` (batch means; NaN without it).
+    pub lyapunov_se: f64,
+    /// Agreeing digits of the torus test (NaN without two full halves).
+    pub torus: f64,
+    /// The rule that decided the class.
+    pub rule: Rule,
+    /// The periods Newton tried (0: none).
+    pub tried: [u32; 2],
+    pub diag: Diagnostics,
+    pub final_y: [f64; 4],
+    pub final_mode: Mode,
+    /// Forcing periods integrated.
+    pub periods: u32,
+}
+
+impl Summary {
+    /// The summary of run `r` whose strict detector said `detected`, decided by [`confirm`]
+    /// (the same evidence and rule as every command).
+    pub fn new(detected: Class, r: &RunResult, spec: &RunSpec, params: &Params<f64>) -> Summary {
+        let v = confirm(params, &spec.settings, r, detected);
+        Summary::of(v, r, spec)
+    }
+
+    /// [`Summary::new`] of every point of a run (`detected[i]` for `results[i]`), the same
+    /// summaries bit for bit, with the Newton trials on the lanes ([`confirm_all`]).
+    pub fn many(
+        detected: &[Class],
+        results: &[RunResult],
+        spec: &RunSpec,
+        points: &Points,
+        skip: &[[u32; 2]],
+    ) -> Vec<Summary> {
+        confirm_all(
+            |i| points.params(&spec.params, i),
+            &spec.settings,
+            results,
+            detected,
+            skip,
+        )
+        .into_iter()
+        .zip(results)
+        .map(|(v, r)| Summary::of(v, r, spec))
+        .collect()
+    }
+
+    fn of(v: Verdict, r: &RunResult, spec: &RunSpec) -> Summary {
+        // A run without samples kept (the kernel's lean runs) sampled the configured periods.
+        let samples = match r.samples.len() {
+            0 => spec.samples as usize,
+            n => n,
+        };
+        let multiplier = match (v.class, &v.cycle) {
+            (Class::Periodic(_), Some(c)) => c.leading_modulus(),
+            _ => f64::NAN,
+        };
+        let tried = [0, 1].map(|k| v.tried.get(k).copied().unwrap_or(0));
+        Summary {
+            class: v.class,
+            impacts_per_period: r.sample_impacts as f64 / samples.max(1) as f64,
+            lyapunov: r.lyapunov,
+            multiplier,
+            lyapunov_se: r.lyapunov_se,
+            torus: r.torus,
+            rule: v.rule,
+            tried,
+            diag: r.diag,
+            final_y: r.final_y,
+            final_mode: r.final_mode,
+            periods: spec.periods(),
+        }
+    }
+}
+
+/// The summaries of one block of a lean run (`results[i]` of `points.slice`-local point `i`):
+/// each point's exponent pooled with its earlier windows (`pools`, one per point or empty), its
+/// strict detector's class, then [`Summary::many`] (`skip`: periods tried in vain before).
+pub fn summaries(
+    spec: &RunSpec,
+    points: &Points,
+    results: &mut [RunResult],
+    pools: &mut [Pool],
+    skip: &[[u32; 2]],
+) -> Vec<Summary> {
+    for (r, p) in results.iter_mut().zip(pools) {
+        r.pool(p);
+    }
+    let detected: Vec<Class> = results.iter().map(|r| r.class(spec.period_tol)).collect();
+    Summary::many(&detected, results, spec, points, skip)
+}
