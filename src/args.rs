@@ -2,11 +2,26 @@
 //! command shares (configuration file and overrides).
 
 use anyhow::Result;
+use clap::builder::TypedValueParser;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use rattle::bifurcation::Continuation;
 use rattle::config::{Backend, Config, Overrides, Precision};
 use rattle::map;
 use std::path::{Path, PathBuf};
+
+/// A clap parser for one of the library's named choices (the library knows no clap): the
+/// names are the library's own, listed in `--help` and in the error for any other.
+fn choice<T: Copy + Send + Sync + 'static>(
+    all: &'static [T],
+    name: fn(T) -> &'static str,
+) -> impl TypedValueParser<Value = T> {
+    let names: Vec<&'static str> = all.iter().map(|&t| name(t)).collect();
+    clap::builder::PossibleValuesParser::new(names).map(move |s| {
+        *all.iter()
+            .find(|&&t| name(t) == s)
+            .expect("clap admits the listed names only")
+    })
+}
 
 #[derive(Parser)]
 #[command(
@@ -47,7 +62,7 @@ pub enum Cmd {
         #[arg(long, default_value = "bifurcation")]
         out: PathBuf,
         /// Parameter continuation: each point starts from its neighbour's final state.
-        #[arg(long, value_enum)]
+        #[arg(long, value_parser = choice(&Continuation::ALL, Continuation::name))]
         continuation: Option<Continuation>,
     },
     /// A 2-D map of attractor classes and Lyapunov exponents over two parameters.
@@ -116,9 +131,9 @@ pub enum Cmd {
         /// The PNG file (its name must end in .png).
         #[arg(long, default_value = "paper.png")]
         out: PathBuf,
-        #[arg(long, value_enum)]
+        #[arg(long, value_parser = choice(&Backend::ALL, Backend::name))]
         backend: Option<Backend>,
-        #[arg(long, value_enum)]
+        #[arg(long, value_parser = choice(&Precision::ALL, Precision::name))]
         precision: Option<Precision>,
     },
     /// Work-precision chart and failure fractions of every method, precision and backend.
@@ -204,10 +219,10 @@ pub struct Common {
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// Floating-point precision of the integrator.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice(&Precision::ALL, Precision::name))]
     pub precision: Option<Precision>,
     /// Compute backend.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice(&Backend::ALL, Backend::name))]
     pub backend: Option<Backend>,
 }
 

@@ -5,6 +5,7 @@ use crate::classify::Class;
 use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
 use crate::engine::Timings;
+use crate::error::OptionError;
 use crate::error::{Error, Result};
 use crate::gpu::Rung;
 use crate::method::{Diagnostics, RunResult};
@@ -38,8 +39,21 @@ fn bench_sweep(
     periods: u32,
     lyapunov: bool,
 ) -> Result<(RunSpec, Vec<f64>)> {
-    if points == 0 || periods < 3 {
-        return Err(Error::Invalid("--points >= 1 and --periods >= 3".into()));
+    if points == 0 {
+        return Err(OptionError::Range {
+            option: "points",
+            value: "0".into(),
+            allowed: ">= 1".into(),
+        }
+        .into());
+    }
+    if periods < 3 {
+        return Err(OptionError::Range {
+            option: "periods",
+            value: periods.to_string(),
+            allowed: ">= 3".into(),
+        }
+        .into());
     }
     let mut spec = RunSpec::new(cfg);
     spec.samples = if lyapunov { periods / 2 } else { 2 };
@@ -250,9 +264,10 @@ fn run(
 pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
     let gpu = Engine::open(Backend::Gpu)?;
     if !matches!(gpu, Engine::Gpu(_)) {
-        return Err(Error::Invalid(
-            "validate needs a GPU adapter (none found)".into(),
-        ));
+        return Err(crate::engine::EngineError::NeedsGpu {
+            what: "validate (GPU against CPU)",
+        }
+        .into());
     }
     let cpu = Engine::Cpu;
     let mut out = String::new();
@@ -429,7 +444,7 @@ pub fn report(
     ladder: bool,
     lyapunov: bool,
 ) -> Result<String> {
-    crate::memory::check_points("--points x --periods", "--points", points as u64, periods)?;
+    crate::memory::check_option("points", points as u64, periods)?;
     if ladder {
         return self::ladder(cfg, points, periods, lyapunov);
     }

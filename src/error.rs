@@ -28,9 +28,63 @@ pub enum Error {
          check the model's levels and method.steps_per_period"
     )]
     AllFailed { points: usize },
-    /// A request the library cannot serve (wrong option combination, missing adapter).
-    #[error("{0}")]
-    Invalid(String),
+    #[error(transparent)]
+    Option(#[from] OptionError),
+    /// A figure of a run that left nothing to draw.
+    #[error("{what}: nothing to plot")]
+    NothingToPlot { what: String },
+}
+
+/// An option of a command that the library cannot serve, named as the library names it (the
+/// field of the command's options, or its argument); the command line shows the same words as
+/// flags ([`OptionError::render`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{}", self.render(&|o| format!("`{o}`")))]
+pub enum OptionError {
+    /// A value outside what the option allows.
+    Range {
+        option: &'static str,
+        value: String,
+        allowed: String,
+    },
+    /// Options that cannot run together.
+    Conflict {
+        option: &'static str,
+        with: &'static [&'static str],
+        why: &'static str,
+    },
+    /// An option that needs another one.
+    Needs {
+        option: &'static str,
+        needs: &'static str,
+    },
+    /// An option that cannot serve this run.
+    Unsuitable { option: &'static str, why: String },
+}
+
+impl OptionError {
+    /// The message with every option name written by `name`.
+    pub fn render(&self, name: &dyn Fn(&str) -> String) -> String {
+        match self {
+            OptionError::Range {
+                option,
+                value,
+                allowed,
+            } => format!("{} {value}: allowed {allowed}", name(option)),
+            OptionError::Conflict { option, with, why } => {
+                let with: Vec<String> = with.iter().map(|w| name(w)).collect();
+                format!(
+                    "{} cannot be combined with {}: {why}",
+                    name(option),
+                    with.join(" or ")
+                )
+            }
+            OptionError::Needs { option, needs } => {
+                format!("{} needs {}", name(option), name(needs))
+            }
+            OptionError::Unsuitable { option, why } => format!("{}: {why}", name(option)),
+        }
+    }
 }
 
 impl Error {

@@ -8,6 +8,7 @@ use rattle::bench;
 use rattle::bifurcation;
 use rattle::config::Config;
 use rattle::engine::Engine;
+use rattle::error::OptionError;
 use rattle::map::{self, MapOptions};
 use rattle::output::check_prefix;
 use rattle::spec::RunSpec;
@@ -76,9 +77,30 @@ fn main() {
         if closed {
             std::process::exit(0);
         }
-        eprintln!("error: {e:#}");
+        match option_error(&e) {
+            // The library names its options; the command line's flags are the same words.
+            Some(o) => eprintln!("error: {}", o.render(&|name| format!("--{name}"))),
+            None => eprintln!("error: {e:#}"),
+        }
         std::process::exit(2);
     }
+}
+
+/// The option error behind `e`, if that is what it is.
+fn option_error(e: &anyhow::Error) -> Option<&OptionError> {
+    use rattle::error::Error;
+    use rattle::map::MapError;
+    e.chain().find_map(|c| {
+        c.downcast_ref::<OptionError>()
+            .or(match c.downcast_ref::<Error>() {
+                Some(Error::Option(o) | Error::Map(MapError::Option(o))) => Some(o),
+                _ => None,
+            })
+            .or(match c.downcast_ref::<MapError>() {
+                Some(MapError::Option(o)) => Some(o),
+                _ => None,
+            })
+    })
 }
 
 /// Writes `text` to stdout, returning a closed pipe as an error instead of panicking.

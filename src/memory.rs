@@ -81,6 +81,20 @@ pub fn check_points(key: &str, count: &str, points: u64, samples: u32) -> Result
     Ok(())
 }
 
+/// [`check_points`] for a size set by a command's option (as the library names it), refused
+/// as that option's error.
+pub fn check_option(option: &'static str, points: u64, samples: u32) -> crate::error::Result<()> {
+    match check_points(option, option, points, samples) {
+        Err(ConfigError::Range { value, range, .. }) => Err(crate::error::OptionError::Range {
+            option,
+            value,
+            allowed: range,
+        }
+        .into()),
+        r => Ok(r?),
+    }
+}
+
 /// Bytes per point of the block of a map's points in flight at once (at most
 /// `engine::GPU_BLOCK` points; the CPU holds fewer): per point its result with its last 256
 /// section values, the kernel's buffers as read back, and on a software adapter (lavapipe) the
@@ -105,7 +119,7 @@ pub fn check_map(cfg: &Config, cells: usize, starts: usize) -> Result<(), Config
                 gib(need)
             ),
             range: format!(
-                "at most {} of the {} available, i.e. <= {} cells (or use --shard)",
+                "at most {} of the {} available, i.e. <= {} cells (or split the map into shards)",
                 gib(have),
                 gib(have / USABLE),
                 (have / per as f64) as u64

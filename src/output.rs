@@ -338,7 +338,7 @@ pub fn check_prefix(prefix: &Path, exts: &[&str]) -> Result<(), OutputError> {
     if s.is_empty() || s.ends_with('/') || prefix.is_dir() || prefix.file_name().is_none() {
         return Err(other(
             prefix,
-            "the output prefix must name files, e.g. --out results/fig2 (not a directory)",
+            "the output prefix must name files, e.g. results/fig2 (not a directory)",
         ));
     }
     let dir = prefix

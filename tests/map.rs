@@ -374,7 +374,10 @@ fn refined_map_agrees_with_the_full_map_and_flags_inferred_cells() {
             &["--refine", "8", "--refine-clear", "NaN"][..],
             "allowed 1 to 100",
         ),
-        (&["--refine-clear", "2"][..], "--refine K only"),
+        (
+            &["--refine-clear", "2"][..],
+            "--refine-clear needs --refine",
+        ),
     ] {
         let o = rattle()
             .args(["map", "--backend", "cpu", "--config"])

@@ -662,7 +662,7 @@ fn all_adapters_with_the_cpu_backend_is_refused() {
     assert_eq!(out.status.code(), Some(2));
     let err = stderr(&out);
     assert!(
-        err.contains("--adapters all") && err.contains("cpu"),
+        err.contains("--adapters") && err.contains("`all`") && err.contains("cpu"),
         "{err}"
     );
     assert!(!d.join("m.json").exists());

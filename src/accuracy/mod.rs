@@ -4,6 +4,7 @@
 use crate::classify::Class;
 use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
+use crate::error::OptionError;
 use crate::error::{Error, Result};
 use crate::method::{ImpactMethod, Integrator, RunResult, Settings};
 use crate::model::{Param, Params};
@@ -164,12 +165,23 @@ pub fn study(
     o: &Options,
     log: &mut dyn FnMut(&str),
 ) -> Result<(Vec<Row>, ReferenceInfo)> {
-    if o.ensemble == 0 || o.failure_points < 2 {
-        return Err(Error::Invalid(
-            "--ensemble >= 1, --failure-points >= 2".into(),
-        ));
+    if o.ensemble == 0 {
+        return Err(OptionError::Range {
+            option: "ensemble",
+            value: "0".into(),
+            allowed: ">= 1".into(),
+        }
+        .into());
     }
-    crate::memory::check_points("--ensemble", "--ensemble", o.ensemble as u64, 1)?;
+    if o.failure_points < 2 {
+        return Err(OptionError::Range {
+            option: "failure-points",
+            value: o.failure_points.to_string(),
+            allowed: ">= 2".into(),
+        }
+        .into());
+    }
+    crate::memory::check_option("ensemble", o.ensemble as u64, 1)?;
     let mut rows = Vec::new();
     let engines: Vec<Engine> = o
         .backends

@@ -118,8 +118,8 @@ impl Direction {
     }
 }
 
-/// Parameter continuation of a bifurcation diagram (`--continuation`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+/// Parameter continuation of a bifurcation diagram.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Continuation {
     Up,
     Down,
@@ -127,7 +127,24 @@ pub enum Continuation {
     Both,
 }
 
+impl std::str::FromStr for Continuation {
+    type Err = crate::config::UnknownName;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        crate::config::parse_name(s, &Continuation::ALL, Continuation::name)
+    }
+}
+
 impl Continuation {
+    pub const ALL: [Continuation; 3] = [Continuation::Up, Continuation::Down, Continuation::Both];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Continuation::Up => "up",
+            Continuation::Down => "down",
+            Continuation::Both => "both",
+        }
+    }
+
     pub fn directions(self) -> Vec<Direction> {
         match self {
             Continuation::Up => vec![Direction::Up],

@@ -109,7 +109,9 @@ pub fn paper_figure(
         (a.min(y), b.max(y))
     });
     if lo > hi {
-        return Err(Error::Invalid("paper figure: no finite sample".into()));
+        return Err(Error::NothingToPlot {
+            what: "paper figure: no finite sample".into(),
+        });
     }
     let m = 0.03 * (hi - lo).max(1e-9);
     let y_range = (lo - m, hi + m);

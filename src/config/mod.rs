@@ -62,9 +62,7 @@ pub enum FrictionLaw {
     Stribeck,
 }
 
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default, clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {
     /// The GPU's native precision, and the default.
@@ -74,6 +72,8 @@ pub enum Precision {
 }
 
 impl Precision {
+    pub const ALL: [Precision; 2] = [Precision::F32, Precision::F64];
+
     pub fn name(self) -> &'static str {
         match self {
             Precision::F32 => "f32",
@@ -82,7 +82,37 @@ impl Precision {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
+/// A name that is none of a choice's (`f32`/`f64`, `gpu`/`cpu`, ...).
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("`{given}` is not one of {allowed}")]
+pub struct UnknownName {
+    pub given: String,
+    pub allowed: String,
+}
+
+/// Parses one of `all` by its name.
+pub fn parse_name<T: Copy>(
+    s: &str,
+    all: &[T],
+    name: impl Fn(T) -> &'static str,
+) -> Result<T, UnknownName> {
+    all.iter()
+        .copied()
+        .find(|&t| name(t) == s)
+        .ok_or_else(|| UnknownName {
+            given: s.to_string(),
+            allowed: all.iter().map(|&t| name(t)).collect::<Vec<_>>().join(", "),
+        })
+}
+
+impl std::str::FromStr for Precision {
+    type Err = UnknownName;
+    fn from_str(s: &str) -> Result<Self, UnknownName> {
+        parse_name(s, &Precision::ALL, Precision::name)
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Backend {
     /// The WGSL kernel on the adapter chosen from WGPU_BACKEND / WGPU_ADAPTER_NAME.
@@ -90,6 +120,24 @@ pub enum Backend {
     Gpu,
     /// The CPU twin of the kernel, in parallel over points (rayon).
     Cpu,
+}
+
+impl Backend {
+    pub const ALL: [Backend; 2] = [Backend::Gpu, Backend::Cpu];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Gpu => "gpu",
+            Backend::Cpu => "cpu",
+        }
+    }
+}
+
+impl std::str::FromStr for Backend {
+    type Err = UnknownName;
+    fn from_str(s: &str) -> Result<Self, UnknownName> {
+        parse_name(s, &Backend::ALL, Backend::name)
+    }
 }
 
 /// The `[model]` section: the friction law, the Coulomb coefficient, and one key per row of

@@ -13,7 +13,7 @@ pub(super) fn apply_override(table: &mut toml::Table, o: &str) -> Result<(), Con
     let key = key.trim();
     if o.chars().any(char::is_control) {
         return Err(ConfigError::Parse(format!(
-            "override `{}` contains a newline or control character; give one key=value per --set",
+            "override `{}` contains a newline or control character; give one key=value per override",
             o.escape_debug()
         )));
     }

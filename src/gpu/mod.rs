@@ -40,7 +40,7 @@ pub enum GpuError {
     NoSuchAdapter { name: String, available: String },
     #[error("GPU device request failed on {adapter}: {message}")]
     Device { adapter: String, message: String },
-    #[error("adapter {0} has no SHADER_F64 feature; use --precision f32 or --backend cpu")]
+    #[error("adapter {0} has no SHADER_F64 feature; use precision f32 or the cpu backend")]
     NoF64(String),
     #[error("GPU job rejected: {0}")]
     Job(String),

@@ -39,8 +39,8 @@ pub enum MapError {
     #[error("{0}")]
     Merge(String),
     /// Options that cannot work together or with this map.
-    #[error("{0}")]
-    Options(String),
+    #[error(transparent)]
+    Option(#[from] crate::error::OptionError),
     #[error("JSON: {0}")]
     Json(#[from] serde_json::Error),
     #[error(transparent)]

@@ -7,6 +7,7 @@ use super::{
 use crate::config::Config;
 use crate::engine::Engine;
 use crate::engine::Timings;
+use crate::error::OptionError;
 use crate::output::{Staged, with_ext};
 use crate::progress::Progress;
 use serde::{Deserialize, Serialize};
@@ -316,9 +317,11 @@ pub struct MapOptions<'a> {
 /// Parses `--shard I/N`.
 pub fn parse_shard(s: &str) -> Result<(usize, usize), MapError> {
     let bad = || {
-        MapError::Options(format!(
-            "`{s}`: --shard must be I/N with 0 <= I < N, e.g. 0/4"
-        ))
+        MapError::from(OptionError::Range {
+            option: "shard",
+            value: s.to_string(),
+            allowed: "I/N with 0 <= I < N, e.g. 0/4".into(),
+        })
     };
     let (i, n) = s.split_once('/').ok_or_else(bad)?;
     let (i, n): (usize, usize) = (
@@ -341,45 +344,69 @@ impl MapOptions<'_> {
     /// and runs that do not fit in memory, before anything is computed.
     pub fn check(&self, cfg: &Config) -> Result<(), MapError> {
         let cells = cell_count(cfg);
-        let bad = |m: String| Err(MapError::Options(m));
+        let bad = |e: OptionError| Err(MapError::from(e));
+        let range = |option, value: String, allowed: String| {
+            bad(OptionError::Range {
+                option,
+                value,
+                allowed,
+            })
+        };
         if self.shard.is_some() && self.checkpoint.is_some() {
-            return bad("--shard and --checkpoint exclude each other: a shard is one part".into());
+            return bad(OptionError::Conflict {
+                option: "shard",
+                with: &["checkpoint"],
+                why: "a shard is one part",
+            });
         }
         if let Some(k) = self.refine {
             if self.shard.is_some() || self.checkpoint.is_some() {
-                return bad(
-                    "--refine works on the whole grid: it excludes --shard and --checkpoint".into(),
-                );
+                return bad(OptionError::Conflict {
+                    option: "refine",
+                    with: &["shard", "checkpoint"],
+                    why: "refinement works on the whole grid",
+                });
             }
             if !(2..=1024).contains(&k) {
-                return bad(format!(
-                    "--refine {k}: allowed coarse spacing 2 to 1024 cells"
-                ));
+                return range(
+                    "refine",
+                    k.to_string(),
+                    "2 to 1024 (coarse spacing in cells)".into(),
+                );
             }
         }
         if let Some(c) = self.refine_clear {
             if self.refine.is_none() {
-                return bad("--refine-clear applies to --refine K only".into());
+                return bad(OptionError::Needs {
+                    option: "refine-clear",
+                    needs: "refine",
+                });
             }
             if !(c.is_finite() && (1.0..=100.0).contains(&c)) {
-                return bad(format!(
-                    "--refine-clear {c}: allowed 1 to 100 (times run.lyapunov_tol)"
-                ));
+                return range(
+                    "refine-clear",
+                    c.to_string(),
+                    "1 to 100 (times run.lyapunov_tol)".into(),
+                );
             }
         }
         if let Some((_, n)) = self.shard
             && n > cells
         {
-            return bad(format!(
-                "--shard I/{n}: more shares than the map's {cells} cells"
-            ));
+            return range(
+                "shard",
+                format!("I/{n}"),
+                format!("N up to the map's {cells} cells"),
+            );
         }
         if let Some(k) = self.checkpoint
             && !(1..=cells).contains(&k)
         {
-            return bad(format!(
-                "--checkpoint {k}: allowed 1 to the map's {cells} cells"
-            ));
+            return range(
+                "checkpoint",
+                k.to_string(),
+                format!("1 to the map's {cells} cells"),
+            );
         }
         let held = self
             .shard
@@ -540,9 +567,11 @@ pub fn run(
     };
     if let Some(other) = o.compare {
         if other.map != cfg.map {
-            return Err(MapError::Options(
-                "--compare: the other config must have the same [map] grid".into(),
-            ));
+            return Err(OptionError::Unsuitable {
+                option: "compare",
+                why: "the other config must have the same [map] grid".into(),
+            }
+            .into());
         }
         let (s, _) = compute(engine, other, 0..cells, 1, progress)?;
         let other_fields = Fields::from_cells(&s);
@@ -580,17 +609,21 @@ pub fn run(
 /// concurrently, merged as shards are.
 pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> Result<MapSummary, MapError> {
     if o.shard.is_some() || o.checkpoint.is_some() || o.compare.is_some() || o.refine.is_some() {
-        return Err(MapError::Options(
-            "--adapters all combines with neither --shard, --checkpoint, --compare nor --refine"
-                .into(),
-        ));
+        return Err(OptionError::Conflict {
+            option: "adapters",
+            with: &["shard", "checkpoint", "compare", "refine"],
+            why: "all adapters share the one whole map",
+        }
+        .into());
     }
     if cfg.method.backend == crate::config::Backend::Cpu {
-        return Err(MapError::Options(
-            "--adapters all splits the cells over the machine's GPU adapters and cannot run with \
-             method.backend = \"cpu\" (drop --adapters all for the CPU, or use --backend gpu)"
+        return Err(OptionError::Unsuitable {
+            option: "adapters",
+            why: "`all` splits the cells over the machine's GPU adapters and cannot run with \
+                  method.backend = \"cpu\" (use the gpu backend, or one adapter for the CPU)"
                 .into(),
-        ));
+        }
+        .into());
     }
     o.check(cfg)?;
     let starts = o.starts;

@@ -15,6 +15,7 @@
 
 use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
+use crate::error::OptionError;
 use crate::error::{Error, Result};
 use crate::method::{
     EV_IMPACT_NEG, EV_IMPACT_POS, EV_RELEASE_NEG, EV_RELEASE_POS, EV_REVERSAL, Event, Integrator,
@@ -66,17 +67,23 @@ impl PlotOptions {
     pub fn check(&self, cfg: &Config) -> Result<()> {
         let most = MAX_PERIODS.min(cfg.run.sample_periods);
         if !(1..=most).contains(&self.periods) {
-            return Err(Error::Invalid(format!(
-                "--periods {} is outside the allowed range [1, {most}] (at most {MAX_PERIODS} \
-                 and at most run.sample_periods = {})",
-                self.periods, cfg.run.sample_periods
-            )));
+            return Err(OptionError::Range {
+                option: "periods",
+                value: self.periods.to_string(),
+                allowed: format!(
+                    "[1, {most}] (at most {MAX_PERIODS} and at most run.sample_periods = {})",
+                    cfg.run.sample_periods
+                ),
+            }
+            .into());
         }
         if !(self.laminar_tol > 0.0 && self.laminar_tol < 1.0) {
-            return Err(Error::Invalid(format!(
-                "--laminar-tol {} is outside the allowed range (0, 1)",
-                self.laminar_tol
-            )));
+            return Err(OptionError::Range {
+                option: "laminar-tol",
+                value: self.laminar_tol.to_string(),
+                allowed: "(0, 1)".into(),
+            }
+            .into());
         }
         Ok(())
     }
@@ -224,11 +231,11 @@ pub fn compute(cfg: &Config, o: &PlotOptions, progress: &dyn Progress) -> Result
     // The figure reports the exponents whatever run.tangent says.
     cfg.run.tangent = Some(crate::config::Tangent::Spectrum);
     let report = super::run(&Engine::Cpu, &cfg, progress)?;
-    let failed = || {
-        Error::Invalid(format!(
-            "the point failed (non-finite state) at eta = {}: nothing to plot",
+    let failed = || Error::NothingToPlot {
+        what: format!(
+            "the point failed (non-finite state) at eta = {}",
             cfg.model.eta
-        ))
+        ),
     };
     if report.diagnostics.nonfinite {
         return Err(failed());
