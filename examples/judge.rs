@@ -30,17 +30,8 @@ use std::path::Path;
 const TOTAL: u32 = 10_000;
 const TAIL: u32 = 3_000;
 
-/// A small fixed-seed generator (SplitMix64): the sample must be the same on every machine.
-struct Mix(u64);
-impl Mix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-}
+/// The fixed-seed generator of the sample: the same on every machine.
+use rattle::sensitivity::stats::SplitMix as Mix;
 
 fn group(code: i32) -> Option<&'static str> {
     match Class::from_code(code) {
@@ -167,7 +158,7 @@ fn main() -> anyhow::Result<()> {
             .collect();
         // Fisher-Yates with the fixed generator, then the first `count`.
         for i in (1..cells.len()).rev() {
-            let j = (rng.next() % (i as u64 + 1)) as usize;
+            let j = (rng.next_u64() % (i as u64 + 1)) as usize;
             cells.swap(i, j);
         }
         picked.extend(

@@ -33,6 +33,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (ctl.n_vary > 1u) {
         set_param(ctl.vary1, pvals[i * ctl.n_vary + 1u]);
     }
+    if (ctl.n_vary > 2u) {
+        set_param(ctl.vary2, pvals[i * ctl.n_vary + 2u]);
+    }
     zeno = consts[C_ZENO];
     tol = consts[C_TOL];
     dphi = consts[C_DPHI];

@@ -108,6 +108,26 @@ pub enum Cmd {
         #[arg(long, default_value = "basin")]
         out: PathBuf,
     },
+    /// How likely each kind of motion is when parameters are known only within their
+    /// measurement error: class probabilities, distances to the nearest class change, Sobol
+    /// indices (see docs/sensitivity.md).
+    Sensitivity {
+        #[command(flatten)]
+        common: Common,
+        /// An uncertain parameter: NAME=MEAN+-SD (normal, truncated at its bounds) or
+        /// NAME=LO..HI (uniform); repeat for up to three (replaces sensitivity.uncertain).
+        #[arg(long, value_name = "NAME=MEAN+-SD")]
+        uncertain: Vec<String>,
+        /// Draws per matrix of the Saltelli design, 16 to 65536 (overrides sensitivity.samples).
+        #[arg(long)]
+        samples: Option<u32>,
+        /// Seed of the Sobol sequence's scrambling (overrides sensitivity.seed).
+        #[arg(long)]
+        seed: Option<u32>,
+        /// Output prefix: PREFIX.json, PREFIX.csv, PREFIX.png, PREFIX.svg.
+        #[arg(long, default_value = "sensitivity")]
+        out: PathBuf,
+    },
     /// Merge the partial outputs of a sharded map into the files a single run writes.
     Merge {
         /// PREFIX.part-I-of-N.json files.

@@ -28,6 +28,7 @@ pub mod progress;
 pub mod real;
 pub mod reference;
 pub mod render;
+pub mod sensitivity;
 pub mod spec;
 pub mod stability;
 pub mod tangent;

@@ -196,6 +196,50 @@ fn run(cli: Cli) -> Result<()> {
             eprint!("{}", b.summary());
             rattle::basin::write_outputs(&out, &cfg, &b)?
         }
+        Cmd::Sensitivity {
+            common,
+            uncertain,
+            samples,
+            seed,
+            out,
+        } => {
+            let cfg = common.load_from(&common.config)?;
+            let s = &cfg.sensitivity;
+            let given = if uncertain.is_empty() {
+                &s.uncertain
+            } else {
+                &uncertain
+            };
+            let o = rattle::sensitivity::Options {
+                uncertain: given
+                    .iter()
+                    .map(|u| rattle::sensitivity::Uncertain::parse(u))
+                    .collect::<Result<_, _>>()?,
+                samples: samples.unwrap_or(s.samples) as usize,
+                seed: seed.unwrap_or(s.seed),
+            };
+            o.check()?;
+            rattle::memory::check_option("samples", rattle::sensitivity::points(&o) as u64, 1)?;
+            check_prefix(&out, &["json", "csv", "png", "svg"])?;
+            let engine = Engine::open(cfg.method.backend)?;
+            let spec = RunSpec::new(&cfg);
+            let work = rattle::sensitivity::points(&o) as u64 * engine.progress_per_point(&spec);
+            let pb = progress_bar(work, "sensitivity");
+            let t0 = std::time::Instant::now();
+            let study = rattle::sensitivity::run(&engine, &cfg, &o, &|n| pb.inc(n))?;
+            pb.finish_and_clear();
+            eprintln!(
+                "sensitivity: {} points on {} ({}, {}) in {:.2} s ({:.2} s integration)",
+                study.runs,
+                engine.name(),
+                engine.device(),
+                cfg.method.precision.name(),
+                t0.elapsed().as_secs_f64(),
+                study.timings.integration_s
+            );
+            eprintln!("{}", rattle::sensitivity::caption(&study));
+            rattle::sensitivity::write_outputs(&out, &cfg, &study, engine.name(), &engine.device())?
+        }
         Cmd::Merge { parts, out } => {
             check_prefix(&out, &["png", "json"])?;
             map::merge_files(&parts, &out)?.files

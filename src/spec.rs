@@ -57,8 +57,11 @@ impl RunSpec {
     }
 }
 
-/// The points of a run: per-point values of up to two varying parameters and, optionally,
-/// one initial state per point.
+/// Most parameters a point set varies (the kernel's `Control.vary0..2`).
+pub const MAX_VARY: usize = 3;
+
+/// The points of a run: per-point values of up to [`MAX_VARY`] varying parameters and,
+/// optionally, one initial state per point.
 #[derive(Clone, Copy, Debug)]
 pub struct Points<'a> {
     pub vary: &'a [Param],

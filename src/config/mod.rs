@@ -315,9 +315,33 @@ pub struct Config {
     pub sweep: SweepConfig,
     pub map: MapConfig,
     pub basin: BasinConfig,
+    pub sensitivity: SensitivityConfig,
     /// `[model]` keys given in the file or overrides (for notes on keys that do not apply).
     #[serde(skip)]
     pub given_model_keys: Vec<String>,
+}
+
+/// The `[sensitivity]` section: the uncertain parameters of `rattle sensitivity` and its sample.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SensitivityConfig {
+    /// `NAME=MEAN+-SD` (normal, truncated at the parameter's bounds) or `NAME=LO..HI`
+    /// (uniform), at most three.
+    pub uncertain: Vec<String>,
+    /// Draws per matrix of the Saltelli design (the study runs samples x (d + 2) points).
+    pub samples: u32,
+    /// Seed of the Sobol sequence's scrambling.
+    pub seed: u32,
+}
+
+impl Default for SensitivityConfig {
+    fn default() -> Self {
+        SensitivityConfig {
+            uncertain: Vec::new(),
+            samples: 4096,
+            seed: 1,
+        }
+    }
 }
 
 /// Typed command-line overrides (`--eta`, `--R`, `--lambda`, `--precision`, `--backend`).

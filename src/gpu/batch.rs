@@ -34,7 +34,10 @@ impl Plan {
         let pts = &job.points;
         let n = pts.len();
         let nv = pts.vary.len();
-        if nv > 2 || pts.values.len() != n * nv || pts.y0s.is_some_and(|y| y.len() != n) {
+        if nv > crate::spec::MAX_VARY
+            || pts.values.len() != n * nv
+            || pts.y0s.is_some_and(|y| y.len() != n)
+        {
             return Err(GpuError::Job(format!(
                 "{} varying parameters, {} values, {:?} initial states for {n} points",
                 nv,
@@ -265,6 +268,7 @@ impl<F: Real + Pod> Batch<F> {
             n_vary: nv as u32,
             vary0: code(0),
             vary1: code(1),
+            vary2: code(2),
             naive: (s.impacts == ImpactMethod::Naive) as u32,
             row: gx * WORKGROUP,
             lyap: s.lyapunov as u32,

@@ -169,7 +169,7 @@ pub fn utab_len(precision: Precision) -> u32 {
     (UTAB_BYTES / (4 * f)) as u32
 }
 
-/// `Control.vary0/1` of a point set with fewer varying parameters.
+/// `Control.vary0/1/2` of a point set with fewer varying parameters.
 pub const VARY_NONE: u32 = 255;
 
 /// Kernel name of a parameter's code (`Param::code`), after the field it sets in the kernel's
@@ -214,10 +214,11 @@ control! {
     /// Whether samples are stored (bifurcation) or only classified.
     store,
     max_events,
-    /// Varying parameters (0..2) and their codes (VARY_*).
+    /// Varying parameters (0..3) and their codes (VARY_*).
     n_vary,
     vary0,
     vary1,
+    vary2,
     /// Naive impact handling (checked after the step) instead of event location.
     naive,
     /// Invocations per row of a 2-D grid (dispatches beyond the per-dimension limit).
@@ -225,8 +226,7 @@ control! {
     /// Whether the Lyapunov tangent vector runs (in the sampled periods).
     lyap,
     /// Pads the uniform to a multiple of 16 bytes.
-    pad1,
-    pad2,
+    pad,
 }
 
 /// Index of slot `slot` of point `i` among `n` (structure of arrays).

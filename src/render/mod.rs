@@ -13,6 +13,7 @@ mod lines;
 mod maps;
 mod palette;
 mod point;
+mod sensitivity;
 
 pub use density::{
     DensityPlot, DensityStats, MARK_KINDS, Mark, density_panel, density_png, panels_png,
@@ -21,6 +22,9 @@ pub use lines::{LinePlot, Scale, Series, line_plot_png, line_plot_svg};
 pub use maps::{CategoryMap, ScalarMap, category_map_png, grouped, percent, scalar_map_png};
 pub use palette::{ATTRACTOR_COLORS, ClassKind, MAX_PERIOD, PERIOD_FAMILIES, period_color};
 pub use point::{PointFigure, point_figure_png, point_figure_svg};
+pub use sensitivity::{
+    Bar, Plane, SensitivityFigure, class_color, sensitivity_png, sensitivity_svg,
+};
 
 use std::path::Path;
 use std::sync::OnceLock;

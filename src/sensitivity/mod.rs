@@ -1,0 +1,613 @@
+//! `rattle sensitivity`: how the motion at a measured point depends on parameters known only
+//! within their measurement error. The uncertain parameters (normal, truncated at their physical
+//! bounds, or uniform) are sampled by an Owen-scrambled Sobol sequence in a Saltelli design
+//! (matrices A, B and A with one column from B per parameter), integrated as one ensemble on
+//! the chosen engine and decided by the same adaptive loop and classifier as a map. From it:
+//! the class probabilities with Wilson intervals and their convergence as the sample grows, the
+//! probability of the nominal point's class, first-order and total Sobol indices of the largest
+//! exponent and of "same class as nominal" with bootstrap intervals, and per parameter the
+//! distance from the nominal to the nearest class change (a scan out to 4 standard deviations,
+//! then bisection, as the bifurcation points are located).
+
+mod output;
+pub mod stats;
+
+pub use output::{caption, write_outputs};
+
+use crate::classify::Class;
+use crate::config::{Config, Tangent};
+use crate::decide::Summary;
+use crate::engine::{Engine, Timings};
+use crate::error::{OptionError, Result};
+use crate::model::Param;
+use crate::progress::Progress;
+use crate::spec::{Points, RunSpec};
+use serde::Serialize;
+use statrs::distribution::{ContinuousCDF, Normal};
+use std::collections::BTreeMap;
+
+/// Most uncertain parameters: the kernel varies at most this many per point.
+pub const MAX_UNCERTAIN: usize = crate::spec::MAX_VARY;
+/// Steps of the scan for the nearest class change, per side, out to [`SCAN_SIGMAS`].
+pub const SCAN_STEPS: usize = 32;
+/// How far the scan looks, in standard deviations (uniform: half-widths).
+pub const SCAN_SIGMAS: f64 = 4.0;
+/// Bisections of the interval where the scan saw the class change: 2^-12 of a scan step.
+pub const BISECTIONS: u32 = 12;
+/// Bootstrap resamples of the Sobol indices.
+pub const RESAMPLES: usize = 200;
+
+/// How an uncertain parameter is distributed.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(tag = "distribution", rename_all = "lowercase")]
+pub enum Dist {
+    /// Normal with this mean and standard deviation, truncated at the parameter's bounds.
+    Normal { mean: f64, sd: f64 },
+    /// Uniform between `lo` and `hi`.
+    Uniform { lo: f64, hi: f64 },
+}
+
+/// One uncertain parameter.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Uncertain {
+    pub param: Param,
+    #[serde(flatten)]
+    pub dist: Dist,
+}
+
+/// The physical bounds of a parameter (where the truncated normal is cut).
+fn bounds(p: Param) -> (f64, f64) {
+    match p {
+        Param::R => (0.0, 1.0),
+        _ => (0.0, f64::INFINITY),
+    }
+}
+
+impl Uncertain {
+    /// Parses `R=0.60+-0.02` (normal: mean and standard deviation) or `R=0.58..0.62` (uniform).
+    pub fn parse(s: &str) -> Result<Uncertain> {
+        let bad = |why: &str| OptionError::Range {
+            option: "uncertain",
+            value: s.to_string(),
+            allowed: format!(
+                "NAME=MEAN+-SD (normal) or NAME=LO..HI (uniform) with NAME a model parameter; \
+                 {why}"
+            ),
+        };
+        let (name, rest) = s.split_once('=').ok_or_else(|| bad("no `=`"))?;
+        let param: Param = name.trim().parse().map_err(|_| bad("unknown parameter"))?;
+        let num = |t: &str| t.trim().parse::<f64>().map_err(|_| bad("not a number"));
+        let dist = if let Some((m, sd)) = rest.split_once("+-") {
+            Dist::Normal {
+                mean: num(m)?,
+                sd: num(sd)?,
+            }
+        } else if let Some((lo, hi)) = rest.split_once("..") {
+            Dist::Uniform {
+                lo: num(lo)?,
+                hi: num(hi)?,
+            }
+        } else {
+            return Err(bad("neither `+-` nor `..`").into());
+        };
+        let (lo, hi) = bounds(param);
+        let ok = match dist {
+            Dist::Normal { mean, sd } => {
+                mean.is_finite() && sd.is_finite() && sd > 0.0 && mean >= lo && mean <= hi
+            }
+            Dist::Uniform { lo: a, hi: b } => {
+                a.is_finite() && b.is_finite() && a < b && a >= lo && b <= hi
+            }
+        };
+        if !ok {
+            return Err(bad(&format!(
+                "finite, SD > 0 or LO < HI, inside the parameter's bounds [{lo}, {hi}]"
+            ))
+            .into());
+        }
+        Ok(Uncertain { param, dist })
+    }
+
+    /// The nominal value (mean, or the middle of the uniform range).
+    pub fn nominal(&self) -> f64 {
+        match self.dist {
+            Dist::Normal { mean, .. } => mean,
+            Dist::Uniform { lo, hi } => 0.5 * (lo + hi),
+        }
+    }
+
+    /// The scale distances are reported in: the standard deviation, or half the range.
+    pub fn scale(&self) -> f64 {
+        match self.dist {
+            Dist::Normal { sd, .. } => sd,
+            Dist::Uniform { lo, hi } => 0.5 * (hi - lo),
+        }
+    }
+
+    /// The value at quantile `u` in (0, 1).
+    pub fn quantile(&self, u: f64) -> f64 {
+        match self.dist {
+            Dist::Uniform { lo, hi } => lo + u * (hi - lo),
+            Dist::Normal { mean, sd } => {
+                let n = Normal::standard();
+                let (lo, hi) = bounds(self.param);
+                let (a, b) = (n.cdf((lo - mean) / sd), n.cdf((hi - mean) / sd));
+                let q = (a + u * (b - a)).clamp(1e-15, 1.0 - 1e-15);
+                (mean + sd * n.inverse_cdf(q)).clamp(lo, hi)
+            }
+        }
+    }
+}
+
+/// Options of a study.
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub uncertain: Vec<Uncertain>,
+    /// Rows of each of the matrices A and B (base sample size N; the study runs N (d + 2)
+    /// points plus the scan).
+    pub samples: usize,
+    pub seed: u32,
+}
+
+impl Options {
+    /// Refuses what cannot run, before anything is computed.
+    pub fn check(&self) -> Result<()> {
+        let d = self.uncertain.len();
+        if !(1..=MAX_UNCERTAIN).contains(&d) {
+            return Err(OptionError::Range {
+                option: "uncertain",
+                value: format!("{d} parameters"),
+                allowed: format!("1 to {MAX_UNCERTAIN}"),
+            }
+            .into());
+        }
+        for (i, u) in self.uncertain.iter().enumerate() {
+            if self.uncertain[..i]
+                .iter()
+                .any(|v| v.param.overlaps(u.param))
+            {
+                return Err(OptionError::Range {
+                    option: "uncertain",
+                    value: u.param.name().into(),
+                    allowed: "each parameter once (lambda sets fs and fk)".into(),
+                }
+                .into());
+            }
+        }
+        if !(16..=65536).contains(&self.samples) {
+            return Err(OptionError::Range {
+                option: "samples",
+                value: self.samples.to_string(),
+                allowed: "16 to 65536 (the Sobol sequence's length)".into(),
+            }
+            .into());
+        }
+        Ok(())
+    }
+}
+
+/// One sampled point and what it is.
+#[derive(Clone, Debug, Serialize)]
+pub struct Sample {
+    /// `A`, `B`, or `AB<j>` (A with parameter j from B).
+    pub set: String,
+    pub row: usize,
+    pub values: Vec<f64>,
+    pub class: Class,
+    pub lyapunov: f64,
+    pub lyapunov_se: f64,
+    pub impacts_per_period: f64,
+    pub same_as_nominal: bool,
+}
+
+/// A probability with its 95% Wilson interval.
+#[derive(Clone, Debug, Serialize)]
+pub struct Probability {
+    pub name: String,
+    pub count: usize,
+    pub of: usize,
+    pub p: f64,
+    pub low: f64,
+    pub high: f64,
+}
+
+impl Probability {
+    fn new(name: impl Into<String>, count: usize, of: usize) -> Probability {
+        let (p, low, high) = stats::wilson(count, of);
+        Probability {
+            name: name.into(),
+            count,
+            of,
+            p,
+            low,
+            high,
+        }
+    }
+}
+
+/// Where the class first changes on one side of the nominal along one parameter.
+#[derive(Clone, Debug, Serialize)]
+pub struct Change {
+    /// Signed distance from the nominal in the parameter's units.
+    pub distance: f64,
+    /// The same in standard deviations (uniform: half-widths).
+    pub scales: f64,
+    /// The class beyond the change.
+    pub beyond: Class,
+    /// Width of the bracket left by the bisection, in the parameter's units.
+    pub bracket: f64,
+}
+
+/// The nearest class change along one parameter.
+#[derive(Clone, Debug, Serialize)]
+pub struct Distance {
+    pub param: Param,
+    pub below: Option<Change>,
+    pub above: Option<Change>,
+    /// How far the scan looked on each side, in scales.
+    pub searched_scales: f64,
+}
+
+/// Sobol indices of one parameter with bootstrap intervals.
+#[derive(Clone, Debug, Serialize)]
+pub struct Sobol {
+    pub param: Param,
+    pub exponent: stats::Indices,
+    /// [first low, first high, total low, total high].
+    pub exponent_interval: [f64; 4],
+    pub same_class: stats::Indices,
+    pub same_class_interval: [f64; 4],
+}
+
+/// Cells per side of the class map of the two most influential parameters.
+pub const PLANE_CELLS: usize = 48;
+
+/// The class map of the plane of the two most influential parameters (the others at their
+/// nominal values), over nominal +- 3 scales (uniform: the range).
+#[derive(Clone, Debug, Serialize)]
+pub struct PlaneMap {
+    /// Indices into the uncertain parameters of the x and y axes.
+    pub x: usize,
+    pub y: usize,
+    pub x_range: (f64, f64),
+    pub y_range: (f64, f64),
+    pub cells: usize,
+    /// Row-major, y outer, first row at y_range.0; cell centres.
+    pub classes: Vec<Class>,
+}
+
+/// A finished study.
+#[derive(Clone, Debug, Serialize)]
+pub struct Study {
+    pub uncertain: Vec<Uncertain>,
+    pub samples: usize,
+    pub seed: u32,
+    /// Points integrated in all (design, nominal, scan and bisection).
+    pub runs: usize,
+    pub nominal: Class,
+    pub nominal_lyapunov: f64,
+    /// Probability of each class over the 2N independent draws (A and B).
+    pub classes: Vec<Probability>,
+    /// Probability that the motion is of the nominal point's class.
+    pub same_as_nominal: Probability,
+    /// `same_as_nominal` over the first 2n draws, n = 16, 32, ... N.
+    pub convergence: Vec<Probability>,
+    pub distances: Vec<Distance>,
+    /// Rows of the design with a finite exponent in A, B and every AB (the exponent's indices
+    /// use these).
+    pub exponent_rows: usize,
+    pub sobol: Vec<Sobol>,
+    #[serde(skip)]
+    pub draws: Vec<Sample>,
+    pub plane: Option<PlaneMap>,
+    pub timings: Timings,
+}
+
+/// The range a plane axis spans for parameter `x`.
+fn plane_range(x: &Uncertain) -> (f64, f64) {
+    let (lo, hi) = bounds(x.param);
+    match x.dist {
+        Dist::Uniform { lo, hi } => (lo, hi),
+        Dist::Normal { mean, sd } => ((mean - 3.0 * sd).max(lo), (mean + 3.0 * sd).min(hi)),
+    }
+}
+
+/// The values of one draw: quantiles of the Sobol point `row` in dimensions `dims..dims + d`
+/// (A: 0, B: d).
+pub fn draw(u: &[Uncertain], row: usize, dims: usize, seed: u32) -> Vec<f64> {
+    u.iter()
+        .enumerate()
+        .map(|(j, x)| {
+            // Half a unit of the last bit keeps the quantile off 0 and 1.
+            let v = f64::from(sobol_burley::sample(row as u32, (dims + j) as u32, seed));
+            x.quantile((v + 0.5 / 16_777_216.0).min(1.0 - 1e-9))
+        })
+        .collect()
+}
+
+/// Points (parameter values, row-major) classified in one ensemble.
+fn classify(
+    engine: &Engine,
+    cfg: &Config,
+    vary: &[Param],
+    values: &[f64],
+    progress: &dyn Progress,
+) -> Result<(Vec<Summary>, Timings)> {
+    let spec = RunSpec::new(cfg).with_tangent(cfg.tangent(Tangent::Largest));
+    let points = Points::along(vary, values);
+    Ok(crate::adaptive::run_summaries(
+        engine,
+        &spec,
+        &points,
+        cfg.run.early_stop,
+        progress,
+    )?)
+}
+
+/// Points a study integrates, for progress and memory: the design and the scan.
+pub fn points(o: &Options) -> usize {
+    let d = o.uncertain.len();
+    let plane = if d >= 2 { PLANE_CELLS * PLANE_CELLS } else { 0 };
+    o.samples * (d + 2) + 1 + 2 * d * SCAN_STEPS + 2 * d * BISECTIONS as usize + plane
+}
+
+/// Runs the study at the configuration's nominal point.
+pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) -> Result<Study> {
+    o.check()?;
+    let u = &o.uncertain;
+    let d = u.len();
+    let n = o.samples;
+    let vary: Vec<Param> = u.iter().map(|x| x.param).collect();
+    let nominal: Vec<f64> = u.iter().map(Uncertain::nominal).collect();
+    // The design: the nominal point, then A, B and AB_j, N rows each.
+    let a: Vec<Vec<f64>> = (0..n).map(|i| draw(u, i, 0, o.seed)).collect();
+    let b: Vec<Vec<f64>> = (0..n).map(|i| draw(u, i, d, o.seed)).collect();
+    let mut values = nominal.clone();
+    let mut sets: Vec<(String, usize)> = vec![("nominal".into(), 0)];
+    for (name, m) in [("A", &a), ("B", &b)] {
+        for (i, row) in m.iter().enumerate() {
+            values.extend(row);
+            sets.push((name.into(), i));
+        }
+    }
+    for j in 0..d {
+        for i in 0..n {
+            let mut row = a[i].clone();
+            row[j] = b[i][j];
+            values.extend(&row);
+            sets.push((format!("AB{j}"), i));
+        }
+    }
+    let (sum, mut timings) = classify(engine, cfg, &vary, &values, progress)?;
+    let nominal_class = sum[0].class;
+    let draws: Vec<Sample> = sets
+        .iter()
+        .zip(&sum)
+        .enumerate()
+        .skip(1)
+        .map(|(k, ((set, row), s))| Sample {
+            set: set.clone(),
+            row: *row,
+            values: values[k * d..(k + 1) * d].to_vec(),
+            class: s.class,
+            lyapunov: s.lyapunov,
+            lyapunov_se: s.lyapunov_se,
+            impacts_per_period: s.impacts_per_period,
+            same_as_nominal: s.class == nominal_class,
+        })
+        .collect();
+
+    // Class probabilities over the 2N draws of A and B.
+    let ab_draws = &draws[..2 * n];
+    let mut counts = BTreeMap::<String, usize>::new();
+    for s in ab_draws {
+        *counts.entry(s.class.name()).or_default() += 1;
+    }
+    let mut classes: Vec<Probability> = counts
+        .into_iter()
+        .map(|(c, k)| Probability::new(c, k, 2 * n))
+        .collect();
+    classes.sort_by(|x, y| y.count.cmp(&x.count).then(x.name.cmp(&y.name)));
+    let same = |m: usize| {
+        // The first m rows of A and of B.
+        let k = (0..m).filter(|&i| draws[i].same_as_nominal).count()
+            + (0..m).filter(|&i| draws[n + i].same_as_nominal).count();
+        Probability::new("same class as nominal", k, 2 * m)
+    };
+    let same_as_nominal = same(n);
+    let mut convergence = Vec::new();
+    let mut m = 16;
+    while m < n {
+        convergence.push(same(m));
+        m *= 2;
+    }
+    convergence.push(same(n));
+
+    // Sobol indices of the exponent (rows finite everywhere) and of the class indicator.
+    let pick = |set: usize, f: &dyn Fn(&Sample) -> f64| -> Vec<f64> {
+        draws[set * n..(set + 1) * n].iter().map(f).collect()
+    };
+    let lyap = |s: &Sample| s.lyapunov;
+    let ind = |s: &Sample| f64::from(u8::from(s.same_as_nominal));
+    let (fa, fb) = (pick(0, &lyap), pick(1, &lyap));
+    let fab: Vec<Vec<f64>> = (0..d).map(|j| pick(2 + j, &lyap)).collect();
+    let rows: Vec<usize> = (0..n)
+        .filter(|&i| fa[i].is_finite() && fb[i].is_finite() && fab.iter().all(|f| f[i].is_finite()))
+        .collect();
+    let keep = |v: &[f64]| rows.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+    let (ga, gb) = (pick(0, &ind), pick(1, &ind));
+    let sobol: Vec<Sobol> = (0..d)
+        .map(|j| {
+            let (ea, eb, eab) = (keep(&fa), keep(&fb), keep(&fab[j]));
+            let all: Vec<usize> = (0..ea.len()).collect();
+            let gab = pick(2 + j, &ind);
+            let every: Vec<usize> = (0..n).collect();
+            Sobol {
+                param: vary[j],
+                exponent: stats::indices(&ea, &eb, &eab, &all),
+                exponent_interval: stats::bootstrap(&ea, &eb, &eab, RESAMPLES, u64::from(o.seed)),
+                same_class: stats::indices(&ga, &gb, &gab, &every),
+                same_class_interval: stats::bootstrap(&ga, &gb, &gab, RESAMPLES, u64::from(o.seed)),
+            }
+        })
+        .collect();
+
+    // The nearest class change along each parameter: a scan, then bisection.
+    let (distances, t, scan_runs) = nearest_changes(engine, cfg, u, nominal_class, progress)?;
+    timings.add(&t);
+    let mut runs = values.len() / d + scan_runs;
+    // The class map of the plane of the two parameters with the largest total index of
+    // "same class as nominal" (first the one with the larger).
+    let plane = if d >= 2 {
+        let mut order: Vec<usize> = (0..d).collect();
+        order.sort_by(|&i, &j| {
+            let t = |k: usize| {
+                let s: &Sobol = &sobol[k];
+                s.same_class.total
+            };
+            t(j).total_cmp(&t(i)).then(i.cmp(&j))
+        });
+        let (x, y) = (order[0], order[1]);
+        let (xr, yr) = (plane_range(&u[x]), plane_range(&u[y]));
+        let c = PLANE_CELLS;
+        let mut values = Vec::with_capacity(c * c * d);
+        for iy in 0..c {
+            for ix in 0..c {
+                let mut r = nominal.clone();
+                r[x] = xr.0 + (xr.1 - xr.0) * (ix as f64 + 0.5) / c as f64;
+                r[y] = yr.0 + (yr.1 - yr.0) * (iy as f64 + 0.5) / c as f64;
+                values.extend(r);
+            }
+        }
+        let (s, t) = classify(engine, cfg, &vary, &values, progress)?;
+        timings.add(&t);
+        runs += c * c;
+        Some(PlaneMap {
+            x,
+            y,
+            x_range: xr,
+            y_range: yr,
+            cells: c,
+            classes: s.iter().map(|x| x.class).collect(),
+        })
+    } else {
+        None
+    };
+    Ok(Study {
+        uncertain: u.clone(),
+        samples: n,
+        seed: o.seed,
+        runs,
+        nominal: nominal_class,
+        nominal_lyapunov: sum[0].lyapunov,
+        classes,
+        same_as_nominal,
+        convergence,
+        distances,
+        exponent_rows: rows.len(),
+        sobol,
+        draws,
+        plane,
+        timings,
+    })
+}
+
+/// The scan and bisection of [`run`]: points along each parameter from the nominal (the other
+/// parameters at their nominal values), both sides at once, as one ensemble per stage.
+fn nearest_changes(
+    engine: &Engine,
+    cfg: &Config,
+    u: &[Uncertain],
+    nominal_class: Class,
+    progress: &dyn Progress,
+) -> Result<(Vec<Distance>, Timings, usize)> {
+    let d = u.len();
+    let vary: Vec<Param> = u.iter().map(|x| x.param).collect();
+    let nominal: Vec<f64> = u.iter().map(Uncertain::nominal).collect();
+    let mut timings = Timings::default();
+    let mut runs = 0;
+    // A change is a decided class other than the nominal's: an undecided point (unresolved at
+    // the horizon) is no evidence of a change and counts with the nominal side.
+    let changed = |c: Class| c != nominal_class && c != Class::Unresolved;
+    // Value of parameter j at signed offset t (in scales), clamped to the physical bounds.
+    let at = |j: usize, t: f64| {
+        let (lo, hi) = bounds(u[j].param);
+        (nominal[j] + t * u[j].scale()).clamp(lo, hi)
+    };
+    let row = |j: usize, v: f64| {
+        let mut r = nominal.clone();
+        r[j] = v;
+        r
+    };
+    // Lines: (parameter, side); scan steps k = 1..=SCAN_STEPS at k / SCAN_STEPS * SCAN_SIGMAS.
+    let lines: Vec<(usize, f64)> = (0..d).flat_map(|j| [(j, -1.0), (j, 1.0)]).collect();
+    let step = SCAN_SIGMAS / SCAN_STEPS as f64;
+    let mut values = Vec::new();
+    for &(j, side) in &lines {
+        for k in 1..=SCAN_STEPS {
+            values.extend(row(j, at(j, side * k as f64 * step)));
+        }
+    }
+    let (s, t) = classify(engine, cfg, &vary, &values, progress)?;
+    timings.add(&t);
+    runs += values.len() / d;
+    // Per line: the bracket (inside, outside) in scales and the class outside.
+    let mut brackets: Vec<Option<(f64, f64, Class)>> = lines
+        .iter()
+        .enumerate()
+        .map(|(l, _)| {
+            let cls = &s[l * SCAN_STEPS..(l + 1) * SCAN_STEPS];
+            cls.iter().position(|c| changed(c.class)).map(|k| {
+                let out = (k + 1) as f64 * step;
+                (out - step, out, cls[k].class)
+            })
+        })
+        .collect();
+    for _ in 0..BISECTIONS {
+        let live: Vec<usize> = (0..lines.len())
+            .filter(|&l| brackets[l].is_some())
+            .collect();
+        if live.is_empty() {
+            break;
+        }
+        let mut values = Vec::new();
+        for &l in &live {
+            let (j, side) = lines[l];
+            let (a, b, _) = brackets[l].expect("live lines have a bracket");
+            values.extend(row(j, at(j, side * 0.5 * (a + b))));
+        }
+        let (s, t) = classify(engine, cfg, &vary, &values, progress)?;
+        timings.add(&t);
+        runs += live.len();
+        for (&l, x) in live.iter().zip(&s) {
+            let (a, b, beyond) = brackets[l].expect("live lines have a bracket");
+            let mid = 0.5 * (a + b);
+            brackets[l] = Some(if changed(x.class) {
+                (a, mid, x.class)
+            } else {
+                (mid, b, beyond)
+            });
+        }
+    }
+    let change = |l: usize| {
+        let (j, side) = lines[l];
+        brackets[l].map(|(a, b, beyond)| {
+            let distance = at(j, side * b) - nominal[j];
+            Change {
+                distance,
+                scales: distance / u[j].scale(),
+                beyond,
+                bracket: (b - a) * u[j].scale(),
+            }
+        })
+    };
+    let distances = (0..d)
+        .map(|j| Distance {
+            param: u[j].param,
+            below: change(2 * j),
+            above: change(2 * j + 1),
+            searched_scales: SCAN_SIGMAS,
+        })
+        .collect();
+    Ok((distances, timings, runs))
+}

@@ -1,0 +1,268 @@
+//! `rattle sensitivity` and the risk map: their estimators where the answer is known (Sobol
+//! indices of the Ishigami function, the risk of a straight class boundary, the distribution of
+//! the draws), and the whole study at a class boundary located independently.
+
+mod common;
+use common::{json, ok, rattle, scratch};
+
+use rattle::adaptive::run_once;
+use rattle::classify::Class;
+use rattle::config::{Backend, Config, Precision};
+use rattle::engine::Engine;
+use rattle::model::Param;
+use rattle::progress::Silent;
+use rattle::sensitivity::stats::{bootstrap, indices, risk, wilson};
+use rattle::sensitivity::{Options, Uncertain, draw};
+use rattle::spec::{Points, RunSpec};
+use statrs::distribution::{ContinuousCDF, Normal};
+use std::f64::consts::PI;
+
+/// The Ishigami function (a = 7, b = 0.1) and its analytic Sobol indices (Ishigami and Homma
+/// 1990; Saltelli et al. 2008): first order 0.3139, 0.4424, 0; total 0.5576, 0.4424, 0.2437.
+fn ishigami(x: &[f64]) -> f64 {
+    x[0].sin() + 7.0 * x[1].sin().powi(2) + 0.1 * x[2].powi(4) * x[0].sin()
+}
+
+fn ishigami_exact() -> ([f64; 3], [f64; 3]) {
+    let (a, b) = (7.0f64, 0.1f64);
+    let v1 = 0.5 * (1.0 + b * PI.powi(4) / 5.0).powi(2);
+    let v2 = a * a / 8.0;
+    let v13 = b * b * PI.powi(8) * (1.0 / 18.0 - 1.0 / 50.0);
+    let v = v1 + v2 + v13;
+    ([v1 / v, v2 / v, 0.0], [(v1 + v13) / v, v2 / v, v13 / v])
+}
+
+#[test]
+fn sobol_indices_of_the_ishigami_function_to_1e_2() {
+    // 2^14 rows of the Saltelli design drawn as the study draws them (Owen-scrambled Sobol,
+    // A from dimensions 0-2 and B from 3-5), each input uniform on [-pi, pi].
+    let u: Vec<Uncertain> = (0..3)
+        .map(|_| Uncertain::parse(&format!("eta={}..{}", 1e-9, 2.0 * PI)).unwrap())
+        .collect();
+    let n = 1 << 14;
+    let shift = |r: Vec<f64>| r.into_iter().map(|v| v - PI).collect::<Vec<_>>();
+    let a: Vec<Vec<f64>> = (0..n).map(|i| shift(draw(&u, i, 0, 7))).collect();
+    let b: Vec<Vec<f64>> = (0..n).map(|i| shift(draw(&u, i, 3, 7))).collect();
+    let fa: Vec<f64> = a.iter().map(|x| ishigami(x)).collect();
+    let fb: Vec<f64> = b.iter().map(|x| ishigami(x)).collect();
+    let (first, total) = ishigami_exact();
+    let rows: Vec<usize> = (0..n).collect();
+    for j in 0..3 {
+        let fab: Vec<f64> = (0..n)
+            .map(|i| {
+                let mut x = a[i].clone();
+                x[j] = b[i][j];
+                ishigami(&x)
+            })
+            .collect();
+        let s = indices(&fa, &fb, &fab, &rows);
+        assert!(
+            (s.first - first[j]).abs() < 1e-2,
+            "S{j} {} against {}",
+            s.first,
+            first[j]
+        );
+        assert!(
+            (s.total - total[j]).abs() < 1e-2,
+            "ST{j} {} against {}",
+            s.total,
+            total[j]
+        );
+        // The bootstrap interval holds the exact value and is narrow at this size.
+        let [f0, f1, t0, t1] = bootstrap(&fa, &fb, &fab, 200, 3);
+        assert!(
+            f0 - 5e-3 <= first[j] && first[j] <= f1 + 5e-3,
+            "S{j} in [{f0}, {f1}]"
+        );
+        assert!(
+            t0 - 5e-3 <= total[j] && total[j] <= t1 + 5e-3,
+            "ST{j} in [{t0}, {t1}]"
+        );
+        assert!(f1 - f0 < 0.1 && t1 - t0 < 0.1);
+    }
+}
+
+#[test]
+fn the_risk_of_a_straight_boundary_is_a_normal_cdf_of_the_distance() {
+    // Classes 1 left of the cell edge x = 50, 2 right of it, on a 101 x 77 grid; a Gaussian
+    // perturbation of sigma cells from a cell centre at distance d from the edge lands on the
+    // other side with probability Phi(-d / sigma) (the cell masses add up to it exactly).
+    let (nx, ny) = (101, 77);
+    let classes: Vec<i32> = (0..nx * ny)
+        .map(|k| if k % nx < 50 { 1 } else { 2 })
+        .collect();
+    let n = Normal::standard();
+    for (sx, sy) in [(3.0, 3.0), (1.5, 6.0), (0.4, 0.4)] {
+        let r = risk(&classes, nx, ny, sx, sy);
+        let y = ny / 2;
+        for x in 20..80 {
+            let d = (x as f64 + 0.5 - 50.0).abs();
+            let want = n.cdf(-d / sx);
+            let got = r[y * nx + x];
+            assert!(
+                (got - want).abs() < 1e-3,
+                "sigma {sx}: x {x}: {got} against {want}"
+            );
+        }
+        // Along the boundary every row is alike, far from the top and bottom edges or not.
+        assert!((r[nx + 49] - r[(ny - 2) * nx + 49]).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn draws_follow_their_distributions() {
+    // R = 0.6 +- 0.02: a quarter of the mass below mean - 0.674 sd, and so on, within the
+    // Wilson interval of 4096 draws; a uniform range fills evenly; R stays inside [0, 1].
+    let u = [Uncertain::parse("R=0.6+-0.02").unwrap()];
+    let n = Normal::standard();
+    let vals: Vec<f64> = (0..4096).map(|i| draw(&u, i, 0, 1)[0]).collect();
+    for z in [-1.5, -0.674, 0.0, 1.0, 2.0] {
+        let k = vals.iter().filter(|&&v| v < 0.6 + z * 0.02).count();
+        let (_, lo, hi) = wilson(k, vals.len());
+        let p = n.cdf(z);
+        assert!(
+            lo - 1e-3 <= p && p <= hi + 1e-3,
+            "z {z}: {p} not in [{lo}, {hi}]"
+        );
+    }
+    let tight = [Uncertain::parse("R=0.99+-0.05").unwrap()];
+    assert!((0..4096).all(|i| draw(&tight, i, 0, 1)[0] <= 1.0));
+    // Bad specifications name the option.
+    for bad in ["R=0.6", "R=0.6+-0", "R=0.7..0.6", "nope=1+-1", "R=1.2+-0.1"] {
+        let e = Uncertain::parse(bad).unwrap_err().to_string();
+        assert!(e.contains("uncertain"), "{bad}: {e}");
+    }
+}
+
+/// eta where the class of the Fig. 2 run from rest changes from chaotic (below) to no impact
+/// (above) near 1.7774, located by bisection of plain CPU f64 runs, independently of the study.
+fn grazing_eta(cfg: &Config) -> f64 {
+    let spec = RunSpec::new(cfg).with_tangent(cfg.tangent(rattle::config::Tangent::Largest));
+    let class = |eta: f64| {
+        let v = [eta];
+        let (s, _) = run_once(
+            &Engine::Cpu,
+            &spec,
+            &Points::along(&[Param::Eta], &v),
+            &Silent,
+        )
+        .unwrap();
+        s[0].class
+    };
+    let (mut lo, mut hi) = (1.7674, 1.7874);
+    assert_ne!(class(lo), Class::NoImpact);
+    assert_eq!(class(hi), Class::NoImpact);
+    for _ in 0..30 {
+        let mid = 0.5 * (lo + hi);
+        if class(mid) == Class::NoImpact {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+#[test]
+fn class_probabilities_match_a_boundary_located_independently() {
+    // eta uniform on [1.7674, 1.7874] across the end of impacts of Fig. 2's run from rest: the
+    // probability of no impact is the share of the range above the boundary, and the study's
+    // nearest class change is the boundary.
+    let mut cfg = Config::load(&common::config("fig2.toml"), &[]).unwrap();
+    cfg.method.backend = Backend::Cpu;
+    cfg.method.precision = Precision::F64;
+    cfg.run.transient_periods = 300;
+    cfg.run.sample_periods = 100;
+    let b = grazing_eta(&cfg);
+    let o = Options {
+        uncertain: vec![Uncertain::parse("eta=1.7674..1.7874").unwrap()],
+        samples: 256,
+        seed: 1,
+    };
+    let s = rattle::sensitivity::run(&Engine::Cpu, &cfg, &o, &Silent).unwrap();
+    let p = s
+        .classes
+        .iter()
+        .find(|c| c.name == "no_impact")
+        .expect("draws without impacts");
+    let want = (1.7874 - b) / 0.02;
+    eprintln!(
+        "boundary {b}: P(no impact) {} in [{}, {}] against {want}; change at {:?}",
+        p.p, p.low, p.high, s.distances[0].below
+    );
+    assert!(
+        p.low <= want && want <= p.high,
+        "{want} not in [{}, {}]",
+        p.low,
+        p.high
+    );
+    let d = &s.distances[0];
+    let change = 1.7774 + d.below.as_ref().map_or(f64::NAN, |c| c.distance);
+    assert_eq!(s.nominal, Class::NoImpact);
+    assert!(
+        (change - b).abs() < 1e-5,
+        "change at {change}, boundary {b}"
+    );
+}
+
+#[test]
+fn the_command_writes_its_set_and_refuses_bad_uncertainties() {
+    let d = scratch("sensitivity");
+    let short = [
+        "--set",
+        "run.transient_periods=50",
+        "--set",
+        "run.sample_periods=40",
+        "--set",
+        "method.steps_per_period=64",
+    ];
+    ok(rattle()
+        .args(["sensitivity", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args(short)
+        .args([
+            "--uncertain",
+            "R=0.6+-0.02",
+            "--uncertain",
+            "lambda=0.02+-0.005",
+            "--samples",
+            "64",
+            "--out",
+        ])
+        .arg(d.join("s")));
+    for ext in ["json", "csv", "png", "svg"] {
+        assert!(d.join(format!("s.{ext}")).exists(), "{ext}");
+    }
+    let j = json(&d.join("s.json"));
+    assert_eq!(j["samples"], 64);
+    let total: u64 = j["classes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["count"].as_u64().unwrap())
+        .sum();
+    assert_eq!(total, 128, "A and B draws");
+    let csv = std::fs::read_to_string(d.join("s.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 64 * 4, "header, A, B, AB0, AB1");
+    for (args, key) in [
+        (&["--uncertain", "R=0.6+-0"][..], "--uncertain"),
+        (
+            &["--uncertain", "R=0.6+-0.1", "--samples", "8"][..],
+            "--samples",
+        ),
+        (&[][..], "--uncertain"),
+    ] {
+        let o = rattle()
+            .args(["sensitivity", "--backend", "cpu", "--config"])
+            .arg(common::config("fig2.toml"))
+            .args(args)
+            .arg("--out")
+            .arg(d.join("bad"))
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        assert!(e.contains(key), "{args:?}: {e}");
+        assert!(!d.join("bad.json").exists());
+    }
+}
