@@ -72,6 +72,11 @@ pub enum Cmd {
         /// Output prefix: PREFIX.png, PREFIX-lyapunov.png, PREFIX-*.npy, PREFIX.json.
         #[arg(long, default_value = "map")]
         out: PathBuf,
+        /// Standard deviations SX,SY (the axes' units) of the risk map: PREFIX-risk.png and
+        /// .npy, the probability that a Gaussian perturbation lands on another class (sets
+        /// map.risk).
+        #[arg(long, value_name = "SX,SY")]
+        risk: Option<String>,
         /// Compute only the contiguous share I of N (0-based) and write PREFIX.part-I-of-N.json.
         #[arg(long, value_name = "I/N", value_parser = map::parse_shard)]
         shard: Option<(usize, usize)>,

@@ -167,8 +167,16 @@ fn run(cli: Cli) -> Result<()> {
             adapters,
             refine,
             refine_clear,
+            risk,
         } => {
-            let cfg = common.load_map(&common.config)?;
+            let mut cfg = common.load_map(&common.config)?;
+            if let Some(r) = risk {
+                cfg.map.risk = r
+                    .split(',')
+                    .map(|v| v.trim().parse::<f64>().unwrap_or(f64::NAN))
+                    .collect();
+                cfg.validate_map()?;
+            }
             check_prefix(&out, &["png", "json"])?;
             // The other config keeps its own eta; every other override applies.
             let c = Common {

@@ -109,6 +109,47 @@ fn the_risk_of_a_straight_boundary_is_a_normal_cdf_of_the_distance() {
     }
 }
 
+/// The risk by its definition: every neighbour's Gaussian mass, class by class.
+fn risk_by_definition(c: &[i32], nx: usize, ny: usize, sx: f64, sy: f64) -> Vec<f64> {
+    let n = Normal::standard();
+    let mass = |d: i64, s: f64| n.cdf((d as f64 + 0.5) / s) - n.cdf((d as f64 - 0.5) / s);
+    let (rx, ry) = ((4.0 * sx).ceil() as i64, (4.0 * sy).ceil() as i64);
+    (0..nx * ny)
+        .map(|k| {
+            let (x, y) = ((k % nx) as i64, (k / nx) as i64);
+            let (mut other, mut inside) = (0.0, 0.0);
+            for yy in (y - ry).max(0)..=(y + ry).min(ny as i64 - 1) {
+                for xx in (x - rx).max(0)..=(x + rx).min(nx as i64 - 1) {
+                    let w = mass(xx - x, sx) * mass(yy - y, sy);
+                    inside += w;
+                    if c[yy as usize * nx + xx as usize] != c[k] {
+                        other += w;
+                    }
+                }
+            }
+            other / inside
+        })
+        .collect()
+}
+
+#[test]
+fn the_fast_risk_equals_its_definition_on_a_patchwork_of_classes() {
+    let (nx, ny) = (37, 23);
+    let mut rng = rattle::sensitivity::stats::SplitMix(5);
+    // Blocks of 3 x 2 cells of five classes, so that classes neighbour each other everywhere.
+    let blocks: Vec<i32> = (0..13 * 12).map(|_| (rng.next_u64() % 5) as i32).collect();
+    let c: Vec<i32> = (0..nx * ny)
+        .map(|k| blocks[(k / nx / 2) * 13 + (k % nx) / 3])
+        .collect();
+    for (sx, sy) in [(2.5, 1.5), (0.3, 4.0)] {
+        let fast = risk(&c, nx, ny, sx, sy);
+        let slow = risk_by_definition(&c, nx, ny, sx, sy);
+        for (a, b) in fast.iter().zip(&slow) {
+            assert!((a - b).abs() < 1e-12, "{a} against {b}");
+        }
+    }
+}
+
 #[test]
 fn draws_follow_their_distributions() {
     // R = 0.6 +- 0.02: a quarter of the mass below mean - 0.674 sd, and so on, within the
@@ -265,4 +306,55 @@ fn the_command_writes_its_set_and_refuses_bad_uncertainties() {
         assert!(e.contains(key), "{args:?}: {e}");
         assert!(!d.join("bad.json").exists());
     }
+}
+
+#[test]
+fn a_map_with_risk_writes_its_layer_and_warns_below_the_grid_spacing() {
+    let d = scratch("risk");
+    let small = [
+        "--set",
+        "map.x_points=12",
+        "--set",
+        "map.y_points=10",
+        "--set",
+        "run.transient_periods=40",
+        "--set",
+        "run.sample_periods=40",
+        "--set",
+        "method.steps_per_period=64",
+    ];
+    let map = |out: &str, risk: &str| {
+        rattle()
+            .args(["map", "--backend", "cpu", "--config"])
+            .arg(common::config("r_lambda.toml"))
+            .args(small)
+            .args(["--risk", risk, "--out"])
+            .arg(d.join(out))
+            .output()
+            .unwrap()
+    };
+    // Spacings 0.2 / 12 and 0.1 / 10: sigma 0.05 and 0.03 are resolved, 0.001 is not.
+    let o = map("m", "0.05,0.03");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("sigma below"));
+    let r: Vec<f64> = common::npy(&d.join("m-risk.npy"));
+    let class: Vec<i32> = common::npy(&d.join("m-class.npy"));
+    assert_eq!(r.len(), class.len());
+    assert!(r.iter().all(|p| (0.0..=1.0).contains(p)));
+    assert!(d.join("m-risk.png").exists());
+    let o = map("m", "0.001,0.03");
+    assert!(o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("sigma below the grid spacing along R"), "{e}");
+    // Without a risk the layer of the earlier run goes.
+    ok(rattle()
+        .args(["map", "--backend", "cpu", "--config"])
+        .arg(common::config("r_lambda.toml"))
+        .args(small)
+        .arg("--out")
+        .arg(d.join("m")));
+    assert!(!d.join("m-risk.npy").exists() && !d.join("m-risk.png").exists());
+    let o = map("bad", "0.05,-1");
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("map.risk"));
 }

@@ -16,6 +16,10 @@ pub struct MapConfig {
     pub y_points: u32,
     /// Figure title; empty => generated.
     pub title: String,
+    /// Standard deviations (x, y) in parameter units of the risk map (`PREFIX-risk.png` and
+    /// `.npy`: the probability that a Gaussian perturbation of the two parameters lands on
+    /// another class); empty: no risk map.
+    pub risk: Vec<f64>,
 }
 
 impl Default for MapConfig {
@@ -30,6 +34,7 @@ impl Default for MapConfig {
             y_to: 0.1,
             y_points: 128,
             title: String::new(),
+            risk: Vec::new(),
         }
     }
 }
@@ -148,6 +153,15 @@ impl Config {
             ));
         }
         check_grid("map", (m.x_points, m.y_points), 65536, MAX_MAP_CELLS)?;
+        if !(m.risk.is_empty()
+            || m.risk.len() == 2 && m.risk.iter().all(|s| s.is_finite() && *s > 0.0))
+        {
+            return Err(ConfigError::range(
+                "map.risk",
+                format!("{:?}", m.risk),
+                "[] or [sigma_x, sigma_y], both finite and > 0 (in the axes' units)",
+            ));
+        }
         for (key, name, v) in [
             ("map.x_from", m.x, m.x_from),
             ("map.x_to", m.x, m.x_to),

@@ -527,6 +527,56 @@ pub fn write_outputs(
         "|mu_1| of the stable cycle (1: loss of stability; grey: not periodic)",
         None,
     )?;
+    // The risk map: the class image convolved with the Gaussian of map.risk.
+    let risk = (m.risk.len() == 2).then(|| {
+        let spacing = [
+            (m.x_to - m.x_from).abs() / nx as f64,
+            (m.y_to - m.y_from).abs() / ny as f64,
+        ];
+        let codes: Vec<i32> = cells.iter().map(|&c| i32::from(c)).collect();
+        let r = crate::sensitivity::stats::risk(
+            &codes,
+            nx,
+            ny,
+            m.risk[0] / spacing[0],
+            m.risk[1] / spacing[1],
+        );
+        let coarse: Vec<&str> = [m.x, m.y]
+            .iter()
+            .zip(m.risk.iter().zip(spacing))
+            .filter(|(_, (s, d))| **s < *d)
+            .map(|(p, _)| p.name())
+            .collect();
+        (r, coarse)
+    });
+    if let Some((r, coarse)) = &risk {
+        let warn = if coarse.is_empty() {
+            String::new()
+        } else {
+            log::warn!(
+                "map.risk: sigma below the grid spacing along {}: the risk there is that of \
+                 the neighbouring cells only, not resolved",
+                coarse.join(" and ")
+            );
+            format!(" [sigma < grid spacing along {}]", coarse.join(", "))
+        };
+        scalar(
+            &mut st,
+            "risk",
+            format!(
+                "risk: P(other class) for sigma_{} = {}, sigma_{} = {}{warn}",
+                m.x, m.risk[0], m.y, m.risk[1]
+            ),
+            r,
+            "probability that a Gaussian perturbation lands on another class",
+            None,
+        )?;
+    } else {
+        st.remove_stale(&with_ext(
+            &crate::output::with_suffix(prefix, "risk"),
+            "png",
+        ));
+    }
     let shape = [ny as u64, nx as u64];
     let npy = |st: &mut Staged, name: &str, write: &dyn Fn(&Path) -> std::io::Result<()>| {
         let mut p = prefix.as_os_str().to_owned();
@@ -556,6 +606,14 @@ pub fn write_outputs(
     npy(&mut st, "attractors", &|p| save(p, &shape, &f.attractors))?;
     npy(&mut st, "periods", &|p| save(p, &shape, &f.periods))?;
     npy(&mut st, "inferred", &|p| save(p, &shape, &f.inferred))?;
+    match &risk {
+        Some((r, _)) => npy(&mut st, "risk", &|p| save(p, &shape, r))?,
+        None => {
+            let mut p = prefix.as_os_str().to_owned();
+            p.push("-risk");
+            st.remove_stale(&with_ext(Path::new(&p), "npy"));
+        }
+    }
     let nan = |v: &[Option<f64>]| -> Vec<f64> { v.iter().map(|x| x.unwrap_or(f64::NAN)).collect() };
     let se = nan(&f.lyapunov_se);
     npy(&mut st, "lyapunov_se", &|p| save(p, &shape, &se))?;

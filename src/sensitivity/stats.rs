@@ -118,32 +118,48 @@ pub fn risk(classes: &[i32], nx: usize, ny: usize, sx: f64, sy: f64) -> Vec<f64>
     };
     let (wx, wy) = (weights(sx), weights(sy));
     let (rx, ry) = ((wx.len() / 2) as i64, (wy.len() / 2) as i64);
-    let mut out = vec![0.0; nx * ny];
-    for y in 0..ny as i64 {
-        for x in 0..nx as i64 {
-            let c = classes[(y as usize) * nx + x as usize];
-            let (mut other, mut inside) = (0.0, 0.0);
-            for dy in -ry..=ry {
-                let yy = y + dy;
-                if yy < 0 || yy >= ny as i64 {
-                    continue;
-                }
-                for dx in -rx..=rx {
-                    let xx = x + dx;
-                    if xx < 0 || xx >= nx as i64 {
-                        continue;
-                    }
-                    let w = wy[(dy + ry) as usize] * wx[(dx + rx) as usize];
-                    inside += w;
-                    if classes[(yy as usize) * nx + xx as usize] != c {
-                        other += w;
-                    }
+    // The Gaussian is separable and P(same class) at a cell of class c is the convolution of
+    // class c's indicator there: class by class, spread each class-c cell along x into a row
+    // buffer, then sum that buffer along y at the class-c cells only. Cost: cells x (kx + ky)
+    // plus one buffer clear per class, instead of cells x kx x ky.
+    let mass = |w: &[f64], r: i64, at: i64, n: usize| -> f64 {
+        (-r..=r)
+            .filter(|d| (0..n as i64).contains(&(at + d)))
+            .map(|d| w[(d + r) as usize])
+            .sum()
+    };
+    let mut by_class: std::collections::BTreeMap<i32, Vec<usize>> = Default::default();
+    for (k, &c) in classes.iter().enumerate() {
+        by_class.entry(c).or_default().push(k);
+    }
+    let mut same = vec![0.0; nx * ny];
+    let mut spread = vec![0.0; nx * ny];
+    for cells in by_class.values() {
+        spread.iter_mut().for_each(|v| *v = 0.0);
+        for &k in cells {
+            let (x, y) = ((k % nx) as i64, k / nx);
+            for dx in -rx..=rx {
+                let xx = x + dx;
+                if (0..nx as i64).contains(&xx) {
+                    spread[y * nx + xx as usize] += wx[(dx + rx) as usize];
                 }
             }
-            out[(y as usize) * nx + x as usize] = other / inside;
+        }
+        for &k in cells {
+            let (x, y) = (k % nx, (k / nx) as i64);
+            same[k] = (-ry..=ry)
+                .filter(|dy| (0..ny as i64).contains(&(y + dy)))
+                .map(|dy| wy[(dy + ry) as usize] * spread[(y + dy) as usize * nx + x])
+                .sum();
         }
     }
-    out
+    (0..nx * ny)
+        .map(|k| {
+            let (x, y) = ((k % nx) as i64, (k / nx) as i64);
+            let inside = mass(&wx, rx, x, nx) * mass(&wy, ry, y, ny);
+            (1.0 - same[k] / inside).max(0.0)
+        })
+        .collect()
 }
 
 #[cfg(test)]
