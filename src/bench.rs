@@ -17,9 +17,11 @@ use std::fmt::Write;
 /// One row of the benchmark table.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct BenchRow {
-    pub backend: String,
+    pub backend: Backend,
+    /// How the CPU schedules its points (the GPU: one invocation per point).
+    pub schedule: Schedule,
     pub device: String,
-    pub precision: String,
+    pub precision: Precision,
     pub points: usize,
     pub periods: u32,
     pub steps_per_period: u32,
@@ -28,6 +30,49 @@ pub struct BenchRow {
     pub steps_per_s: f64,
     /// The largest Lyapunov exponent was estimated over the sampled periods.
     pub lyapunov: bool,
+}
+
+/// How a backend schedules the points of a bench row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Schedule {
+    /// The production schedule: the kernel's invocations, or the CPU's lanes over the cores.
+    Batched,
+    /// The CPU twin one point per task (the schedule before the lanes, the reference of the
+    /// kernel's speed target).
+    Scalar,
+}
+
+impl BenchRow {
+    /// The row's name in the table: the backend, `cpu-1` for the scalar CPU schedule.
+    pub fn label(&self) -> String {
+        match self.schedule {
+            Schedule::Batched => self.backend.name().to_string(),
+            Schedule::Scalar => format!("{}-1", self.backend.name()),
+        }
+    }
+}
+
+/// What `rattle bench` reports.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BenchOutput {
+    /// The table of every backend and precision.
+    Table,
+    /// The table and its rows as JSON.
+    TableAndJson,
+    /// The kernel ladder (GPU only).
+    Ladder,
+}
+
+/// The options of `rattle bench`.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub points: usize,
+    pub periods: u32,
+    pub backends: Vec<Backend>,
+    /// Estimate the largest exponent over the sampled periods too.
+    pub lyapunov: bool,
+    pub output: BenchOutput,
 }
 
 /// The bench sweep: `points` values of eta over the config's sweep range, `periods` periods
@@ -93,9 +138,13 @@ pub fn bench(
                 .map(|(_, t)| {
                     let steps = points as f64 * periods as f64 * n_steps as f64;
                     BenchRow {
-                        backend: engine.name().into(),
+                        backend: match engine {
+                            Engine::Gpu(_) => Backend::Gpu,
+                            Engine::Cpu => Backend::Cpu,
+                        },
+                        schedule: Schedule::Batched,
                         device: engine.device(),
-                        precision: prec.name().into(),
+                        precision: prec,
                         points,
                         periods,
                         steps_per_period: n_steps,
@@ -118,9 +167,10 @@ pub fn bench(
         let secs = t0.elapsed().as_secs_f64();
         let steps = points as f64 * periods as f64 * n_steps as f64;
         rows.push(Ok(BenchRow {
-            backend: "cpu-1".into(),
+            backend: Backend::Cpu,
+            schedule: Schedule::Scalar,
             device: format!("{}, one point per task", Engine::Cpu.device()),
-            precision: "f64".into(),
+            precision: Precision::F64,
             points,
             periods,
             steps_per_period: n_steps,
@@ -157,14 +207,14 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
         match r {
             Ok(r) => {
                 let prec = if r.lyapunov {
-                    format!("{}+exp", r.precision)
+                    format!("{}+exp", r.precision.name())
                 } else {
-                    r.precision.clone()
+                    r.precision.name().to_string()
                 };
                 let _ = writeln!(
                     s,
                     "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12.4e} {:>8.3} {:>10.3} {:>9.4} {:>10} {:>11.3e}  {}",
-                    r.backend,
+                    r.label(),
                     prec,
                     r.points,
                     r.periods,
@@ -188,7 +238,7 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
     let row = |b: &str, p: &str, l: bool| {
         rows.iter()
             .flatten()
-            .find(|r| r.backend == b && r.precision == p && r.lyapunov == l)
+            .find(|r| r.label() == b && r.precision.name() == p && r.lyapunov == l)
     };
     for p in ["f32", "f64"] {
         for c in ["cpu", "cpu-1"] {
@@ -435,22 +485,15 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
 }
 
 /// `rattle bench`: the table of every backend and precision (and its JSON), or the ladder.
-pub fn report(
-    cfg: &Config,
-    points: usize,
-    periods: u32,
-    backends: &[Backend],
-    json: bool,
-    ladder: bool,
-    lyapunov: bool,
-) -> Result<String> {
+pub fn report(cfg: &Config, o: &BenchOptions) -> Result<String> {
+    let (points, periods) = (o.points, o.periods);
     crate::memory::check_option("points", points as u64, periods)?;
-    if ladder {
-        return self::ladder(cfg, points, periods, lyapunov);
+    if o.output == BenchOutput::Ladder {
+        return self::ladder(cfg, points, periods, o.lyapunov);
     }
-    let rows = bench(cfg, points, periods, backends, lyapunov)?;
+    let rows = bench(cfg, points, periods, &o.backends, o.lyapunov)?;
     let mut s = bench_table(&rows);
-    if json {
+    if o.output == BenchOutput::TableAndJson {
         let ok: Vec<_> = rows.iter().flatten().collect();
         s += &serde_json::to_string_pretty(&ok)?;
         s.push('\n');

@@ -327,15 +327,19 @@ fn run(cli: Cli) -> Result<()> {
             lyapunov,
         } => {
             let cfg = common.load_sweep()?;
-            say(bench::report(
-                &cfg,
+            let output = match (ladder, json) {
+                (true, _) => bench::BenchOutput::Ladder,
+                (false, true) => bench::BenchOutput::TableAndJson,
+                (false, false) => bench::BenchOutput::Table,
+            };
+            let o = bench::BenchOptions {
                 points,
                 periods,
-                &common.backends(),
-                json,
-                ladder,
+                backends: common.backends(),
                 lyapunov,
-            )?)?;
+                output,
+            };
+            say(bench::report(&cfg, &o)?)?;
             vec![]
         }
     };

@@ -189,6 +189,40 @@ fn first_impact(seg: &Segment, r: f64, ta: f64, tb: f64) -> Option<(f64, i8)> {
     None
 }
 
+/// The test problem with a closed-form solution that the accuracy study and the convergence
+/// tests share: a frictionless impacting motion (eta 0.9, R 0.7, r 1, b1 0.2, mu 0.5, no
+/// damper between the masses) started from rest.
+pub fn frictionless_case() -> crate::model::Params<f64> {
+    crate::model::Params {
+        eta: 0.9,
+        restitution: 0.7,
+        fs: 0.0,
+        fk: 0.0,
+        l1: 0.0,
+        l2: 0.0,
+        r: 1.0,
+        delta: 0.0,
+        b1: 0.2,
+        mu: 0.5,
+    }
+}
+
+/// The exact state of [`frictionless_case`] after `periods` forcing periods from rest, and the
+/// number of impacts on the way.
+pub fn frictionless_case_exact(periods: u32) -> Result<([f64; 4], usize), ReferenceError> {
+    let p = frictionless_case();
+    let fp = FrictionlessParams {
+        eta: p.eta,
+        b1: p.b1,
+        restitution: p.restitution,
+        r: p.r,
+        mu: p.mu,
+    };
+    let t_end = f64::from(periods) * TAU / p.eta;
+    let (y, events) = exact_frictionless(&fp, [0.0; 4], 0.0, t_end)?;
+    Ok((y, events.len()))
+}
+
 /// Exact solution from `y0` at `t0` (with `|y3 - y1| <= r`) to `t_end`: the state at `t_end`
 /// (after the impact if one falls exactly on it) and the list of impacts.
 ///

@@ -4,39 +4,20 @@
 
 use rattle::method::{ImpactMethod, Integrator, Settings};
 use rattle::model::Params;
-use rattle::reference::{FrictionlessParams, exact_frictionless};
+use rattle::reference::{frictionless_case, frictionless_case_exact};
 
 /// Three forcing periods with 12 impacts at both stops.
 const ETA: f64 = 0.9;
 const PERIODS: u32 = 3;
 
 fn params() -> Params<f64> {
-    Params {
-        eta: ETA,
-        restitution: 0.7,
-        fs: 0.0,
-        fk: 0.0,
-        l1: 0.0,
-        l2: 0.0,
-        r: 1.0,
-        delta: 0.0,
-        b1: 0.2,
-        mu: 0.5,
-    }
+    let p = frictionless_case();
+    assert_eq!(p.eta, ETA);
+    p
 }
 
 fn exact() -> ([f64; 4], usize) {
-    let p = params();
-    let fp = FrictionlessParams {
-        eta: p.eta,
-        b1: p.b1,
-        restitution: p.restitution,
-        r: p.r,
-        mu: p.mu,
-    };
-    let t_end = PERIODS as f64 * 2.0 * std::f64::consts::PI / ETA;
-    let (y, events) = exact_frictionless(&fp, [0.0; 4], 0.0, t_end).expect("exact solution");
-    (y, events.len())
+    frictionless_case_exact(PERIODS).expect("exact solution")
 }
 
 /// Max-norm error of the state after PERIODS periods, and the impact count.

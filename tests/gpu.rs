@@ -19,18 +19,11 @@ mod common;
 /// on it through the mutex).
 fn gpu() -> Option<&'static Mutex<Gpu>> {
     static GPU: OnceLock<Option<Mutex<Gpu>>> = OnceLock::new();
-    GPU.get_or_init(|| match Gpu::new() {
-        Ok(g) => {
+    GPU.get_or_init(|| {
+        common::open_gpu().map(|g| {
             eprintln!("GPU tests on {}", rattle::gpu::describe(&g.info));
-            Some(Mutex::new(g))
-        }
-        Err(e) => {
-            if std::env::var("RATTLE_REQUIRE_GPU").is_ok_and(|v| v == "1") {
-                panic!("RATTLE_REQUIRE_GPU=1 but no adapter: {e}");
-            }
-            eprintln!("SKIPPED: no GPU adapter ({e})");
-            None
-        }
+            Mutex::new(g)
+        })
     })
     .as_ref()
 }

@@ -10,7 +10,7 @@ use crate::method::{ImpactMethod, Integrator, RunResult, Settings};
 use crate::model::{Param, Params};
 use crate::output::{Staged, with_ext};
 use crate::progress::Silent;
-use crate::reference::{FrictionlessParams, exact_frictionless};
+use crate::reference::{frictionless_case, frictionless_case_exact};
 use crate::render::{LinePlot, Scale, Series, line_plot_png, line_plot_svg};
 use crate::spec::{Points, RunSpec};
 use serde::Serialize;
@@ -214,31 +214,8 @@ pub fn study(
         2 * N_REF
     ));
     // (a) Frictionless exact case (closed form, exact impacts), 3 periods.
-    let fp = Params {
-        eta: 0.9,
-        restitution: 0.7,
-        fs: 0.0,
-        fk: 0.0,
-        l1: 0.0,
-        l2: 0.0,
-        r: 1.0,
-        delta: 0.0,
-        b1: 0.2,
-        mu: 0.5,
-    };
-    let t_end = 3.0 * 2.0 * std::f64::consts::PI / fp.eta;
-    let (exact, _) = exact_frictionless(
-        &FrictionlessParams {
-            eta: fp.eta,
-            b1: fp.b1,
-            restitution: fp.restitution,
-            r: fp.r,
-            mu: fp.mu,
-        },
-        [0.0; 4],
-        0.0,
-        t_end,
-    )?;
+    let fp = frictionless_case();
+    let (exact, _) = frictionless_case_exact(3)?;
 
     let case_main = format!(
         "{} eta={}",

@@ -49,8 +49,14 @@ pub fn json(path: &Path) -> serde_json::Value {
 /// A GPU engine, or None (the test then reports SKIPPED) when no adapter is found. With
 /// RATTLE_REQUIRE_GPU=1 (set by CI) a missing adapter fails the test instead.
 pub fn gpu_engine() -> Option<rattle::engine::Engine> {
+    open_gpu().map(|g| rattle::engine::Engine::Gpu(Box::new(g)))
+}
+
+/// The adapter, or None (the test then reports SKIPPED); with RATTLE_REQUIRE_GPU=1 a missing
+/// adapter fails the test. The one place that decides whether a GPU test may skip.
+pub fn open_gpu() -> Option<rattle::gpu::Gpu> {
     match rattle::gpu::Gpu::new() {
-        Ok(g) => Some(rattle::engine::Engine::Gpu(Box::new(g))),
+        Ok(g) => Some(g),
         Err(e) => {
             if std::env::var("RATTLE_REQUIRE_GPU").is_ok_and(|v| v == "1") {
                 panic!("RATTLE_REQUIRE_GPU=1 but no adapter: {e}");
