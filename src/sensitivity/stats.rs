@@ -31,7 +31,7 @@ pub fn wilson(k: usize, n: usize) -> (f64, f64, f64) {
 /// `b[i]` = f(B_i), `ab[i]` = f(A_i with this input taken from B_i).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Indices {
-    /// First order S_j = E[f(B) (f(AB_j) - f(A))] / V (Saltelli et al. 2010).
+    /// First order S_j = E[f(B) (f(AB_j) - f(A))] / V (Saltelli et al. 2010), f centred.
     pub first: f64,
     /// Total S_Tj = E[(f(A) - f(AB_j))^2] / (2 V) (Jansen 1999).
     pub total: f64,
@@ -54,7 +54,14 @@ pub fn indices(a: &[f64], b: &[f64], ab: &[f64], rows: &[usize]) -> Indices {
             total: 0.0,
         };
     }
-    let first = rows.iter().map(|&i| b[i] * (ab[i] - a[i])).sum::<f64>() / n / var;
+    // f(B) centred: the estimator is unbiased either way, but its variance grows with the
+    // output's mean squared (an exponent of -0.05 +- 0.002 gave an interval of width 2.8).
+    let first = rows
+        .iter()
+        .map(|&i| (b[i] - mean) * (ab[i] - a[i]))
+        .sum::<f64>()
+        / n
+        / var;
     let total = rows.iter().map(|&i| (a[i] - ab[i]).powi(2)).sum::<f64>() / (2.0 * n) / var;
     Indices { first, total }
 }
