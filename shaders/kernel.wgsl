@@ -70,6 +70,8 @@ struct PointState {
     locks: u32,
     overflows: u32,
     nonfinite: u32,
+    // Sum and largest impact speed since sampling started (Diagnostics::impact_speed).
+    impact_speed: vec2<F>,
 }
 var<private> st: PointState;
 

@@ -52,6 +52,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     st.overflows = us[U_OVERFLOWS * n + i];
     st.nonfinite = us[U_NONFINITE * n + i];
     var sample_impacts = us[U_SAMPLE_IMPACTS * n + i];
+    st.impact_speed = vec2<F>(ring[R_IMPACT_SPEED_SUM * n + i], ring[R_IMPACT_SPEED_MAX * n + i]);
     var tan_bad = 1u;
     var log_sum = F(0.0);
     if (TANGENT) {
@@ -66,6 +67,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             break;
         }
         let idx = ctl.period0 + q;
+        if (idx == ctl.transient) {
+            // The impact speeds are those of the sampled periods.
+            st.impact_speed = vec2<F>(F(0.0), F(0.0));
+        }
         if (TANGENT && idx == ctl.transient) {
             // The tangent vector starts along y1 with sampling.
             tvec = vec4<F>(F(1.0), F(0.0), F(0.0), F(0.0));
@@ -123,4 +128,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     us[U_LOCKS * n + i] = st.locks;
     us[U_OVERFLOWS * n + i] = st.overflows;
     us[U_NONFINITE * n + i] = st.nonfinite;
+    ring[R_IMPACT_SPEED_SUM * n + i] = st.impact_speed.x;
+    ring[R_IMPACT_SPEED_MAX * n + i] = st.impact_speed.y;
 }

@@ -183,8 +183,14 @@ fn after_impact(stop: i32, c: F) {
     }
 }
 
+// shader-only: Diagnostics::count_impact (method/result.rs): an impact at relative speed v.
+fn count_impact(v: F) {
+    st.impact_speed = vec2<F>(st.impact_speed.x + v, fmax(st.impact_speed.y, v));
+}
+
 fn apply_event(ev: u32, c: F) {
     if (ev == EV_IMPACT_POS || ev == EV_IMPACT_NEG) {
+        count_impact(fabs(st.y.y - st.y.w));
         st.y = impact(st.y);
         st.impacts += 1u;
         after_impact(select(-1, 1, ev == EV_IMPACT_POS), c);

@@ -180,6 +180,8 @@ pub struct Summary {
     pub final_mode: Mode,
     /// Forcing periods integrated.
     pub periods: u32,
+    /// Mean and largest impact speed over the sampled periods (NaN without impacts).
+    pub impact_speed: [f64; 2],
 }
 
 impl Summary {
@@ -236,6 +238,7 @@ impl Summary {
             final_y: r.final_y,
             final_mode: r.final_mode,
             periods: spec.periods(),
+            impact_speed: r.impact_speed,
         }
     }
 }

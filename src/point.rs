@@ -24,6 +24,10 @@ pub struct PointReport {
     pub class: String,
     pub period: Option<u32>,
     pub impacts_per_period: f64,
+    /// Mean and largest impact speed (relative velocity of the masses just before an impact)
+    /// over the sampled periods; null without impacts.
+    pub impact_speed_mean: Option<f64>,
+    pub impact_speed_max: Option<f64>,
     pub lyapunov: f64,
     /// Standard error of `lyapunov` by batch means over the last sampled window.
     pub lyapunov_se: f64,
@@ -101,6 +105,8 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         class: class.name(),
         period: class.period(),
         impacts_per_period: r.impacts_per_period(),
+        impact_speed_mean: r.impact_speed[0].is_finite().then_some(r.impact_speed[0]),
+        impact_speed_max: r.impact_speed[1].is_finite().then_some(r.impact_speed[1]),
         lyapunov: r.lyapunov,
         lyapunov_se: r.lyapunov_se,
         torus_digits: r.torus,
@@ -135,6 +141,9 @@ impl fmt::Display for PointReport {
             self.period.map_or("-".into(), |n| n.to_string())
         )?;
         writeln!(f, "impacts per period {:.4}", self.impacts_per_period)?;
+        if let (Some(m), Some(x)) = (self.impact_speed_mean, self.impact_speed_max) {
+            writeln!(f, "impact speed       mean {m:.6}, max {x:.6}")?;
+        }
         if self.lyapunov.is_nan() {
             writeln!(
                 f,

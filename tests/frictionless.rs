@@ -2,6 +2,7 @@
 //! is known in closed form (`rattle::reference`). The event-located RK4 must converge with
 //! order >= 3.5 as N doubles; the naive end-of-step impact must show order about 1.
 
+mod common;
 use rattle::method::{ImpactMethod, Integrator, Settings};
 use rattle::model::Params;
 use rattle::reference::{frictionless_case, frictionless_case_exact};
@@ -87,4 +88,71 @@ fn naive_impacts_are_first_order() {
     assert!((0.7..1.4).contains(&q), "naive order {q:.2} is not about 1");
     // And the naive method is far less accurate than the located one at equal N.
     assert!(error(1024, ImpactMethod::Naive).0 > 1e3 * error(1024, ImpactMethod::Located).0);
+}
+
+/// The impact speeds (relative velocity of the masses just before each impact) that every
+/// backend reports, against the closed form: the exact state a moment before each exact impact.
+#[test]
+fn impact_speeds_match_the_closed_form_on_every_backend() {
+    use rattle::reference::{FrictionlessParams, exact_frictionless};
+    use rattle::spec::{Points, RunSpec};
+    let p = params();
+    let fp = FrictionlessParams {
+        eta: p.eta,
+        b1: p.b1,
+        restitution: p.restitution,
+        r: p.r,
+        mu: p.mu,
+    };
+    let t_end = f64::from(PERIODS) * std::f64::consts::TAU / p.eta;
+    let (_, events) = exact_frictionless(&fp, [0.0; 4], 0.0, t_end).unwrap();
+    let speeds: Vec<f64> = events
+        .iter()
+        .map(|e| {
+            // 1e-11 before the impact: the velocity is off by the acceleration times that.
+            let (y, _) = exact_frictionless(&fp, [0.0; 4], 0.0, e.time - 1e-11).unwrap();
+            (y[1] - y[3]).abs()
+        })
+        .collect();
+    let mean = speeds.iter().sum::<f64>() / speeds.len() as f64;
+    let max = speeds.iter().copied().fold(0.0, f64::max);
+    assert!(speeds.iter().all(|&v| v > 0.1), "{speeds:?}");
+    let s = Settings {
+        steps_per_period: 1024,
+        ..Settings::default()
+    };
+    // CPU f64, sampling from the start: every impact of the three periods counts.
+    let r = Integrator::<f64>::new(&p, &s).run([0.0; 4], 0, PERIODS);
+    assert_eq!(r.sample_impacts as usize, speeds.len());
+    let [m, x] = r.impact_speed;
+    eprintln!("exact mean {mean} max {max}; cpu f64 {m} {x}");
+    assert!((m - mean).abs() < 1e-8 && (x - max).abs() < 1e-8, "{m} {x}");
+    // The kernel, in both precisions, against the CPU twin.
+    let Some(engine) = common::gpu_engine() else {
+        return;
+    };
+    for (precision, tol) in [
+        (rattle::config::Precision::F64, 1e-10),
+        (rattle::config::Precision::F32, 2e-4),
+    ] {
+        let spec = RunSpec {
+            params: p,
+            y0: [0.0; 4],
+            settings: s,
+            transient: 0,
+            samples: PERIODS,
+            period_tol: 1e-4,
+            horizon: 1,
+            precision,
+        };
+        let (rs, _) = engine
+            .run(&spec, &Points::single(), &rattle::progress::Silent)
+            .unwrap();
+        let [gm, gx] = rs[0].impact_speed;
+        eprintln!("gpu {}: {gm} {gx}", precision.name());
+        assert!(
+            (gm - m).abs() < tol && (gx - x).abs() < tol,
+            "{gm} {gx} against {m} {x}"
+        );
+    }
 }

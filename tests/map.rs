@@ -451,6 +451,7 @@ fn cell(class: Class, lyapunov: f64, multiplier: f64) -> (rattle::decide::Summar
             final_y: [0.0; 4],
             final_mode: rattle::model::Mode::SlipPos,
             periods: 400,
+            impact_speed: [f64::NAN; 2],
         },
         1,
     )

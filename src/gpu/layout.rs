@@ -125,7 +125,10 @@ u32_group!(RING, "Slots of `ring`, F per point: past values, their range, the lo
     R_WB_DEN = TAIL + 7;
     R_WB_FIRST = TAIL + 8;
     R_WB_SECOND = TAIL + 9;
-    R_SLOTS = TAIL + 10;
+    /// Sum and largest impact speed since sampling started (method::Diagnostics).
+    R_IMPACT_SPEED_SUM = TAIL + 10;
+    R_IMPACT_SPEED_MAX = TAIL + 11;
+    R_SLOTS = TAIL + 12;
 });
 
 u32_group!(YS, "Slots of `ys`, F per point: state and Lyapunov tangent, STATE_DIM slots each." {

@@ -173,6 +173,9 @@ pub struct Fields {
     /// The periods Newton tried, two per cell (0: none).
     #[serde(default)]
     pub tried: Vec<u32>,
+    /// Mean and largest impact speed over the sampled periods, two per cell (NaN: none).
+    #[serde(default)]
+    pub impact_speed: Vec<Option<f64>>,
 }
 
 impl Fields {
@@ -219,6 +222,10 @@ impl Fields {
                 .collect(),
             rule: s.iter().map(|c| c.rule.code()).collect(),
             tried: s.iter().flat_map(|c| c.tried).collect(),
+            impact_speed: s
+                .iter()
+                .flat_map(|c| c.impact_speed.map(|v| v.is_finite().then_some(v)))
+                .collect(),
         }
     }
 
@@ -246,6 +253,7 @@ impl Fields {
         self.periods.extend(o.periods);
         self.inferred.extend(o.inferred);
         self.lyapunov_se.extend(o.lyapunov_se);
+        self.impact_speed.extend(o.impact_speed);
         self.torus.extend(o.torus);
         self.rule.extend(o.rule);
         self.tried.extend(o.tried);
@@ -285,6 +293,7 @@ impl Fields {
             overflows: self.overflows[i],
             nonfinite: self.nonfinite[i] != 0,
             cpu_rerun: self.cpu_rerun[i] != 0,
+            impact_speed: [0.0; 2],
         }
     }
 }

@@ -615,6 +615,9 @@ pub fn write_outputs(
         }
     }
     let nan = |v: &[Option<f64>]| -> Vec<f64> { v.iter().map(|x| x.unwrap_or(f64::NAN)).collect() };
+    let speed = nan(&f.impact_speed);
+    let speed_shape = [ny as u64, nx as u64, 2];
+    npy(&mut st, "impact_speed", &|p| save(p, &speed_shape, &speed))?;
     let se = nan(&f.lyapunov_se);
     npy(&mut st, "lyapunov_se", &|p| save(p, &shape, &se))?;
     let torus = nan(&f.torus);

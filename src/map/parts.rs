@@ -105,6 +105,7 @@ impl Part {
             f.torus.len(),
             f.rule.len(),
             f.tried.len() / 2,
+            f.impact_speed.len() / 2,
         ];
         if lens.iter().any(|&l| l != len) {
             return Err(PartError(format!(

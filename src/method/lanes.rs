@@ -567,6 +567,9 @@ pub fn run_lanes_portable<F: Real>(
         }
         // Sampling, as `Integrator::sample`: the tangent vector starts along y1.
         let before: [u64; LANES] = std::array::from_fn(|l| b.st[l].diag.impacts);
+        for st in b.st.iter_mut() {
+            st.diag.impact_speed = [0.0; 2];
+        }
         let start = Leading::<F>::default().x;
         b.tan = One(std::array::from_fn(|i| [start[i]; LANES]));
         b.tan_ok = std::array::from_fn(|l| its[l].lyapunov);

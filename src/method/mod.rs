@@ -28,7 +28,9 @@ pub use events::{
 };
 pub use flows::{FlowTask, NEWTON_LANES, Queue, run_flows, run_flows_portable, run_queue};
 pub use lanes::{LANES, batches, run_lanes, run_lanes_portable};
-pub use result::{Diagnostics, ImpactMethod, PointState, RunResult, Settings, Timings};
+pub use result::{
+    Diagnostics, ImpactMethod, PointState, RunResult, Settings, Timings, impact_speed,
+};
 
 /// Event kinds; the numeric values are shared with the shader (`EV_*`).
 pub const EV_NONE: u32 = 0;
@@ -357,6 +359,7 @@ impl<F: Real> Integrator<F> {
         let (c, _) = self.forcing(k, theta);
         match ev {
             EV_IMPACT_POS | EV_IMPACT_NEG => {
+                st.diag.count_impact((st.y[1] - st.y[3]).abs().to_f64());
                 impact(p, &mut st.y);
                 st.diag.impacts += 1;
                 self.after_impact(st, if ev == EV_IMPACT_POS { 1 } else { -1 }, c);
@@ -581,6 +584,8 @@ impl<F: Real> Integrator<F> {
     /// stroboscopic sample, with the exponent when the settings ask for it.
     pub fn sample(&self, st: &mut PointState<F>, samples: u32) -> RunResult {
         let before = st.diag.impacts;
+        // The impact speeds are those of the sampled periods.
+        st.diag.impact_speed = [0.0; 2];
         let mut out = Vec::with_capacity(samples as usize);
         // The Lyapunov estimate: a tangent vector along y1 at the start of sampling, carried
         // through the same stages and events as the state (which it leaves bit for bit as
@@ -643,6 +648,7 @@ impl<F: Real> Integrator<F> {
             final_mode: st.mode,
             lyapunov,
             detector: None,
+            impact_speed: impact_speed(&st.diag, st.diag.impacts - before),
         }
     }
 }

@@ -41,7 +41,7 @@ impl Default for Settings {
 }
 
 /// Per-point diagnostics.
-#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
 pub struct Diagnostics {
     pub impacts: u64,
     /// Entries into STICK.
@@ -55,6 +55,26 @@ pub struct Diagnostics {
     /// Computed by the CPU twin because the GPU driver cut the kernel's loops short.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub cpu_rerun: bool,
+    /// Sum and largest of the impact speeds |y2 - y4| just before each impact since sampling
+    /// started ([`RunResult::impact_speed`] reports them per sampled window).
+    #[serde(skip)]
+    pub impact_speed: [f64; 2],
+}
+
+/// Mean and largest impact speed of `impacts` impacts counted in `d` (NaN without any).
+pub fn impact_speed(d: &Diagnostics, impacts: u64) -> [f64; 2] {
+    if impacts == 0 {
+        return [f64::NAN; 2];
+    }
+    [d.impact_speed[0] / impacts as f64, d.impact_speed[1]]
+}
+
+impl Diagnostics {
+    /// Counts an impact at relative speed `v` (the kernel's twin: `count_impact`).
+    pub fn count_impact(&mut self, v: f64) {
+        self.impact_speed[0] += v;
+        self.impact_speed[1] = self.impact_speed[1].max(v);
+    }
 }
 /// State of one parameter point.
 #[derive(Clone, Copy, Debug)]
@@ -87,6 +107,9 @@ pub struct RunResult {
     /// Where the samples are not kept, what the kernel's period detector saw: the samples it
     /// counted and the period it found ([`crate::classify::PeriodDetector`]).
     pub detector: Option<(usize, Option<u32>)>,
+    /// Mean and largest impact speed (relative velocity of the masses just before an impact,
+    /// |y2 - y4|) over the sampled periods; NaN without impacts there.
+    pub impact_speed: [f64; 2],
 }
 
 impl RunResult {

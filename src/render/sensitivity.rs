@@ -1,6 +1,6 @@
 //! The figure of a sensitivity study (PNG and SVG): class probabilities with their intervals,
 //! the samples over the two most influential parameters on the class map of that plane, and
-//! histograms of the largest exponent and of the impacts per period.
+//! histograms of the largest exponent and of the mean impact speed.
 
 use super::{
     ClassKind, FONT, RenderError, check_size, draw_err, ensure_font, extent, layout, pad,
@@ -40,6 +40,7 @@ pub struct SensitivityFigure {
     pub bars: Vec<Bar>,
     pub plane: Option<Plane>,
     pub exponents: Vec<f64>,
+    /// Mean impact speed of each draw (NaN: no impacts).
     pub impacts: Vec<f64>,
     pub width: u32,
     pub height: u32,
@@ -97,8 +98,8 @@ fn draw<DB: DrawingBackend>(
         &panels[3],
         f,
         &f.impacts,
-        "impacts per forcing period",
-        "Impacts per period of the draws",
+        "mean impact speed |y2 - y4| over the sampled periods",
+        "Mean impact speed of the draws",
     )
 }
 

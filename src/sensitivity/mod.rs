@@ -197,6 +197,8 @@ pub struct Sample {
     pub lyapunov: f64,
     pub lyapunov_se: f64,
     pub impacts_per_period: f64,
+    /// Mean and largest impact speed over the sampled periods (NaN without impacts).
+    pub impact_speed: [f64; 2],
     pub same_as_nominal: bool,
 }
 
@@ -393,6 +395,7 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
             lyapunov: s.lyapunov,
             lyapunov_se: s.lyapunov_se,
             impacts_per_period: s.impacts_per_period,
+            impact_speed: s.impact_speed,
             same_as_nominal: s.class == nominal_class,
         })
         .collect();

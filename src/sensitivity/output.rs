@@ -108,6 +108,8 @@ pub fn write_outputs(
                 "lyapunov",
                 "lyapunov_se",
                 "impacts_per_period",
+                "impact_speed_mean",
+                "impact_speed_max",
                 "same_as_nominal",
             ]
             .map(String::from),
@@ -122,6 +124,8 @@ pub fn write_outputs(
                 d.lyapunov.to_string(),
                 d.lyapunov_se.to_string(),
                 d.impacts_per_period.to_string(),
+                d.impact_speed[0].to_string(),
+                d.impact_speed[1].to_string(),
                 d.same_as_nominal.to_string(),
             ]);
             w.write_record(&rec).map_err(err)?;
@@ -200,7 +204,7 @@ fn figure(s: &Study) -> SensitivityFigure {
         bars,
         plane,
         exponents: ab.iter().map(|d| d.lyapunov).collect(),
-        impacts: ab.iter().map(|d| d.impacts_per_period).collect(),
+        impacts: ab.iter().map(|d| d.impact_speed[0]).collect(),
         width: 1600,
         height: 1100,
     }
