@@ -189,6 +189,19 @@ fn first_impact(seg: &Segment, r: f64, ta: f64, tb: f64) -> Option<(f64, i8)> {
     None
 }
 
+impl From<&crate::model::Params<f64>> for FrictionlessParams {
+    /// The parameters the frictionless model reads (friction and the damper are not in it).
+    fn from(p: &crate::model::Params<f64>) -> Self {
+        FrictionlessParams {
+            eta: p.eta,
+            b1: p.b1,
+            restitution: p.restitution,
+            r: p.r,
+            mu: p.mu,
+        }
+    }
+}
+
 /// The test problem with a closed-form solution that the accuracy study and the convergence
 /// tests share: a frictionless impacting motion (eta 0.9, R 0.7, r 1, b1 0.2, mu 0.5, no
 /// damper between the masses) started from rest.
@@ -211,13 +224,7 @@ pub fn frictionless_case() -> crate::model::Params<f64> {
 /// number of impacts on the way.
 pub fn frictionless_case_exact(periods: u32) -> Result<([f64; 4], usize), ReferenceError> {
     let p = frictionless_case();
-    let fp = FrictionlessParams {
-        eta: p.eta,
-        b1: p.b1,
-        restitution: p.restitution,
-        r: p.r,
-        mu: p.mu,
-    };
+    let fp = FrictionlessParams::from(&p);
     let t_end = f64::from(periods) * TAU / p.eta;
     let (y, events) = exact_frictionless(&fp, [0.0; 4], 0.0, t_end)?;
     Ok((y, events.len()))

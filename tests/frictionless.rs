@@ -97,13 +97,7 @@ fn impact_speeds_match_the_closed_form_on_every_backend() {
     use rattle::reference::{FrictionlessParams, exact_frictionless};
     use rattle::spec::{Points, RunSpec};
     let p = params();
-    let fp = FrictionlessParams {
-        eta: p.eta,
-        b1: p.b1,
-        restitution: p.restitution,
-        r: p.r,
-        mu: p.mu,
-    };
+    let fp = FrictionlessParams::from(&p);
     let t_end = f64::from(PERIODS) * std::f64::consts::TAU / p.eta;
     let (_, events) = exact_frictionless(&fp, [0.0; 4], 0.0, t_end).unwrap();
     let speeds: Vec<f64> = events
