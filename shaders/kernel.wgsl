@@ -72,6 +72,10 @@ struct PointState {
     nonfinite: u32,
     // Sum and largest impact speed since sampling started (Diagnostics::impact_speed).
     impact_speed: vec2<F>,
+    // Energy dissipated by impacts and by friction, and grid steps stuck, since sampling
+    // started (Diagnostics::dissipated, stuck_steps).
+    loss: vec2<F>,
+    stuck: F,
 }
 var<private> st: PointState;
 

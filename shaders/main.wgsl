@@ -53,6 +53,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     st.nonfinite = us[U_NONFINITE * n + i];
     var sample_impacts = us[U_SAMPLE_IMPACTS * n + i];
     st.impact_speed = vec2<F>(ring[R_IMPACT_SPEED_SUM * n + i], ring[R_IMPACT_SPEED_MAX * n + i]);
+    st.loss = vec2<F>(ring[R_LOSS_IMPACTS * n + i], ring[R_LOSS_FRICTION * n + i]);
+    st.stuck = ring[R_STUCK * n + i];
     var tan_bad = 1u;
     var log_sum = F(0.0);
     if (TANGENT) {
@@ -68,8 +70,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         let idx = ctl.period0 + q;
         if (idx == ctl.transient) {
-            // The impact speeds are those of the sampled periods.
+            // The observables are those of the sampled periods (Diagnostics::start_sampling).
             st.impact_speed = vec2<F>(F(0.0), F(0.0));
+            st.loss = vec2<F>(F(0.0), F(0.0));
+            st.stuck = F(0.0);
         }
         if (TANGENT && idx == ctl.transient) {
             // The tangent vector starts along y1 with sampling.
@@ -78,6 +82,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             log_sum = F(0.0);
         }
         tan_on = TANGENT && idx >= ctl.transient && tan_bad == 0u;
+        observing = idx >= ctl.transient;
         let before = st.impacts;
         if (!period() && st.nonfinite == 0u) {
             us[U_TRUNCATED * n + i] = 1u;
@@ -130,4 +135,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     us[U_NONFINITE * n + i] = st.nonfinite;
     ring[R_IMPACT_SPEED_SUM * n + i] = st.impact_speed.x;
     ring[R_IMPACT_SPEED_MAX * n + i] = st.impact_speed.y;
+    ring[R_LOSS_IMPACTS * n + i] = st.loss.x;
+    ring[R_LOSS_FRICTION * n + i] = st.loss.y;
+    ring[R_STUCK * n + i] = st.stuck;
 }

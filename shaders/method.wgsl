@@ -37,6 +37,12 @@ var<private> stage1: vec4<F>;
 var<private> stage2: vec4<F>;
 var<private> stage3: vec4<F>;
 
+// The energy friction dissipated over the last RK4 step (the second value of the twin's
+// `rk4_stages`), computed in sampled periods only (`observing`, uniform over the dispatch):
+// a transient period's losses are reset where sampling starts.
+var<private> stage_work: F;
+var<private> observing: bool;
+
 // method/mod.rs `rk4_stages` (its `rk4` is the same without the stages). c2, c4: forcing at the
 // middle and the end of the (sub)step, computed by the caller.
 fn rk4_stages(y: vec4<F>, mode: u32, dt: F, k1: vec4<F>, c2: F, c4: F) -> vec4<F> {
@@ -53,7 +59,15 @@ fn rk4_stages(y: vec4<F>, mode: u32, dt: F, k1: vec4<F>, c2: F, c4: F) -> vec4<F
         stage3 = s3;
     }
     let sixth = dt / F(6.0);
-    return y + sixth * (k1 + F(2.0) * (k2 + k3) + k4);
+    let out = y + sixth * (k1 + F(2.0) * (k2 + k3) + k4);
+    if (observing) {
+        let w2 = friction_power(s1, k2);
+        let w3 = friction_power(s2, k3);
+        let w4 = friction_power(s3, k4);
+        let w1 = friction_power(y, k1);
+        stage_work = sixth * (w1 + F(2.0) * (w2 + w3) + w4);
+    }
+    return out;
 }
 
 struct Hit {
@@ -183,17 +197,31 @@ fn after_impact(stop: i32, c: F) {
     }
 }
 
-// shader-only: Diagnostics::count_impact (method/result.rs): an impact at relative speed v.
-fn count_impact(v: F) {
+// shader-only: Diagnostics::count_impact (method/result.rs): an impact whose relative
+// velocity went from vb to va, taking `loss` of kinetic energy.
+fn count_impact(vb: F, loss: F) {
+    let v = fabs(vb);
     st.impact_speed = vec2<F>(st.impact_speed.x + v, fmax(st.impact_speed.y, v));
+    st.loss.x += loss;
+}
+
+// shader-only: Diagnostics::count_step (method/result.rs): an accepted (sub)step of `span`
+// grid steps in `mode` that dissipated `work` by friction.
+fn count_step(mode: u32, work: F, span: F) {
+    st.loss.y += work;
+    if (!is_slip(mode)) {
+        st.stuck += span;
+    }
 }
 
 fn apply_event(ev: u32, c: F) {
     if (ev == EV_IMPACT_POS || ev == EV_IMPACT_NEG) {
-        count_impact(fabs(st.y.y - st.y.w));
+        let vb = st.y.y - st.y.w;
         st.y = impact(st.y);
         st.impacts += 1u;
         after_impact(select(-1, 1, ev == EV_IMPACT_POS), c);
+        let va = st.y.y - st.y.w;
+        count_impact(vb, impact_loss(vb, va));
     } else if (ev == EV_REVERSAL) {
         st.y = co_move(st.y);
         st.mode = mode_at_rest(0, needed_force(st.y, c));
@@ -262,6 +290,7 @@ fn step(k: u32) {
                 if (TANGENT && tan_on) {
                     tangent_substep(st.y, st.mode, span * h);
                 }
+                count_step(st.mode, stage_work, span);
                 st.y = y1;
                 f0 = f1;
                 break;
@@ -272,6 +301,7 @@ fn step(k: u32) {
         if (TANGENT && tan_on) {
             tangent_substep(st.y, st.mode, span * h);
         }
+        count_step(st.mode, stage_work, span);
         st.y = y1;
         let mode_before = st.mode;
         theta0 = select(theta0 + de, F(1.0), hit.t >= F(1.0));
@@ -322,6 +352,7 @@ fn period() -> bool {
                 if (TANGENT && tan_on) {
                     tangent_substep(st.y, st.mode, h);
                 }
+                count_step(st.mode, stage_work, F(1.0));
                 st.y = y1;
                 f0 = f1;
                 cs0 = cs1;

@@ -37,6 +37,12 @@ fn field(y: vec4<F>, mode: u32, c: F) -> vec4<F> {
                    select(a, (d + t) * inv_mu, slip));
 }
 
+// model.rs `friction_power`: T v, T from the field (zero while the masses move together).
+fn friction_power(y: vec4<F>, k: vec4<F>) -> F {
+    let v = y.y - y.w;
+    return (mu() * k.w - b1() * delta() * v) * v;
+}
+
 // model.rs `jacobian_times`: J(y) x, the field's Jacobian in a fixed mode times x.
 fn jacobian_times(y: vec4<F>, mode: u32, x: vec4<F>) -> vec4<F> {
     if (is_slip(mode)) {
@@ -67,6 +73,11 @@ fn impact(y: vec4<F>) -> vec4<F> {
 fn co_move(y: vec4<F>) -> vec4<F> {
     let vc = (y.y + mu() * y.w) / (F(1.0) + mu());
     return vec4<F>(y.x, vc, y.z, vc);
+}
+
+// model.rs `impact_loss`: kinetic energy lost as the relative velocity jumps from vb to va.
+fn impact_loss(vb: F, va: F) -> F {
+    return F(0.5) * mu() * inv_1pmu * (vb * vb - va * va);
 }
 
 fn mode_at_rest(stop: i32, tn: F) -> u32 {

@@ -182,6 +182,10 @@ pub struct Summary {
     pub periods: u32,
     /// Mean and largest impact speed over the sampled periods (NaN without impacts).
     pub impact_speed: [f64; 2],
+    /// Energy dissipated per sampled period by impacts and by friction.
+    pub dissipation: [f64; 2],
+    /// Fraction of the sampled time the masses moved together.
+    pub stick_fraction: f64,
 }
 
 impl Summary {
@@ -214,6 +218,11 @@ impl Summary {
         .collect()
     }
 
+    /// The run's engineering observables.
+    pub fn observables(&self) -> crate::method::Observables {
+        crate::method::Observables::new(self.impact_speed, self.dissipation, self.stick_fraction)
+    }
+
     fn of(v: Verdict, r: &RunResult, spec: &RunSpec) -> Summary {
         // A run without samples kept (the kernel's lean runs) sampled the configured periods.
         let samples = match r.samples.len() {
@@ -239,6 +248,8 @@ impl Summary {
             final_mode: r.final_mode,
             periods: spec.periods(),
             impact_speed: r.impact_speed,
+            dissipation: r.dissipation,
+            stick_fraction: r.stick_fraction,
         }
     }
 }

@@ -303,6 +303,15 @@ pub fn field<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode, c: F) -> [F; 4] {
     }
 }
 
+/// Power dissipated by friction at state `y` with field `k` in any mode: `T * v`, with `T`
+/// recovered from the field (`mu * y4' = b1*delta*v + T`) so that no mode or law is evaluated
+/// twice; zero while the masses move together (v = 0 exactly there).
+#[inline(always)]
+pub fn friction_power<F: Real>(p: &Params<F>, y: &[F; 4], k: &[F; 4]) -> F {
+    let v = y[1] - y[3];
+    (p.mu * k[3] - p.b1 * p.delta * v) * v
+}
+
 /// Jacobian of [`field`] with respect to the state (row i: d y_i' / d y_j), in a fixed mode.
 /// The forcing is additive, so it does not enter. In slip the friction force s*T(s*v) has
 /// slope T'(w) in v (the two signs cancel); together the masses share one acceleration.
@@ -379,6 +388,13 @@ pub fn co_move<F: Real>(p: &Params<F>, y: &mut [F; 4]) {
     let vc = (y[1] + p.mu * y[3]) / (F::one() + p.mu);
     y[1] = vc;
     y[3] = vc;
+}
+
+/// Kinetic energy lost when the relative velocity jumps from `vb` to `va` with momentum
+/// conserved (an impact, or co-motion): `mu / (2 (1 + mu)) (vb^2 - va^2)`, in units of m1.
+#[inline(always)]
+pub fn impact_loss<F: Real>(p: &Params<F>, vb: F, va: F) -> F {
+    F::of(0.5) * p.mu * inv_one_plus_mu(p) * (vb * vb - va * va)
 }
 
 /// Mode entered at rest (v = 0) given the needed force `tn` and the stop m2 touches

@@ -9,7 +9,7 @@ use crate::config::{Config, Tangent};
 use crate::decide::confirm;
 use crate::engine::Engine;
 use crate::error::Result;
-use crate::method::{Diagnostics, Integrator, PointState, RunResult};
+use crate::method::{Diagnostics, Integrator, Observables, PointState, RunResult};
 use crate::model::{Mode, Params};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
@@ -24,10 +24,10 @@ pub struct PointReport {
     pub class: String,
     pub period: Option<u32>,
     pub impacts_per_period: f64,
-    /// Mean and largest impact speed (relative velocity of the masses just before an impact)
-    /// over the sampled periods; null without impacts.
-    pub impact_speed_mean: Option<f64>,
-    pub impact_speed_max: Option<f64>,
+    /// Impact speeds, dissipated energies and the stick fraction over the sampled periods
+    /// (their keys at this level of the JSON).
+    #[serde(flatten)]
+    pub observables: Observables,
     pub lyapunov: f64,
     /// Standard error of `lyapunov` by batch means over the last sampled window.
     pub lyapunov_se: f64,
@@ -105,8 +105,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         class: class.name(),
         period: class.period(),
         impacts_per_period: r.impacts_per_period(),
-        impact_speed_mean: r.impact_speed[0].is_finite().then_some(r.impact_speed[0]),
-        impact_speed_max: r.impact_speed[1].is_finite().then_some(r.impact_speed[1]),
+        observables: r.observables(),
         lyapunov: r.lyapunov,
         lyapunov_se: r.lyapunov_se,
         torus_digits: r.torus,
@@ -141,8 +140,20 @@ impl fmt::Display for PointReport {
             self.period.map_or("-".into(), |n| n.to_string())
         )?;
         writeln!(f, "impacts per period {:.4}", self.impacts_per_period)?;
-        if let (Some(m), Some(x)) = (self.impact_speed_mean, self.impact_speed_max) {
+        let o = &self.observables;
+        if let (Some(m), Some(x)) = (o.impact_speed_mean, o.impact_speed_max) {
             writeln!(f, "impact speed       mean {m:.6}, max {x:.6}")?;
+        }
+        if let (Some(i), Some(r), Some(s)) = (
+            o.dissipation_impacts,
+            o.dissipation_friction,
+            o.stick_fraction,
+        ) {
+            writeln!(
+                f,
+                "dissipated/period  impacts {i:.6}, friction {r:.6} (energy, units of the state)"
+            )?;
+            writeln!(f, "stick fraction     {s:.6} (of the sampled time)")?;
         }
         if self.lyapunov.is_nan() {
             writeln!(

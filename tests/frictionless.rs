@@ -95,7 +95,6 @@ fn naive_impacts_are_first_order() {
 #[test]
 fn impact_speeds_match_the_closed_form_on_every_backend() {
     use rattle::reference::{FrictionlessParams, exact_frictionless};
-    use rattle::spec::{Points, RunSpec};
     let p = params();
     let fp = FrictionlessParams::from(&p);
     let t_end = f64::from(PERIODS) * std::f64::consts::TAU / p.eta;
@@ -121,6 +120,20 @@ fn impact_speeds_match_the_closed_form_on_every_backend() {
     let [m, x] = r.impact_speed;
     eprintln!("exact mean {mean} max {max}; cpu f64 {m} {x}");
     assert!((m - mean).abs() < 1e-8 && (x - max).abs() < 1e-8, "{m} {x}");
+    // Each impact takes (1 - R^2) mu / (2 (1 + mu)) v^2 of kinetic energy; nothing else
+    // dissipates (no friction, no damper between the masses).
+    let c = (1.0 - p.restitution * p.restitution) * p.mu / (2.0 * (1.0 + p.mu));
+    let loss = c * speeds.iter().map(|v| v * v).sum::<f64>() / f64::from(PERIODS);
+    eprintln!(
+        "exact impact loss per period {loss}; cpu f64 {:?}",
+        r.dissipation
+    );
+    assert!(
+        (r.dissipation[0] - loss).abs() < 1e-8,
+        "{:?}",
+        r.dissipation
+    );
+    assert_eq!(r.dissipation[1], 0.0);
     // The kernel, in both precisions, against the CPU twin.
     let Some(engine) = common::gpu_engine() else {
         return;
@@ -129,20 +142,7 @@ fn impact_speeds_match_the_closed_form_on_every_backend() {
         (rattle::config::Precision::F64, 1e-10),
         (rattle::config::Precision::F32, 2e-4),
     ] {
-        let spec = RunSpec {
-            params: p,
-            y0: [0.0; 4],
-            settings: s,
-            transient: 0,
-            samples: PERIODS,
-            period_tol: 1e-4,
-            horizon: 1,
-            precision,
-        };
-        let (rs, _) = engine
-            .run(&spec, &Points::single(), &rattle::progress::Silent)
-            .unwrap();
-        let [gm, gx] = rs[0].impact_speed;
+        let [gm, gx] = common::run_point(&engine, &p, [0.0; 4], s, PERIODS, precision).impact_speed;
         eprintln!("gpu {}: {gm} {gx}", precision.name());
         assert!(
             (gm - m).abs() < tol && (gx - x).abs() < tol,

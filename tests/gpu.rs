@@ -627,6 +627,48 @@ fn stribeck_points_agree_with_cpu() {
 }
 
 #[test]
+fn observables_agree_with_cpu_under_the_stribeck_law() {
+    // The engineering observables under the general friction law (its friction power goes
+    // through the law's division) with sticking: two sampled periods from rest, the kernel
+    // against its CPU twin in the same precision. f64 agrees to round-off; f32 to its
+    // accumulated rounding (the states themselves differ by about 1e-5 after two periods).
+    let mut base = Params::paper(1.5);
+    (base.fs, base.fk, base.l1, base.l2) = (0.25, 0.05, 1.42, 0.005);
+    let etas: Vec<f64> = (0..32).map(|i| 1.0 + 0.03 * i as f64).collect();
+    for (f64, tol) in [(false, 1e-5), (true, 1e-12)] {
+        let spec = RunSpec {
+            params: base,
+            ..eta_spec(Settings::default(), 0, 2, f64)
+        };
+        let Some(g) = run_job(&Job::new(&spec, Points::along(&[Param::Eta], &etas), false)) else {
+            return;
+        };
+        let (mut d, mut stuck) = (0.0f64, 0.0f64);
+        for (i, &eta) in etas.iter().enumerate() {
+            let p = Params { eta, ..base };
+            let c = if f64 {
+                Integrator::<f64>::new(&p, &spec.settings).run([0.0; 4], 0, 2)
+            } else {
+                Integrator::<f32>::new(&p, &spec.settings).run([0.0; 4], 0, 2)
+            };
+            let r = &g.results[i];
+            assert_eq!(r.diag.impacts, c.diag.impacts, "eta {eta}");
+            let (a, b) = (
+                [r.dissipation[0], r.dissipation[1], r.stick_fraction],
+                [c.dissipation[0], c.dissipation[1], c.stick_fraction],
+            );
+            for k in 0..3 {
+                d = d.max((a[k] - b[k]).abs() / b[k].abs().max(1.0));
+            }
+            stuck = stuck.max(c.stick_fraction);
+        }
+        eprintln!("Stribeck observables, f64 {f64}: max relative |GPU-CPU| {d:.2e}");
+        assert!(d < tol, "{d:e}");
+        assert!(stuck > 0.01, "the points must stick ({stuck})");
+    }
+}
+
+#[test]
 fn tangent_exponents_agree_with_cpu_at_periodic_points_of_fig2() {
     // The kernel's tangent vector is the twin of the CPU run's (same variational RK4 on the same
     // stage points, same saltations, f32 logarithms of the norms on both sides). On periodic

@@ -452,6 +452,8 @@ fn cell(class: Class, lyapunov: f64, multiplier: f64) -> (rattle::decide::Summar
             final_mode: rattle::model::Mode::SlipPos,
             periods: 400,
             impact_speed: [f64::NAN; 2],
+            dissipation: [0.0; 2],
+            stick_fraction: 0.0,
         },
         1,
     )

@@ -884,7 +884,7 @@ fn an_interrupted_run_leaves_one_runs_whole_set() {
         })
         .collect();
     let (a, b) = (&sets[0].0, &sets[1].0);
-    assert_eq!(a.len(), 22);
+    assert_eq!(a.len(), 24);
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
     let full = sets[1].1;
     let work = d.join("work");

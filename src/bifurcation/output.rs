@@ -5,7 +5,7 @@ use crate::caption::{computed_with, top_classes};
 use crate::classify::Class;
 use crate::config::{Config, FrictionLaw};
 use crate::error::{Error, Result};
-use crate::method::Diagnostics;
+use crate::method::{Diagnostics, Observables};
 use crate::output::{OutputError, Staged, with_ext};
 use crate::render::{DensityPlot, Mark, density_png, panels_png};
 use crate::stability::{BifurcationPoint, Kind};
@@ -196,12 +196,16 @@ pub(super) fn plot_points(var: &str, points: &[SweepPoint]) -> Vec<(f64, f64)> {
 }
 
 // Report structs list their fields in alphabetical order: the file is streamed (a diagram of
-// millions of points must not be built in memory) and keeps the key order of earlier versions.
+// millions of points must not be built in memory) and keeps the key order of earlier versions
+// (the observables' keys follow `impacts_per_period`, in their struct's order).
 #[derive(Serialize)]
 struct PointJson {
     class: String,
     diagnostics: Diagnostics,
     impacts_per_period: f64,
+    /// Impact speeds, dissipated energies and the stick fraction (their keys at this level).
+    #[serde(flatten)]
+    observables: Observables,
     /// Floquet multipliers of the Newton-refined cycle ([re, im], modulus descending); null
     /// where Newton did not converge or was not tried.
     multipliers: Option<Vec<[f64; 2]>>,
@@ -262,6 +266,7 @@ impl Serialize for Chain<'_> {
                 class: pt.class.name(),
                 diagnostics: pt.result.diag,
                 impacts_per_period: pt.impacts_per_period(),
+                observables: pt.result.observables(),
                 multipliers: pt
                     .cycle
                     .as_ref()

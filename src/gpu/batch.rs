@@ -4,10 +4,10 @@
 use super::layout::{
     B_CONSTS, B_CONTROL, B_PVALS, B_RING, B_SAMPLES, B_US, B_UTAB, B_YS, C_DPHI, C_HALF_COS,
     C_HALF_SIN, C_PARAMS, C_PERIOD_TOL, C_TABLE, C_TAN_FLOOR, C_TOL, C_ZENO, Control, R_BLOCK_M2,
-    R_HI, R_IMPACT_SPEED_MAX, R_IMPACT_SPEED_SUM, R_LO, R_LOG_SUM, R_SLOTS, R_WB_FIRST,
-    R_WB_SECOND, STATE_DIM, TAIL, U_DET_COUNT, U_DET_HI, U_DET_LO, U_IMPACTS, U_LOCKS, U_MODE,
-    U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS, U_STICKS, U_TAN_BAD, U_TRUNCATED,
-    UTAB_BYTES, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
+    R_HI, R_IMPACT_SPEED_MAX, R_IMPACT_SPEED_SUM, R_LO, R_LOG_SUM, R_LOSS_FRICTION, R_LOSS_IMPACTS,
+    R_SLOTS, R_STUCK, R_WB_FIRST, R_WB_SECOND, STATE_DIM, TAIL, U_DET_COUNT, U_DET_HI, U_DET_LO,
+    U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS, U_STICKS,
+    U_TAN_BAD, U_TRUNCATED, UTAB_BYTES, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
 };
 use super::{Gpu, GpuError, Job};
 use crate::classify::{BLOCKS, Growth, PeriodDetector, birkhoff_digits, block_len};
@@ -367,6 +367,9 @@ impl<F: Real> ReadBack<F> {
                 cpu_rerun: false,
                 impact_speed: [R_IMPACT_SPEED_SUM, R_IMPACT_SPEED_MAX]
                     .map(|s| self.ring[at(s, self.m, i)].to_f64()),
+                dissipated: [R_LOSS_IMPACTS, R_LOSS_FRICTION]
+                    .map(|s| self.ring[at(s, self.m, i)].to_f64()),
+                stuck_steps: self.ring[at(R_STUCK, self.m, i)].to_f64(),
             };
             // A failed point stopped sampling where it failed; the detector counted its samples.
             let count = u(U_DET_COUNT);
@@ -416,6 +419,8 @@ impl<F: Real> ReadBack<F> {
             let tail = (count.saturating_sub(TAIL)..count)
                 .map(|k| ring(k % TAIL))
                 .collect();
+            let (dissipation, stick_fraction) =
+                crate::method::energy(&diag, n_samples, spec.settings.steps_per_period);
             results.push(RunResult {
                 lyapunov,
                 lyapunov_se,
@@ -428,6 +433,8 @@ impl<F: Real> ReadBack<F> {
                 final_mode: Mode::from_u32(u(U_MODE)),
                 detector: Some((count as usize, period)),
                 impact_speed: crate::method::impact_speed(&diag, u(U_SAMPLE_IMPACTS) as u64),
+                dissipation,
+                stick_fraction,
             });
         }
     }

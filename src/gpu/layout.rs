@@ -128,7 +128,12 @@ u32_group!(RING, "Slots of `ring`, F per point: past values, their range, the lo
     /// Sum and largest impact speed since sampling started (method::Diagnostics).
     R_IMPACT_SPEED_SUM = TAIL + 10;
     R_IMPACT_SPEED_MAX = TAIL + 11;
-    R_SLOTS = TAIL + 12;
+    /// Energy dissipated by impacts and by friction, and grid steps stuck, since sampling
+    /// started (method::Diagnostics).
+    R_LOSS_IMPACTS = TAIL + 12;
+    R_LOSS_FRICTION = TAIL + 13;
+    R_STUCK = TAIL + 14;
+    R_SLOTS = TAIL + 15;
 });
 
 u32_group!(YS, "Slots of `ys`, F per point: state and Lyapunov tangent, STATE_DIM slots each." {

@@ -176,6 +176,12 @@ pub struct Fields {
     /// Mean and largest impact speed over the sampled periods, two per cell (NaN: none).
     #[serde(default)]
     pub impact_speed: Vec<Option<f64>>,
+    /// Energy dissipated per sampled period by impacts and by friction, two per cell.
+    #[serde(default)]
+    pub dissipation: Vec<Option<f64>>,
+    /// Fraction of the sampled time the masses moved together.
+    #[serde(default)]
+    pub stick_fraction: Vec<Option<f64>>,
 }
 
 impl Fields {
@@ -226,6 +232,14 @@ impl Fields {
                 .iter()
                 .flat_map(|c| c.impact_speed.map(|v| v.is_finite().then_some(v)))
                 .collect(),
+            dissipation: s
+                .iter()
+                .flat_map(|c| c.dissipation.map(|v| v.is_finite().then_some(v)))
+                .collect(),
+            stick_fraction: s
+                .iter()
+                .map(|c| c.stick_fraction.is_finite().then_some(c.stick_fraction))
+                .collect(),
         }
     }
 
@@ -254,6 +268,8 @@ impl Fields {
         self.inferred.extend(o.inferred);
         self.lyapunov_se.extend(o.lyapunov_se);
         self.impact_speed.extend(o.impact_speed);
+        self.dissipation.extend(o.dissipation);
+        self.stick_fraction.extend(o.stick_fraction);
         self.torus.extend(o.torus);
         self.rule.extend(o.rule);
         self.tried.extend(o.tried);
@@ -293,7 +309,7 @@ impl Fields {
             overflows: self.overflows[i],
             nonfinite: self.nonfinite[i] != 0,
             cpu_rerun: self.cpu_rerun[i] != 0,
-            impact_speed: [0.0; 2],
+            ..Diagnostics::default()
         }
     }
 }

@@ -618,6 +618,12 @@ pub fn write_outputs(
     let speed = nan(&f.impact_speed);
     let speed_shape = [ny as u64, nx as u64, 2];
     npy(&mut st, "impact_speed", &|p| save(p, &speed_shape, &speed))?;
+    let dissipation = nan(&f.dissipation);
+    npy(&mut st, "dissipation", &|p| {
+        save(p, &speed_shape, &dissipation)
+    })?;
+    let stuck = nan(&f.stick_fraction);
+    npy(&mut st, "stick_fraction", &|p| save(p, &shape, &stuck))?;
     let se = nan(&f.lyapunov_se);
     npy(&mut st, "lyapunov_se", &|p| save(p, &shape, &se))?;
     let torus = nan(&f.torus);

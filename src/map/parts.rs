@@ -106,6 +106,8 @@ impl Part {
             f.rule.len(),
             f.tried.len() / 2,
             f.impact_speed.len() / 2,
+            f.dissipation.len() / 2,
+            f.stick_fraction.len(),
         ];
         if lens.iter().any(|&l| l != len) {
             return Err(PartError(format!(

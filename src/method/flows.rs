@@ -193,7 +193,7 @@ fn run_queue_portable<T: FlowTask + Send>(queue: &Queue<T>) {
         {
             let its: [&Integrator<f64>; NEWTON_LANES] =
                 std::array::from_fn(|l| slot[l].as_deref().map_or(&pad, |t| t.integrator()));
-            b.period(&its);
+            b.period(&its, false);
         }
         for l in 0..NEWTON_LANES {
             let Some(t) = slot[l].as_deref_mut() else {

@@ -131,6 +131,8 @@ struct Trial<F, const N: usize> {
     quiet: [bool; N],
     /// Stage points 2-4 of the step (the first is its start), for the tangent.
     stages: [[Lanes<F, N>; 4]; 3],
+    /// Energy friction dissipated over the step (`rk4_stages`' quadrature).
+    work: Lanes<F, N>,
 }
 
 #[inline(always)]
@@ -140,6 +142,7 @@ fn trial<F: Real, const N: usize>(
     y: &[Lanes<F, N>; 4],
     f0: &[Lanes<F, N>; 4],
     (c2, c4): (F, F),
+    observe: bool,
 ) -> Trial<F, N> {
     // rk4_stages with theta0 = 0, dtheta = 1: dt = 1 * h, forcing from the table at the
     // middle (c2) and the end (c4) of the step.
@@ -156,6 +159,24 @@ fn trial<F: Real, const N: usize>(
     let two = F::of(2.0);
     let y1 =
         vectors(|i, l| y[i][l] + sixth[l] * (f0[i][l] + two * (k2[i][l] + k3[i][l]) + k4[i][l]));
+    // model::friction_power at each stage, in rk4_stages' order of operations.
+    let power = |y: &[Lanes<F, N>; 4], k: &[Lanes<F, N>; 4], l: usize| {
+        let v = y[1][l] - y[3][l];
+        (q.mu[l] * k[3][l] - q.b1[l] * q.delta[l] * v) * v
+    };
+    // Only the sampled periods' losses are kept: a transient step skips the quadrature.
+    let work: [_; N] = lanes(F::zero(), |l| {
+        if !observe {
+            return F::zero();
+        }
+        let (w1, w2, w3, w4) = (
+            power(y, f0, l),
+            power(&s1, &k2, l),
+            power(&s2, &k3, l),
+            power(&s3, &k4, l),
+        );
+        sixth[l] * (w1 + two * (w2 + w3) + w4)
+    });
     let f1 = slip_field(q, s, &y1, c4);
     let quiet: [_; N] = lanes(false, |l| {
         let (r, h) = (q.r[l], q.h[l]);
@@ -176,6 +197,7 @@ fn trial<F: Real, const N: usize>(
         f1,
         quiet,
         stages: [s1, s2, s3],
+        work,
     }
 }
 
@@ -410,9 +432,10 @@ pub(super) struct Batch<F: Real, T, const N: usize> {
 impl<F: Real, T: LaneTangent<F, N>, const N: usize> Batch<F, T, N> {
     /// One forcing period of every live lane, as `Integrator::period_observed` on each, with
     /// the tangent vectors of the lanes in `tan_ok`. `its[l]` integrates lane l; all share
-    /// their steps per period.
+    /// their steps per period. `observe`: a sampled period, whose friction losses count (a
+    /// transient one's are reset where sampling starts, and its quiet steps skip them).
     #[inline(always)]
-    pub(super) fn period(&mut self, its: &[&Integrator<F>; N]) {
+    pub(super) fn period(&mut self, its: &[&Integrator<F>; N], observe: bool) {
         let it0 = its[0];
         let mut y = vectors(|i, l| self.st[l].y[i]);
         let mut f0 = [[F::zero(); N]; 4];
@@ -423,6 +446,9 @@ impl<F: Real, T: LaneTangent<F, N>, const N: usize> Batch<F, T, N> {
             }
         }
         let mut running = self.live;
+        // Each lane's friction loss (Diagnostics::dissipated[1]) while it is in the arrays,
+        // added to in the same order as the scalar step would, so the sums agree bit for bit.
+        let mut friction: [f64; N] = lanes(0.0, |l| self.st[l].diag.dissipated[1]);
         let tangent = self.tan_ok.iter().zip(&running).any(|(&t, &r)| t && r);
         for k in 0..it0.n {
             let s: [_; N] = lanes(F::one(), |l| match self.st[l].mode {
@@ -431,7 +457,7 @@ impl<F: Real, T: LaneTangent<F, N>, const N: usize> Batch<F, T, N> {
             });
             let c2 = it0.forcing(k, F::of(0.5)).0;
             let c4 = it0.forcing(k, F::one()).0;
-            let t = trial(&self.q, &s, &y, &f0, (c2, c4));
+            let t = trial(&self.q, &s, &y, &f0, (c2, c4), observe);
             // The lanes that take the trial step: running, in slip, and quiet.
             let take: [_; N] = lanes(false, |l| {
                 running[l] && self.st[l].mode.is_slip() && t.quiet[l]
@@ -446,6 +472,11 @@ impl<F: Real, T: LaneTangent<F, N>, const N: usize> Batch<F, T, N> {
                     f0[i][l] = if take[l] { t.f1[i][l] } else { f0[i][l] };
                 }
             }
+            // Diagnostics::count_step of a quiet slip step (never stuck); adding 0 to the
+            // lanes that do not take it leaves their sums as they are.
+            for l in 0..N {
+                friction[l] += if take[l] { t.work[l].to_f64() } else { 0.0 };
+            }
             // A lane's `st.y` is brought up to date where the lane leaves the arrays: at a
             // scalar step, where it fails, and at the end of the period.
             let failed: [_; N] = lanes(false, |l| take[l] && !(0..4).all(|i| y[i][l].is_finite()));
@@ -455,6 +486,7 @@ impl<F: Real, T: LaneTangent<F, N>, const N: usize> Batch<F, T, N> {
                 }
                 let st = &mut self.st[l];
                 st.y = [y[0][l], y[1][l], y[2][l], y[3][l]];
+                st.diag.dissipated[1] = friction[l];
                 if take[l] {
                     st.diag.nonfinite = true;
                     running[l] = false;
@@ -471,11 +503,13 @@ impl<F: Real, T: LaneTangent<F, N>, const N: usize> Batch<F, T, N> {
                     y[i][l] = st.y[i];
                     f0[i][l] = f[i];
                 }
+                friction[l] = st.diag.dissipated[1];
             }
         }
         for l in 0..N {
             if running[l] {
                 self.st[l].y = [y[0][l], y[1][l], y[2][l], y[3][l]];
+                self.st[l].diag.dissipated[1] = friction[l];
             }
         }
         for l in 0..N {
@@ -563,12 +597,12 @@ pub fn run_lanes_portable<F: Real>(
             if !b.live.iter().any(|&x| x) {
                 break;
             }
-            b.period(&its);
+            b.period(&its, false);
         }
         // Sampling, as `Integrator::sample`: the tangent vector starts along y1.
         let before: [u64; LANES] = std::array::from_fn(|l| b.st[l].diag.impacts);
         for st in b.st.iter_mut() {
-            st.diag.impact_speed = [0.0; 2];
+            st.diag.start_sampling();
         }
         let start = Leading::<F>::default().x;
         b.tan = One(std::array::from_fn(|i| [start[i]; LANES]));
@@ -581,7 +615,7 @@ pub fn run_lanes_portable<F: Real>(
             if !b.live.iter().any(|&x| x) {
                 break;
             }
-            b.period(&its);
+            b.period(&its, true);
             for l in (0..LANES).filter(|&l| b.live[l]) {
                 taken[l].push(b.st[l].y.map(|v| v.to_f64()));
                 if b.tan_ok[l] {
@@ -601,7 +635,7 @@ pub fn run_lanes_portable<F: Real>(
         for (l, samples) in taken.into_iter().enumerate().take(chunk.len()) {
             let it = its[l];
             let exponent = it.exponent(b.tan_ok[l], &growth[l], samples.len() as u32);
-            out.push(Integrator::result(&b.st[l], samples, before[l], exponent));
+            out.push(it.result(&b.st[l], samples, before[l], exponent));
         }
     }
     out

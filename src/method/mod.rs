@@ -10,8 +10,8 @@
 
 use crate::classify::{Birkhoff, Growth, tail_of};
 use crate::model::{
-    Mode, Params, co_move, field, impact, initial_mode, mode_at_rest, needed_force,
-    needed_force_rate,
+    Mode, Params, co_move, field, friction_power, impact, impact_loss, initial_mode, mode_at_rest,
+    needed_force, needed_force_rate,
 };
 use crate::real::Real;
 
@@ -29,7 +29,8 @@ pub use events::{
 pub use flows::{FlowTask, NEWTON_LANES, Queue, run_flows, run_flows_portable, run_queue};
 pub use lanes::{LANES, batches, run_lanes, run_lanes_portable};
 pub use result::{
-    Diagnostics, ImpactMethod, PointState, RunResult, Settings, Timings, impact_speed,
+    Diagnostics, ImpactMethod, Observables, PointState, RunResult, Settings, Timings, energy,
+    impact_speed,
 };
 
 /// Event kinds; the numeric values are shared with the shader (`EV_*`).
@@ -147,11 +148,15 @@ impl<F: Real> Integrator<F> {
             &mut [[F::zero(); 4]; 4],
             false,
         )
+        .0
     }
 
     /// [`Integrator::rk4`], keeping its four stage points in `stages` when `keep` (the tangent
-    /// dynamics evaluate the Jacobian there). The arithmetic is the same either way; a constant
-    /// `false` compiles the stores away.
+    /// dynamics evaluate the Jacobian there), and the energy friction dissipated over the step:
+    /// the friction power at the stages with RK4's weights (the quadrature RK4 would give a
+    /// fifth state component, so fourth order as the state). The arithmetic of the state is
+    /// the same either way; a constant `false` compiles the stores away, an unused work the
+    /// quadrature.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn rk4_stages(
@@ -164,7 +169,7 @@ impl<F: Real> Integrator<F> {
         k1: &[F; 4],
         stages: &mut [[F; 4]; 4],
         keep: bool,
-    ) -> [F; 4] {
+    ) -> ([F; 4], F) {
         let p = &self.p;
         let dt = dtheta * self.h;
         let half = F::of(0.5) * dt;
@@ -179,6 +184,7 @@ impl<F: Real> Integrator<F> {
             stages[1] = t;
         }
         let k2 = field(p, &t, mode, c2);
+        let w2 = friction_power(p, &t, &k2);
         for i in 0..4 {
             t[i] = y[i] + half * k2[i];
         }
@@ -186,6 +192,7 @@ impl<F: Real> Integrator<F> {
             stages[2] = t;
         }
         let k3 = field(p, &t, mode, c2);
+        let w3 = friction_power(p, &t, &k3);
         for i in 0..4 {
             t[i] = y[i] + dt * k3[i];
         }
@@ -193,12 +200,14 @@ impl<F: Real> Integrator<F> {
             stages[3] = t;
         }
         let k4 = field(p, &t, mode, c4);
+        let w4 = friction_power(p, &t, &k4);
         let sixth = dt / F::of(6.0);
         let mut out = [F::zero(); 4];
         for i in 0..4 {
             out[i] = y[i] + sixth * (k1[i] + F::of(2.0) * (k2[i] + k3[i]) + k4[i]);
         }
-        out
+        let w1 = friction_power(p, y, k1);
+        (out, sixth * (w1 + F::of(2.0) * (w2 + w3) + w4))
     }
 
     /// Earliest event inside the (sub)step from y0 to y1: (theta in (0,1], kind) or (2, EV_NONE).
@@ -359,10 +368,13 @@ impl<F: Real> Integrator<F> {
         let (c, _) = self.forcing(k, theta);
         match ev {
             EV_IMPACT_POS | EV_IMPACT_NEG => {
-                st.diag.count_impact((st.y[1] - st.y[3]).abs().to_f64());
+                let vb = st.y[1] - st.y[3];
                 impact(p, &mut st.y);
                 st.diag.impacts += 1;
                 self.after_impact(st, if ev == EV_IMPACT_POS { 1 } else { -1 }, c);
+                let va = st.y[1] - st.y[3];
+                st.diag
+                    .count_impact(vb.to_f64(), impact_loss(p, vb, va).to_f64());
             }
             EV_REVERSAL => {
                 co_move(p, &mut st.y);
@@ -423,7 +435,7 @@ impl<F: Real> Integrator<F> {
         let mut stages = [[F::zero(); 4]; 4];
         loop {
             let dtheta = F::one() - theta0;
-            let y1 = self.rk4_stages(
+            let (y1, work) = self.rk4_stages(
                 &st.y,
                 st.mode,
                 k,
@@ -443,13 +455,17 @@ impl<F: Real> Integrator<F> {
                 if O::ACTIVE {
                     obs.substep(&self.p, &stages, st.mode, dtheta * self.h);
                 }
+                st.diag.count_step(st.mode, work.to_f64(), dtheta.to_f64());
                 st.y = y1;
                 *f0 = f1;
                 break;
             }
             // Redo the step exactly up to the event, apply it, continue with the rest.
             let de = te * dtheta;
-            st.y = self.rk4_stages(&st.y, st.mode, k, theta0, de, f0, &mut stages, O::ACTIVE);
+            let (y1, work) =
+                self.rk4_stages(&st.y, st.mode, k, theta0, de, f0, &mut stages, O::ACTIVE);
+            st.diag.count_step(st.mode, work.to_f64(), de.to_f64());
+            st.y = y1;
             theta0 = if te >= F::one() {
                 F::one()
             } else {
@@ -525,13 +541,14 @@ impl<F: Real> Integrator<F> {
         // observer sees it as the one sub-step `step_observed` would report.
         let mut stages = [[F::zero(); 4]; 4];
         let (z, o) = (F::zero(), F::one());
-        let y1 = self.rk4_stages(&st.y, st.mode, k, z, o, f0, &mut stages, O::ACTIVE);
+        let (y1, work) = self.rk4_stages(&st.y, st.mode, k, z, o, f0, &mut stages, O::ACTIVE);
         let (c1, _) = self.forcing(k, F::one());
         let f1 = field(&self.p, &y1, st.mode, c1);
         if self.quiet(&st.y, &y1, f0, &f1, st.mode, k) {
             if O::ACTIVE {
                 obs.substep(&self.p, &stages, st.mode, self.h);
             }
+            st.diag.count_step(st.mode, work.to_f64(), 1.0);
             st.y = y1;
             *f0 = f1;
             if !finite_state(&st.y) {
@@ -584,8 +601,8 @@ impl<F: Real> Integrator<F> {
     /// stroboscopic sample, with the exponent when the settings ask for it.
     pub fn sample(&self, st: &mut PointState<F>, samples: u32) -> RunResult {
         let before = st.diag.impacts;
-        // The impact speeds are those of the sampled periods.
-        st.diag.impact_speed = [0.0; 2];
+        // The observables are those of the sampled periods.
+        st.diag.start_sampling();
         let mut out = Vec::with_capacity(samples as usize);
         // The Lyapunov estimate: a tangent vector along y1 at the start of sampling, carried
         // through the same stages and events as the state (which it leaves bit for bit as
@@ -614,7 +631,7 @@ impl<F: Real> Integrator<F> {
             }
         }
         let exponent = self.exponent(tangent_ok, &growth, samples);
-        Self::result(st, out, before, exponent)
+        self.result(st, out, before, exponent)
     }
 
     /// The largest exponent and its standard error per unit time from the log growth over the
@@ -630,12 +647,14 @@ impl<F: Real> Integrator<F> {
 
     /// The result of a run whose sampling started with `before` impacts.
     fn result(
+        &self,
         st: &PointState<F>,
         samples: Vec<[f64; 4]>,
         before: u64,
         (lyapunov, lyapunov_se): (f64, f64),
     ) -> RunResult {
         let mut torus = Birkhoff::new(samples.len() as u32);
+        let (dissipation, stick_fraction) = energy(&st.diag, samples.len(), self.n);
         samples.iter().for_each(|s| torus.push(s[0]));
         RunResult {
             lyapunov_se,
@@ -649,6 +668,8 @@ impl<F: Real> Integrator<F> {
             lyapunov,
             detector: None,
             impact_speed: impact_speed(&st.diag, st.diag.impacts - before),
+            dissipation,
+            stick_fraction,
         }
     }
 }

@@ -59,6 +59,14 @@ pub struct Diagnostics {
     /// started ([`RunResult::impact_speed`] reports them per sampled window).
     #[serde(skip)]
     pub impact_speed: [f64; 2],
+    /// Energy dissipated since sampling started, in units of m1 (as the state): by impacts
+    /// (the kinetic energy of the relative motion they take, also where one ends in
+    /// co-motion) and by friction (the integral of T v, by the RK4 stages).
+    #[serde(skip)]
+    pub dissipated: [f64; 2],
+    /// Time the masses moved together (stick or lock) since sampling started, in grid steps.
+    #[serde(skip)]
+    pub stuck_steps: f64,
 }
 
 /// Mean and largest impact speed of `impacts` impacts counted in `d` (NaN without any).
@@ -69,11 +77,45 @@ pub fn impact_speed(d: &Diagnostics, impacts: u64) -> [f64; 2] {
     [d.impact_speed[0] / impacts as f64, d.impact_speed[1]]
 }
 
+/// Energy dissipated per sampled period by impacts and by friction, and the fraction of the
+/// time the masses moved together, over `periods` sampled periods of `steps` grid steps each
+/// (NaN without a sampled period).
+pub fn energy(d: &Diagnostics, periods: usize, steps: u32) -> ([f64; 2], f64) {
+    if periods == 0 {
+        return ([f64::NAN; 2], f64::NAN);
+    }
+    let n = periods as f64;
+    (
+        d.dissipated.map(|e| e / n),
+        d.stuck_steps / (n * steps as f64),
+    )
+}
+
 impl Diagnostics {
-    /// Counts an impact at relative speed `v` (the kernel's twin: `count_impact`).
-    pub fn count_impact(&mut self, v: f64) {
+    /// Counts an impact whose relative velocity went from `vb` to `va` (`va` = 0 where it ended
+    /// in co-motion) and which took `loss` of kinetic energy (the kernel's twin:
+    /// `count_impact`).
+    pub fn count_impact(&mut self, vb: f64, loss: f64) {
+        let v = vb.abs();
         self.impact_speed[0] += v;
         self.impact_speed[1] = self.impact_speed[1].max(v);
+        self.dissipated[0] += loss;
+    }
+
+    /// Counts an accepted (sub)step of `dtheta` grid steps in `mode` that dissipated `work`
+    /// by friction (the kernel's twin: `count_step`).
+    pub fn count_step(&mut self, mode: Mode, work: f64, dtheta: f64) {
+        self.dissipated[1] += work;
+        if !mode.is_slip() {
+            self.stuck_steps += dtheta;
+        }
+    }
+
+    /// Starts the sampled window's observables (impact speeds, dissipation, time stuck).
+    pub fn start_sampling(&mut self) {
+        self.impact_speed = [0.0; 2];
+        self.dissipated = [0.0; 2];
+        self.stuck_steps = 0.0;
     }
 }
 /// State of one parameter point.
@@ -110,9 +152,61 @@ pub struct RunResult {
     /// Mean and largest impact speed (relative velocity of the masses just before an impact,
     /// |y2 - y4|) over the sampled periods; NaN without impacts there.
     pub impact_speed: [f64; 2],
+    /// Energy dissipated per sampled period by impacts and by friction, in units of m1
+    /// (the state's units: m1 = 1, time 1/omega1); NaN without sampled periods.
+    pub dissipation: [f64; 2],
+    /// Fraction of the sampled time the masses moved together (stick or lock).
+    pub stick_fraction: f64,
+}
+
+/// The engineering observables of a run over its sampled periods, as the reports write them
+/// (null where undefined: no impact, no sampled period). Energies are dimensionless, in the
+/// units of the state (m1 = 1, time 1/omega1, length of the static deflection).
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct Observables {
+    /// Mean and largest relative velocity of the masses just before an impact.
+    pub impact_speed_mean: Option<f64>,
+    pub impact_speed_max: Option<f64>,
+    /// Kinetic energy the impacts took, per forcing period.
+    pub dissipation_impacts: Option<f64>,
+    /// Work of the friction force against the slip, per forcing period.
+    pub dissipation_friction: Option<f64>,
+    /// Fraction of the time the masses moved together (stick, or lock at a stop).
+    pub stick_fraction: Option<f64>,
+}
+
+impl Observables {
+    /// From the raw values (NaN where undefined): impact speed mean and max, dissipation per
+    /// period by impacts and by friction, stick fraction.
+    pub fn new(impact_speed: [f64; 2], dissipation: [f64; 2], stick_fraction: f64) -> Self {
+        let f = |v: f64| v.is_finite().then_some(v);
+        Observables {
+            impact_speed_mean: f(impact_speed[0]),
+            impact_speed_max: f(impact_speed[1]),
+            dissipation_impacts: f(dissipation[0]),
+            dissipation_friction: f(dissipation[1]),
+            stick_fraction: f(stick_fraction),
+        }
+    }
+
+    /// (name, value) of each observable, in the struct's order.
+    pub fn named(&self) -> [(&'static str, Option<f64>); 5] {
+        [
+            ("impact_speed_mean", self.impact_speed_mean),
+            ("impact_speed_max", self.impact_speed_max),
+            ("dissipation_impacts", self.dissipation_impacts),
+            ("dissipation_friction", self.dissipation_friction),
+            ("stick_fraction", self.stick_fraction),
+        ]
+    }
 }
 
 impl RunResult {
+    /// The run's [`Observables`].
+    pub fn observables(&self) -> Observables {
+        Observables::new(self.impact_speed, self.dissipation, self.stick_fraction)
+    }
+
     /// The strict period detector's class of the run (period, impacts, finiteness): by its
     /// samples, or where they were not kept by what the kernel's detector saw.
     pub fn class(&self, period_tol: f64) -> crate::classify::Class {

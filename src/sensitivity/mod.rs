@@ -19,6 +19,7 @@ use crate::config::{Config, Tangent};
 use crate::decide::Summary;
 use crate::engine::{Engine, Timings};
 use crate::error::{OptionError, Result};
+use crate::method::Observables;
 use crate::model::Param;
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
@@ -197,9 +198,45 @@ pub struct Sample {
     pub lyapunov: f64,
     pub lyapunov_se: f64,
     pub impacts_per_period: f64,
-    /// Mean and largest impact speed over the sampled periods (NaN without impacts).
-    pub impact_speed: [f64; 2],
+    /// Impact speeds, dissipated energies and the stick fraction over the sampled periods.
+    pub observables: Observables,
     pub same_as_nominal: bool,
+}
+
+/// The distribution of one engineering observable over the draws where it is defined (the
+/// impact speeds need impacts).
+#[derive(Clone, Debug, Serialize)]
+pub struct Distribution {
+    pub name: &'static str,
+    /// Draws with a value, of the 2N of A and B.
+    pub defined: usize,
+    pub mean: f64,
+    pub p05: f64,
+    pub median: f64,
+    pub p95: f64,
+    pub max: f64,
+}
+
+impl Distribution {
+    /// The distribution of `values` (the defined ones), named `name`.
+    fn of(name: &'static str, values: impl Iterator<Item = Option<f64>>) -> Distribution {
+        let mut v: Vec<f64> = values.flatten().collect();
+        v.sort_by(f64::total_cmp);
+        // Nearest-rank quantiles: a value some draw had.
+        let q = |u: f64| match v.len() {
+            0 => f64::NAN,
+            n => v[((u * n as f64).ceil() as usize).clamp(1, n) - 1],
+        };
+        Distribution {
+            name,
+            defined: v.len(),
+            mean: v.iter().sum::<f64>() / v.len() as f64,
+            p05: q(0.05),
+            median: q(0.5),
+            p95: q(0.95),
+            max: v.last().copied().unwrap_or(f64::NAN),
+        }
+    }
 }
 
 /// A probability with its 95% Wilson interval.
@@ -288,6 +325,10 @@ pub struct Study {
     pub runs: usize,
     pub nominal: Class,
     pub nominal_lyapunov: f64,
+    /// The nominal point's impact speeds, dissipated energies and stick fraction.
+    pub nominal_observables: Observables,
+    /// Their distributions over the 2N independent draws (A and B).
+    pub observables: Vec<Distribution>,
     /// Probability of each class over the 2N independent draws (A and B).
     pub classes: Vec<Probability>,
     /// Probability that the motion is of the nominal point's class.
@@ -395,13 +436,21 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
             lyapunov: s.lyapunov,
             lyapunov_se: s.lyapunov_se,
             impacts_per_period: s.impacts_per_period,
-            impact_speed: s.impact_speed,
+            observables: s.observables(),
             same_as_nominal: s.class == nominal_class,
         })
         .collect();
 
-    // Class probabilities over the 2N draws of A and B.
+    // Class probabilities and the observables' distributions over the 2N draws of A and B.
     let ab_draws = &draws[..2 * n];
+    let observables = Observables::default()
+        .named()
+        .iter()
+        .enumerate()
+        .map(|(k, (name, _))| {
+            Distribution::of(name, ab_draws.iter().map(|s| s.observables.named()[k].1))
+        })
+        .collect();
     let mut counts = BTreeMap::<String, usize>::new();
     for s in ab_draws {
         *counts.entry(s.class.name()).or_default() += 1;
@@ -503,6 +552,8 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
         runs,
         nominal: nominal_class,
         nominal_lyapunov: sum[0].lyapunov,
+        nominal_observables: sum[0].observables(),
+        observables,
         classes,
         same_as_nominal,
         convergence,

@@ -5,6 +5,7 @@
 use super::{Dist, Study};
 use crate::config::Config;
 use crate::error::{Error, Result};
+use crate::method::Observables;
 use crate::output::{Staged, with_ext};
 use crate::render::{Bar, Plane, SensitivityFigure, sensitivity_png, sensitivity_svg};
 use serde::Serialize;
@@ -83,6 +84,27 @@ pub fn caption(s: &Study) -> String {
             x.param, x.same_class.total, x.same_class.first, x.exponent.total, x.exponent.first
         );
     }
+    let parts: Vec<String> = s
+        .observables
+        .iter()
+        .filter(|d| d.defined > 0)
+        .map(|d| {
+            format!(
+                "{} {:.4} ({:.4}-{:.4})",
+                d.name.replace('_', " "),
+                d.median,
+                d.p05,
+                d.p95
+            )
+        })
+        .collect();
+    if !parts.is_empty() {
+        c += &format!(
+            " Observables over the draws, median (5-95%; energies per forcing period, in the \
+             units of the state): {}.",
+            parts.join(", ")
+        );
+    }
     c
 }
 
@@ -108,12 +130,11 @@ pub fn write_outputs(
                 "lyapunov",
                 "lyapunov_se",
                 "impacts_per_period",
-                "impact_speed_mean",
-                "impact_speed_max",
-                "same_as_nominal",
             ]
             .map(String::from),
         );
+        head.extend(Observables::default().named().map(|(k, _)| k.to_string()));
+        head.push("same_as_nominal".into());
         w.write_record(&head).map_err(err)?;
         for d in &s.draws {
             let mut rec = vec![d.set.clone(), d.row.to_string()];
@@ -124,10 +145,14 @@ pub fn write_outputs(
                 d.lyapunov.to_string(),
                 d.lyapunov_se.to_string(),
                 d.impacts_per_period.to_string(),
-                d.impact_speed[0].to_string(),
-                d.impact_speed[1].to_string(),
-                d.same_as_nominal.to_string(),
             ]);
+            // An undefined observable (no impact) is an empty field.
+            rec.extend(
+                d.observables
+                    .named()
+                    .map(|(_, v)| v.map_or(String::new(), |v| v.to_string())),
+            );
+            rec.push(d.same_as_nominal.to_string());
             w.write_record(&rec).map_err(err)?;
         }
         w.flush()
@@ -204,7 +229,10 @@ fn figure(s: &Study) -> SensitivityFigure {
         bars,
         plane,
         exponents: ab.iter().map(|d| d.lyapunov).collect(),
-        impacts: ab.iter().map(|d| d.impact_speed[0]).collect(),
+        impacts: ab
+            .iter()
+            .map(|d| d.observables.impact_speed_mean.unwrap_or(f64::NAN))
+            .collect(),
         width: 1600,
         height: 1100,
     }

@@ -66,3 +66,32 @@ pub fn open_gpu() -> Option<rattle::gpu::Gpu> {
         }
     }
 }
+
+/// One point `p` from `y0` on `engine`, sampled from the start for `samples` periods.
+pub fn run_point(
+    engine: &rattle::engine::Engine,
+    p: &rattle::model::Params<f64>,
+    y0: [f64; 4],
+    settings: rattle::method::Settings,
+    samples: u32,
+    precision: rattle::config::Precision,
+) -> rattle::method::RunResult {
+    let spec = rattle::spec::RunSpec {
+        params: *p,
+        y0,
+        settings,
+        transient: 0,
+        samples,
+        period_tol: 1e-4,
+        horizon: 1,
+        precision,
+    };
+    let (mut rs, _) = engine
+        .run(
+            &spec,
+            &rattle::spec::Points::single(),
+            &rattle::progress::Silent,
+        )
+        .unwrap();
+    rs.pop().expect("one point, one result")
+}
