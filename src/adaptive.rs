@@ -399,7 +399,10 @@ pub fn run_summaries(
         let mut live_pools: Vec<Pool> = live.iter().map(|&i| pools[i]).collect();
         let live_skip: Vec<[u32; 2]> = live.iter().map(|&i| skip[i]).collect();
         let mut ss = Vec::with_capacity(live.len());
+        let t0 = std::time::Instant::now();
+        let mut decide_s = 0.0;
         let tm = engine.run_lean(&round, &sub, progress, &mut |start, mut rs| {
+            let td = std::time::Instant::now();
             let end = start + rs.len();
             ss.extend(crate::decide::summaries(
                 &round,
@@ -408,11 +411,21 @@ pub fn run_summaries(
                 &mut live_pools[start..end],
                 &live_skip[start..end],
             ));
+            decide_s += td.elapsed().as_secs_f64();
         })?;
         for (&i, p) in live.iter().zip(live_pools) {
             pools[i] = p;
         }
         timings.integration_s += tm.integration_s;
+        log::debug!(
+            "stage {k}: {} points, {} + {} periods, {:.2} s ({:.2} s integration, {:.2} s deciding)",
+            live.len(),
+            round.transient,
+            round.samples,
+            t0.elapsed().as_secs_f64(),
+            tm.integration_s,
+            decide_s
+        );
         elapsed += round.transient + round.samples;
         let mut next = Vec::with_capacity(live.len());
         for (mut s, &i) in ss.into_iter().zip(&live) {

@@ -7,7 +7,7 @@
 //! probability of the nominal point's class, first-order and total Sobol indices of the largest
 //! exponent and of "same class as nominal" with bootstrap intervals, and per parameter the
 //! distance from the nominal to the nearest class change (a scan out to 4 standard deviations,
-//! then bisection, as the bifurcation points are located).
+//! then four rounds of cutting its bracket into eight, 2^-12 of a scan step).
 
 mod output;
 pub mod stats;
@@ -33,8 +33,12 @@ pub const MAX_UNCERTAIN: usize = crate::spec::MAX_VARY;
 pub const SCAN_STEPS: usize = 32;
 /// How far the scan looks, in standard deviations (uniform: half-widths).
 pub const SCAN_SIGMAS: f64 = 4.0;
-/// Bisections of the interval where the scan saw the class change: 2^-12 of a scan step.
-pub const BISECTIONS: u32 = 12;
+/// The interval where the scan saw the class change is cut into this many parts per round, all
+/// of its inner points in one ensemble (fewer, larger runs than a bisection's one point each:
+/// a run's stages cost latency, whatever its size).
+pub const SECTIONS: usize = 8;
+/// Rounds of that sectioning: the bracket ends at SECTIONS^-ROUNDS = 2^-12 of a scan step.
+pub const ROUNDS: u32 = 4;
 /// Bootstrap resamples of the Sobol indices.
 pub const RESAMPLES: usize = 200;
 
@@ -273,7 +277,7 @@ pub struct Change {
     pub scales: f64,
     /// The class beyond the change.
     pub beyond: Class,
-    /// Width of the bracket left by the bisection, in the parameter's units.
+    /// Width of the bracket left by the sectioning, in the parameter's units.
     pub bracket: f64,
 }
 
@@ -391,7 +395,7 @@ fn classify(
 pub fn points(o: &Options) -> usize {
     let d = o.uncertain.len();
     let plane = if d >= 2 { PLANE_CELLS * PLANE_CELLS } else { 0 };
-    o.samples * (d + 2) + 1 + 2 * d * SCAN_STEPS + 2 * d * BISECTIONS as usize + plane
+    o.samples * (d + 2) + 1 + 2 * d * SCAN_STEPS + 2 * d * (SECTIONS - 1) * ROUNDS as usize + plane
 }
 
 /// Runs the study at the configuration's nominal point.
@@ -504,7 +508,7 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
         })
         .collect();
 
-    // The nearest class change along each parameter: a scan, then bisection.
+    // The nearest class change along each parameter: a scan, then sectioning of its bracket.
     let (distances, t, scan_runs) = nearest_changes(engine, cfg, u, nominal_class, progress)?;
     timings.add(&t);
     let mut runs = values.len() / d + scan_runs;
@@ -566,7 +570,7 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
     })
 }
 
-/// The scan and bisection of [`run`]: points along each parameter from the nominal (the other
+/// The scan and sectioning of [`run`]: points along each parameter from the nominal (the other
 /// parameters at their nominal values), both sides at once, as one ensemble per stage.
 fn nearest_changes(
     engine: &Engine,
@@ -617,7 +621,11 @@ fn nearest_changes(
             })
         })
         .collect();
-    for _ in 0..BISECTIONS {
+    // Each round: the SECTIONS - 1 inner points of every bracket in one ensemble; the new
+    // bracket ends at the first of them (from the nominal side) whose class changed.
+    let inner = SECTIONS - 1;
+    let cut = |a: f64, b: f64, k: usize| a + (b - a) * k as f64 / SECTIONS as f64;
+    for _ in 0..ROUNDS {
         let live: Vec<usize> = (0..lines.len())
             .filter(|&l| brackets[l].is_some())
             .collect();
@@ -628,18 +636,18 @@ fn nearest_changes(
         for &l in &live {
             let (j, side) = lines[l];
             let (a, b, _) = brackets[l].expect("live lines have a bracket");
-            values.extend(row(j, at(j, side * 0.5 * (a + b))));
+            for k in 1..=inner {
+                values.extend(row(j, at(j, side * cut(a, b, k))));
+            }
         }
         let (s, t) = classify(engine, cfg, &vary, &values, progress)?;
         timings.add(&t);
-        runs += live.len();
-        for (&l, x) in live.iter().zip(&s) {
+        runs += values.len() / d;
+        for (&l, xs) in live.iter().zip(s.chunks(inner)) {
             let (a, b, beyond) = brackets[l].expect("live lines have a bracket");
-            let mid = 0.5 * (a + b);
-            brackets[l] = Some(if changed(x.class) {
-                (a, mid, x.class)
-            } else {
-                (mid, b, beyond)
+            brackets[l] = Some(match xs.iter().position(|x| changed(x.class)) {
+                Some(k) => (cut(a, b, k), cut(a, b, k + 1), xs[k].class),
+                None => (cut(a, b, inner), b, beyond),
             });
         }
     }
