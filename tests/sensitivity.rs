@@ -283,6 +283,36 @@ fn the_command_writes_its_set_and_refuses_bad_uncertainties() {
         .map(|c| c["count"].as_u64().unwrap())
         .sum();
     assert_eq!(total, 128, "A and B draws");
+    // The class's Sobol indices exist where no draw or enough draws changed class, and are
+    // withheld where a handful did (their estimators would apportion a few events).
+    let changes = 128 - j["same_as_nominal"]["count"].as_u64().unwrap() as usize;
+    for s in j["sobol"].as_array().unwrap() {
+        let estimated = changes == 0 || changes >= rattle::sensitivity::MIN_CHANGES;
+        assert_eq!(
+            !s["same_class"].is_null(),
+            estimated,
+            "{changes} changes: {s}"
+        );
+        assert!(s["exponent"]["total"].as_f64().unwrap().is_finite());
+    }
+    // Every draw has its observables; the distributions cover the 128 draws of A and B.
+    let obs = j["observables"].as_array().unwrap();
+    assert_eq!(obs.len(), 5);
+    for o in obs {
+        let defined = o["defined"].as_u64().unwrap();
+        assert!(defined <= 128, "{o}");
+        if defined > 0 {
+            let (lo, mid, hi) = (
+                o["p05"].as_f64().unwrap(),
+                o["median"].as_f64().unwrap(),
+                o["p95"].as_f64().unwrap(),
+            );
+            assert!(
+                lo <= mid && mid <= hi && hi <= o["max"].as_f64().unwrap(),
+                "{o}"
+            );
+        }
+    }
     let csv = std::fs::read_to_string(d.join("s.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 64 * 4, "header, A, B, AB0, AB1");
     for (args, key) in [

@@ -298,9 +298,16 @@ pub struct Sobol {
     pub exponent: stats::Indices,
     /// [first low, first high, total low, total high].
     pub exponent_interval: [f64; 4],
-    pub same_class: stats::Indices,
-    pub same_class_interval: [f64; 4],
+    /// Of the indicator "same class as nominal"; null where fewer than [`MIN_CHANGES`] draws
+    /// of A and B left the nominal class (the estimators then apportion a handful of events:
+    /// one changed draw in 8192 gave total indices of 1 and 2).
+    pub same_class: Option<stats::Indices>,
+    pub same_class_interval: Option<[f64; 4]>,
 }
+
+/// Draws of A and B of another class than the nominal's that the indices of the class need;
+/// where every draw keeps the class, no parameter matters and the indices are 0.
+pub const MIN_CHANGES: usize = 25;
 
 /// Cells per side of the class map of the two most influential parameters.
 pub const PLANE_CELLS: usize = 48;
@@ -492,6 +499,8 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
         .collect();
     let keep = |v: &[f64]| rows.iter().map(|&i| v[i]).collect::<Vec<f64>>();
     let (ga, gb) = (pick(0, &ind), pick(1, &ind));
+    let changes = 2 * n - same_as_nominal.count;
+    let apportion = changes == 0 || changes >= MIN_CHANGES;
     let sobol: Vec<Sobol> = (0..d)
         .map(|j| {
             let (ea, eb, eab) = (keep(&fa), keep(&fb), keep(&fab[j]));
@@ -502,8 +511,9 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
                 param: vary[j],
                 exponent: stats::indices(&ea, &eb, &eab, &all),
                 exponent_interval: stats::bootstrap(&ea, &eb, &eab, RESAMPLES, u64::from(o.seed)),
-                same_class: stats::indices(&ga, &gb, &gab, &every),
-                same_class_interval: stats::bootstrap(&ga, &gb, &gab, RESAMPLES, u64::from(o.seed)),
+                same_class: apportion.then(|| stats::indices(&ga, &gb, &gab, &every)),
+                same_class_interval: apportion
+                    .then(|| stats::bootstrap(&ga, &gb, &gab, RESAMPLES, u64::from(o.seed))),
             }
         })
         .collect();
@@ -513,13 +523,17 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
     timings.add(&t);
     let mut runs = values.len() / d + scan_runs;
     // The class map of the plane of the two parameters with the largest total index of
-    // "same class as nominal" (first the one with the larger).
+    // "same class as nominal" (first the one with the larger; of the exponent where the class
+    // indices are 0 or not estimated).
     let plane = if d >= 2 {
         let mut order: Vec<usize> = (0..d).collect();
         order.sort_by(|&i, &j| {
             let t = |k: usize| {
                 let s: &Sobol = &sobol[k];
-                s.same_class.total
+                match s.same_class {
+                    Some(c) if changes > 0 => c.total,
+                    _ => s.exponent.total,
+                }
             };
             t(j).total_cmp(&t(i)).then(i.cmp(&j))
         });

@@ -78,10 +78,21 @@ pub fn caption(s: &Study) -> String {
         );
     }
     for x in &s.sobol {
+        let class = x.same_class.map_or("not estimated".to_string(), |i| {
+            format!("{:.2} (first order {:.2})", i.total, i.first)
+        });
         c += &format!(
-            " {}: total Sobol index of the class {:.2} (first order {:.2}), of the exponent \
-             {:.2} ({:.2}).",
-            x.param, x.same_class.total, x.same_class.first, x.exponent.total, x.exponent.first
+            " {}: total Sobol index of the class {class}, of the exponent {:.2} ({:.2}).",
+            x.param, x.exponent.total, x.exponent.first
+        );
+    }
+    let changes = s.same_as_nominal.of - s.same_as_nominal.count;
+    if s.sobol.iter().any(|x| x.same_class.is_none()) {
+        c += &format!(
+            " The class indices need at least {} draws of another class than the nominal's; \
+             {changes} of {} were.",
+            super::MIN_CHANGES,
+            s.same_as_nominal.of
         );
     }
     let parts: Vec<String> = s
