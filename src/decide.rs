@@ -219,8 +219,12 @@ impl Summary {
     }
 
     /// The run's engineering observables.
-    pub fn observables(&self) -> crate::method::Observables {
-        crate::method::Observables::new(self.impact_speed, self.dissipation, self.stick_fraction)
+    pub fn observables(&self) -> crate::observables::Observables {
+        crate::observables::Observables::new(
+            self.impact_speed,
+            self.dissipation,
+            self.stick_fraction,
+        )
     }
 
     fn of(v: Verdict, r: &RunResult, spec: &RunSpec) -> Summary {

@@ -22,6 +22,7 @@ pub mod map;
 pub mod memory;
 pub mod method;
 pub mod model;
+pub mod observables;
 pub mod output;
 pub mod point;
 pub mod progress;

@@ -9,8 +9,9 @@ use crate::config::{Config, Tangent};
 use crate::decide::confirm;
 use crate::engine::Engine;
 use crate::error::Result;
-use crate::method::{Diagnostics, Integrator, Observables, PointState, RunResult};
+use crate::method::{Diagnostics, Integrator, PointState, RunResult};
 use crate::model::{Mode, Params};
+use crate::observables::{Distribution, Observables, impact_speeds};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
 use crate::tangent::{Cycle, modulus, spectrum};
@@ -28,6 +29,10 @@ pub struct PointReport {
     /// (their keys at this level of the JSON).
     #[serde(flatten)]
     pub observables: Observables,
+    /// The speed of every impact, in order, over `run.sample_periods` periods from the run's
+    /// end (CPU, f64), and their distribution: how hard the parts hit, impact by impact.
+    pub impact_speeds: Vec<f64>,
+    pub impact_speed_distribution: Distribution,
     pub lyapunov: f64,
     /// Standard error of `lyapunov` by batch means over the last sampled window.
     pub lyapunov_se: f64,
@@ -88,6 +93,17 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     let [r] = results;
     let [verdict] = verdicts;
     let class: Class = verdict.class;
+    let end = PointState {
+        y: r.final_y,
+        mode: r.final_mode,
+        diag: Default::default(),
+    };
+    let speeds = if r.diag.nonfinite {
+        Vec::new()
+    } else {
+        let it = Integrator::<f64>::new(&spec.params, &spec.settings);
+        impact_speeds(&it, &end, spec.samples)
+    };
     let lyapunov_spectrum = if tangent != Tangent::Spectrum {
         None
     } else if r.diag.nonfinite {
@@ -106,6 +122,11 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         period: class.period(),
         impacts_per_period: r.impacts_per_period(),
         observables: r.observables(),
+        impact_speed_distribution: Distribution::of(
+            "impact_speed",
+            speeds.iter().map(|&v| Some(v)),
+        ),
+        impact_speeds: speeds,
         lyapunov: r.lyapunov,
         lyapunov_se: r.lyapunov_se,
         torus_digits: r.torus,
@@ -143,6 +164,15 @@ impl fmt::Display for PointReport {
         let o = &self.observables;
         if let (Some(m), Some(x)) = (o.impact_speed_mean, o.impact_speed_max) {
             writeln!(f, "impact speed       mean {m:.6}, max {x:.6}")?;
+        }
+        let sd = &self.impact_speed_distribution;
+        if sd.defined > 0 {
+            writeln!(
+                f,
+                "impact speeds      5% {:.6}, median {:.6}, 95% {:.6} ({} impacts, CPU f64, \
+                 from the end)",
+                sd.p05, sd.median, sd.p95, sd.defined
+            )?;
         }
         if let (Some(i), Some(r), Some(s)) = (
             o.dissipation_impacts,

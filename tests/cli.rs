@@ -50,6 +50,25 @@ fn point_json_has_the_documented_keys() {
         x.iter().zip(&last).all(|(a, b)| (a - b).abs() < 1e-6),
         "{x:?} {last:?}"
     );
+    // The observables of the period-1 cycle (tests/energy.rs has their values): two impacts
+    // per period at one speed, the distribution of every impact of 200 periods from the end.
+    let speeds: Vec<f64> = serde_json::from_value(j["impact_speeds"].clone()).unwrap();
+    assert_eq!(speeds.len(), 400);
+    let mean = j["impact_speed_mean"].as_f64().unwrap();
+    assert!(
+        speeds.iter().all(|v| (v - mean).abs() < 1e-4),
+        "{mean} {speeds:?}"
+    );
+    let d = &j["impact_speed_distribution"];
+    assert_eq!(d["defined"], 400);
+    assert!((d["median"].as_f64().unwrap() - mean).abs() < 1e-4, "{d}");
+    for key in [
+        "dissipation_impacts",
+        "dissipation_friction",
+        "stick_fraction",
+    ] {
+        assert!(j[key].as_f64().unwrap() >= 0.0, "{key}");
+    }
     let spectrum: Vec<f64> = serde_json::from_value(j["lyapunov_spectrum"].clone()).unwrap();
     assert_eq!(spectrum.len(), 4);
     let period = 2.0 * std::f64::consts::PI / 1.5;

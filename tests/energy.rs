@@ -274,6 +274,14 @@ fn check(p: &Params<f64>) -> [f64; 5] {
         flows.friction / per,
         flows.stuck,
     ];
+    // Every impact's speed (the distribution `point` reports), impact by impact.
+    let it = Integrator::<f64>::new(p, &s);
+    let each =
+        rattle::observables::impact_speeds(&it, &it.start_in(c.point, Some(c.mode)), c.period);
+    assert_eq!(each.len(), flows.speeds.len());
+    for (a, b) in each.iter().zip(&flows.speeds) {
+        assert!((a - b).abs() < 1e-8, "{each:?} against {:?}", flows.speeds);
+    }
     // The method on the CPU in f64, four turns of the cycle from its point.
     let samples = 4 * c.period;
     let cpu = Integrator::<f64>::new(p, &s).run_from(

@@ -159,52 +159,14 @@ pub struct RunResult {
     pub stick_fraction: f64,
 }
 
-/// The engineering observables of a run over its sampled periods, as the reports write them
-/// (null where undefined: no impact, no sampled period). Energies are dimensionless, in the
-/// units of the state (m1 = 1, time 1/omega1, length of the static deflection).
-#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
-pub struct Observables {
-    /// Mean and largest relative velocity of the masses just before an impact.
-    pub impact_speed_mean: Option<f64>,
-    pub impact_speed_max: Option<f64>,
-    /// Kinetic energy the impacts took, per forcing period.
-    pub dissipation_impacts: Option<f64>,
-    /// Work of the friction force against the slip, per forcing period.
-    pub dissipation_friction: Option<f64>,
-    /// Fraction of the time the masses moved together (stick, or lock at a stop).
-    pub stick_fraction: Option<f64>,
-}
-
-impl Observables {
-    /// From the raw values (NaN where undefined): impact speed mean and max, dissipation per
-    /// period by impacts and by friction, stick fraction.
-    pub fn new(impact_speed: [f64; 2], dissipation: [f64; 2], stick_fraction: f64) -> Self {
-        let f = |v: f64| v.is_finite().then_some(v);
-        Observables {
-            impact_speed_mean: f(impact_speed[0]),
-            impact_speed_max: f(impact_speed[1]),
-            dissipation_impacts: f(dissipation[0]),
-            dissipation_friction: f(dissipation[1]),
-            stick_fraction: f(stick_fraction),
-        }
-    }
-
-    /// (name, value) of each observable, in the struct's order.
-    pub fn named(&self) -> [(&'static str, Option<f64>); 5] {
-        [
-            ("impact_speed_mean", self.impact_speed_mean),
-            ("impact_speed_max", self.impact_speed_max),
-            ("dissipation_impacts", self.dissipation_impacts),
-            ("dissipation_friction", self.dissipation_friction),
-            ("stick_fraction", self.stick_fraction),
-        ]
-    }
-}
-
 impl RunResult {
-    /// The run's [`Observables`].
-    pub fn observables(&self) -> Observables {
-        Observables::new(self.impact_speed, self.dissipation, self.stick_fraction)
+    /// The run's [`Observables`](crate::observables::Observables).
+    pub fn observables(&self) -> crate::observables::Observables {
+        crate::observables::Observables::new(
+            self.impact_speed,
+            self.dissipation,
+            self.stick_fraction,
+        )
     }
 
     /// The strict period detector's class of the run (period, impacts, finiteness): by its

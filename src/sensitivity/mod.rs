@@ -19,8 +19,8 @@ use crate::config::{Config, Tangent};
 use crate::decide::Summary;
 use crate::engine::{Engine, Timings};
 use crate::error::{OptionError, Result};
-use crate::method::Observables;
 use crate::model::Param;
+use crate::observables::{Distribution, Observables};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
 use serde::Serialize;
@@ -205,42 +205,6 @@ pub struct Sample {
     /// Impact speeds, dissipated energies and the stick fraction over the sampled periods.
     pub observables: Observables,
     pub same_as_nominal: bool,
-}
-
-/// The distribution of one engineering observable over the draws where it is defined (the
-/// impact speeds need impacts).
-#[derive(Clone, Debug, Serialize)]
-pub struct Distribution {
-    pub name: &'static str,
-    /// Draws with a value, of the 2N of A and B.
-    pub defined: usize,
-    pub mean: f64,
-    pub p05: f64,
-    pub median: f64,
-    pub p95: f64,
-    pub max: f64,
-}
-
-impl Distribution {
-    /// The distribution of `values` (the defined ones), named `name`.
-    fn of(name: &'static str, values: impl Iterator<Item = Option<f64>>) -> Distribution {
-        let mut v: Vec<f64> = values.flatten().collect();
-        v.sort_by(f64::total_cmp);
-        // Nearest-rank quantiles: a value some draw had.
-        let q = |u: f64| match v.len() {
-            0 => f64::NAN,
-            n => v[((u * n as f64).ceil() as usize).clamp(1, n) - 1],
-        };
-        Distribution {
-            name,
-            defined: v.len(),
-            mean: v.iter().sum::<f64>() / v.len() as f64,
-            p05: q(0.05),
-            median: q(0.5),
-            p95: q(0.95),
-            max: v.last().copied().unwrap_or(f64::NAN),
-        }
-    }
 }
 
 /// A probability with its 95% Wilson interval.

@@ -5,7 +5,7 @@
 use super::{Dist, Study};
 use crate::config::Config;
 use crate::error::{Error, Result};
-use crate::method::Observables;
+use crate::observables::Observables;
 use crate::output::{Staged, with_ext};
 use crate::render::{Bar, Plane, SensitivityFigure, sensitivity_png, sensitivity_svg};
 use serde::Serialize;
