@@ -233,6 +233,98 @@ fn work_beyond_the_machine_memory_is_refused_before_computing() {
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
 }
 
+/// Peak resident memory (bytes, `VmHWM`) of a run that must succeed, read from /proc while it
+/// runs: the high-water mark only grows, so the last reading before the exit holds the peak
+/// unless it came in the run's last milliseconds (the peaks here come before the outputs are
+/// written).
+fn peak_resident(cmd: &mut std::process::Command) -> u64 {
+    use std::process::Stdio;
+    let mut child = cmd
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let status = format!("/proc/{}/status", child.id());
+    let mut peak = 0;
+    loop {
+        if let Ok(s) = std::fs::read_to_string(&status) {
+            let kb = s
+                .lines()
+                .find_map(|l| l.strip_prefix("VmHWM:"))
+                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok());
+            peak = peak.max(kb.unwrap_or(0) * 1024);
+        }
+        if let Some(st) = child.try_wait().unwrap() {
+            assert!(st.success(), "{cmd:?}");
+            return peak;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+}
+
+#[test]
+fn the_memory_estimates_bound_the_growth_of_the_peak() {
+    // The guard's estimates per map cell and per bifurcation point must bound what the peak
+    // resident memory grows by per cell or point (the fixed part is the program and its
+    // buffers); measured between two sizes, CPU, a cheap run.
+    let d = scratch("peak");
+    let cheap = [
+        "--set",
+        "run.transient_periods=2",
+        "--set",
+        "run.sample_periods=4",
+        "--set",
+        "method.steps_per_period=8",
+    ];
+    let map_peak = |n: usize, starts: &str| {
+        peak_resident(
+            rattle()
+                .args(["map", "--backend", "cpu", "--starts", starts, "--config"])
+                .arg(common::config("r_lambda.toml"))
+                .args(cheap)
+                .args(["--set", &format!("map.x_points={n}")])
+                .args(["--set", &format!("map.y_points={n}")])
+                .arg("--out")
+                .arg(d.join(format!("m{n}-{starts}"))),
+        )
+    };
+    for starts in [1usize, 2] {
+        let (small, large) = (256usize, 640usize);
+        let (a, b) = (
+            map_peak(small, &starts.to_string()),
+            map_peak(large, &starts.to_string()),
+        );
+        let per_cell = (b.saturating_sub(a)) as f64 / (large * large - small * small) as f64;
+        let bound = rattle::memory::map_bytes_per_cell(starts) as f64;
+        eprintln!("map, {starts} start(s): {per_cell:.0} B per cell, estimate {bound}");
+        assert!(per_cell <= bound, "{per_cell} B per cell against {bound}");
+    }
+    let sweep_peak = |points: u32| {
+        peak_resident(
+            rattle()
+                .args(["bifurcation", "--backend", "cpu", "--config"])
+                .arg(common::config("fig2.toml"))
+                .args(["--set", &format!("sweep.points={points}")])
+                .args([
+                    "--set",
+                    "run.sample_periods=2",
+                    "--set",
+                    "run.transient_periods=0",
+                ])
+                .args(["--set", "method.steps_per_period=8", "--out"])
+                .arg(d.join(format!("b{points}"))),
+        )
+    };
+    let (a, b) = (sweep_peak(50_000), sweep_peak(250_000));
+    let per_point = (b.saturating_sub(a)) as f64 / 200_000.0;
+    let bound = rattle::memory::bifurcation_bytes_per_point(2) as f64;
+    eprintln!("bifurcation: {per_point:.0} B per point, estimate {bound}");
+    assert!(
+        per_point <= bound,
+        "{per_point} B per point against {bound}"
+    );
+}
+
 #[test]
 fn more_checkpoints_or_shards_than_cells_are_refused() {
     let (d, cfg) = setup("ckpt-count");
