@@ -70,10 +70,11 @@ struct PointState {
     locks: u32,
     overflows: u32,
     nonfinite: u32,
-    // Sum and largest impact speed since sampling started (Diagnostics::impact_speed).
+    // Sum of the impact speeds over the current period, and the largest since sampling started
+    // (Diagnostics::impact_speed; main.wgsl adds the period's sums to the totals).
     impact_speed: vec2<F>,
-    // Energy dissipated by impacts and by friction, and grid steps stuck, since sampling
-    // started (Diagnostics::dissipated, stuck_steps).
+    // Energy dissipated by impacts and by friction, and grid steps stuck, over the current
+    // period (Diagnostics::dissipated, stuck_steps).
     loss: vec2<F>,
     stuck: F,
 }

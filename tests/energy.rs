@@ -302,6 +302,18 @@ fn check(p: &Params<f64>) -> [f64; 5] {
         eprintln!("gpu {}     {gpu:?}", precision.name());
         assert_close(precision.name(), &gpu, &cpu, tol);
     }
+    // A long window in f32: the kernel keeps its sums as means per period, so 2000 periods of
+    // small terms keep the digits of four (a plain running sum lost 7e-4 over 4000).
+    let long = observed(&common::run_point(
+        &engine,
+        p,
+        c.point,
+        s,
+        2000 * c.period,
+        Precision::F32,
+    ));
+    eprintln!("gpu f32, 2000 turns {long:?}");
+    assert_close("f32, 2000 turns", &long, &cpu, 1e-6);
     exact
 }
 

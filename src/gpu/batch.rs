@@ -358,25 +358,26 @@ impl<F: Real> ReadBack<F> {
         let dim = STATE_DIM as usize;
         for i in 0..self.m {
             let u = |slot| self.u(slot, i);
+            // A failed point stopped sampling where it failed; the detector counted its samples.
+            let count = u(U_DET_COUNT);
+            let nonfinite = u(U_NONFINITE) != 0;
+            let n_samples = if nonfinite { count as usize } else { per_point };
+            let sampled = n_samples as f64;
             let diag = Diagnostics {
                 impacts: u(U_IMPACTS) as u64,
                 sticks: u(U_STICKS) as u64,
                 locks: u(U_LOCKS) as u64,
                 overflows: u(U_OVERFLOWS) as u64,
-                nonfinite: u(U_NONFINITE) != 0,
+                nonfinite,
                 cpu_rerun: false,
-                impact_speed: [R_IMPACT_SPEED_SUM, R_IMPACT_SPEED_MAX]
-                    .map(|s| self.ring[at(s, self.m, i)].to_f64()),
+                // The kernel keeps means per sampled period over the periods it sampled.
+                impact_speed: [
+                    self.ring[at(R_IMPACT_SPEED_SUM, self.m, i)].to_f64() * sampled,
+                    self.ring[at(R_IMPACT_SPEED_MAX, self.m, i)].to_f64(),
+                ],
                 dissipated: [R_LOSS_IMPACTS, R_LOSS_FRICTION]
-                    .map(|s| self.ring[at(s, self.m, i)].to_f64()),
-                stuck_steps: self.ring[at(R_STUCK, self.m, i)].to_f64(),
-            };
-            // A failed point stopped sampling where it failed; the detector counted its samples.
-            let count = u(U_DET_COUNT);
-            let n_samples = if diag.nonfinite {
-                count as usize
-            } else {
-                per_point
+                    .map(|s| self.ring[at(s, self.m, i)].to_f64() * sampled),
+                stuck_steps: self.ring[at(R_STUCK, self.m, i)].to_f64() * sampled,
             };
             let samples = if job.store_samples {
                 (0..n_samples)

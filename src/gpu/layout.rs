@@ -125,11 +125,12 @@ u32_group!(RING, "Slots of `ring`, F per point: past values, their range, the lo
     R_WB_DEN = TAIL + 7;
     R_WB_FIRST = TAIL + 8;
     R_WB_SECOND = TAIL + 9;
-    /// Sum and largest impact speed since sampling started (method::Diagnostics).
+    /// Impact speeds: their sum per sampled period (a running mean over the periods), and the
+    /// largest since sampling started (method::Diagnostics).
     R_IMPACT_SPEED_SUM = TAIL + 10;
     R_IMPACT_SPEED_MAX = TAIL + 11;
-    /// Energy dissipated by impacts and by friction, and grid steps stuck, since sampling
-    /// started (method::Diagnostics).
+    /// Energy dissipated by impacts and by friction, and grid steps stuck, per sampled period
+    /// (running means over the periods; method::Diagnostics holds their sums).
     R_LOSS_IMPACTS = TAIL + 12;
     R_LOSS_FRICTION = TAIL + 13;
     R_STUCK = TAIL + 14;
