@@ -37,14 +37,23 @@ impl Observables {
         }
     }
 
-    /// (name, value) of each observable, in the struct's order.
-    pub fn named(&self) -> [(&'static str, Option<f64>); 5] {
+    /// The observables' names (their JSON keys and CSV columns), in the struct's order.
+    pub const NAMES: [&'static str; 5] = [
+        "impact_speed_mean",
+        "impact_speed_max",
+        "dissipation_impacts",
+        "dissipation_friction",
+        "stick_fraction",
+    ];
+
+    /// The values, in the order of [`Observables::NAMES`].
+    pub fn values(&self) -> [Option<f64>; 5] {
         [
-            ("impact_speed_mean", self.impact_speed_mean),
-            ("impact_speed_max", self.impact_speed_max),
-            ("dissipation_impacts", self.dissipation_impacts),
-            ("dissipation_friction", self.dissipation_friction),
-            ("stick_fraction", self.stick_fraction),
+            self.impact_speed_mean,
+            self.impact_speed_max,
+            self.dissipation_impacts,
+            self.dissipation_friction,
+            self.stick_fraction,
         ]
     }
 }

@@ -93,6 +93,8 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     let [r] = results;
     let [verdict] = verdicts;
     let class: Class = verdict.class;
+    // The CPU f64 runs from the run's end: every impact's speed, and the spectrum.
+    let it = Integrator::<f64>::new(&spec.params, &spec.settings);
     let end = PointState {
         y: r.final_y,
         mode: r.final_mode,
@@ -101,7 +103,6 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     let speeds = if r.diag.nonfinite {
         Vec::new()
     } else {
-        let it = Integrator::<f64>::new(&spec.params, &spec.settings);
         impact_speeds(&it, &end, spec.samples)
     };
     let lyapunov_spectrum = if tangent != Tangent::Spectrum {
@@ -109,13 +110,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     } else if r.diag.nonfinite {
         Some(vec![f64::NAN; 4])
     } else {
-        let it = Integrator::<f64>::new(&spec.params, &spec.settings);
-        let mut st = PointState {
-            y: r.final_y,
-            mode: r.final_mode,
-            diag: Default::default(),
-        };
-        Some(spectrum(&it, &mut st, spec.samples, 4).exponents)
+        Some(spectrum(&it, &mut end.clone(), spec.samples, 4).exponents)
     };
     Ok(PointReport {
         class: class.name(),

@@ -418,13 +418,10 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
 
     // Class probabilities and the observables' distributions over the 2N draws of A and B.
     let ab_draws = &draws[..2 * n];
-    let observables = Observables::default()
-        .named()
+    let observables = Observables::NAMES
         .iter()
         .enumerate()
-        .map(|(k, (name, _))| {
-            Distribution::of(name, ab_draws.iter().map(|s| s.observables.named()[k].1))
-        })
+        .map(|(k, name)| Distribution::of(name, ab_draws.iter().map(|s| s.observables.values()[k])))
         .collect();
     let mut counts = BTreeMap::<String, usize>::new();
     for s in ab_draws {

@@ -144,7 +144,7 @@ pub fn write_outputs(
             ]
             .map(String::from),
         );
-        head.extend(Observables::default().named().map(|(k, _)| k.to_string()));
+        head.extend(Observables::NAMES.map(String::from));
         head.push("same_as_nominal".into());
         w.write_record(&head).map_err(err)?;
         for d in &s.draws {
@@ -160,8 +160,8 @@ pub fn write_outputs(
             // An undefined observable (no impact) is an empty field.
             rec.extend(
                 d.observables
-                    .named()
-                    .map(|(_, v)| v.map_or(String::new(), |v| v.to_string())),
+                    .values()
+                    .map(|v| v.map_or(String::new(), |v| v.to_string())),
             );
             rec.push(d.same_as_nominal.to_string());
             w.write_record(&rec).map_err(err)?;
