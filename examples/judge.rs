@@ -21,9 +21,9 @@
 
 use rattle::classify::{Birkhoff, Class};
 use rattle::config::Config;
+use rattle::cycles::refine;
 use rattle::method::{Integrator, PointState, Settings};
 use rattle::model::Params;
-use rattle::tangent::refine;
 use std::io::Write;
 use std::path::Path;
 

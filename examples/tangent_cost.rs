@@ -4,9 +4,9 @@
 //! schedule of Newton's method in `stability`), per point-step.
 //! `cargo run --release --example tangent_cost`; best of three runs of 2000 periods each.
 
+use rattle::cycles::Tangent;
 use rattle::method::{FlowTask, Integrator, NEWTON_LANES, PointState, Settings, run_flows};
 use rattle::model::Params;
-use rattle::tangent::Tangent;
 use std::time::Instant;
 
 /// One flow of `n` periods with four tangent vectors.

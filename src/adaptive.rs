@@ -130,6 +130,7 @@ fn decide_all(spec: &RunSpec, points: &Points, rs: &[RunResult], live: &[usize])
             run: r,
             class: r.class(spec.period_tol),
             candidates: true,
+            last_resort: true,
             skip: [0; 2],
         })
         .collect();
@@ -176,6 +177,7 @@ pub fn run(
                 run: r,
                 class,
                 candidates: false,
+                last_resort: false,
                 skip: [0; 2],
             })
             .collect();
@@ -310,7 +312,14 @@ pub fn run_once(
     let mut out = Vec::with_capacity(points.len());
     let timings = engine.run_lean(spec, points, progress, &mut |start, mut rs| {
         let part = points.slice(start, start + rs.len());
-        out.extend(crate::decide::summaries(spec, &part, &mut rs, &mut [], &[]));
+        out.extend(crate::decide::summaries(
+            spec,
+            &part,
+            &mut rs,
+            &mut [],
+            &[],
+            true,
+        ));
     })?;
     Ok((out, timings))
 }
@@ -410,6 +419,7 @@ pub fn run_summaries(
                 &mut rs,
                 &mut live_pools[start..end],
                 &live_skip[start..end],
+                !matches!(stage, Stage::Early(..)),
             ));
             decide_s += td.elapsed().as_secs_f64();
         })?;

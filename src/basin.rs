@@ -13,6 +13,7 @@
 
 use crate::classify::Class;
 use crate::config::{Config, StateCoord};
+use crate::cycles::{Cycle, modulus};
 use crate::decide::confirm;
 use crate::engine::Engine;
 use crate::error::Result;
@@ -22,7 +23,6 @@ use crate::output::{Staged, save_npy, with_ext};
 use crate::progress::Progress;
 use crate::render::{ATTRACTOR_COLORS, CategoryMap, ClassKind, category_map_png};
 use crate::spec::{Points, RunSpec};
-use crate::tangent::{Cycle, modulus};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};

@@ -3,11 +3,9 @@
 
 use crate::classify::Class;
 use crate::config::{Backend, Config, Precision};
-use crate::engine::Engine;
-use crate::engine::Timings;
+use crate::engine::{Engine, Rung, Timings};
 use crate::error::OptionError;
 use crate::error::{Error, Result};
-use crate::gpu::Rung;
 use crate::method::{Diagnostics, RunResult};
 use crate::model::Param;
 use crate::progress::Silent;
@@ -163,7 +161,7 @@ pub fn bench(
         spec.precision = Precision::F64;
         spec.settings.lyapunov = false;
         let t0 = std::time::Instant::now();
-        crate::cpu::run_scalar(&spec, &Points::along(&[Param::Eta], &values));
+        crate::engine::run_scalar(&spec, &Points::along(&[Param::Eta], &values));
         let secs = t0.elapsed().as_secs_f64();
         let steps = points as f64 * periods as f64 * n_steps as f64;
         rows.push(Ok(BenchRow {

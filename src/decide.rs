@@ -1,5 +1,5 @@
 //! The one place that decides what a run is: the classifier's proposals ([`proposals`]) tried
-//! by Newton's method ([`crate::tangent::Refine`]), then its conclusion ([`conclude`]) from the
+//! by Newton's method ([`crate::cycles::Refine`]), then its conclusion ([`conclude`]) from the
 //! evidence and the stable cycle found, if any. Every command decides through [`confirm`] or
 //! its batched forms, so the same evidence gives the same class whatever the command; the
 //! engine only runs points, and the adaptive loop combines the two.
@@ -9,10 +9,11 @@
 //! unstable orbit converges to that orbit, whose multipliers reject it).
 
 use crate::classify::{Candidate, Class, Pool, Rule, approaches, conclude, proposals};
+use crate::cycles::{Cycle, Refine, run_parallel};
 use crate::method::{Diagnostics, Integrator, PointState, RunResult, Settings};
 use crate::model::{Mode, Params};
 use crate::spec::{Points, RunSpec};
-use crate::tangent::{Cycle, Refine, run_parallel};
+use rayon::prelude::*;
 
 /// A point's class after the multipliers had their say, and the cycle behind it.
 #[derive(Clone, Debug)]
@@ -40,6 +41,7 @@ pub fn confirm(p: &Params<f64>, settings: &Settings, r: &RunResult, detected: Cl
             run: r,
             class: detected,
             candidates: true,
+            last_resort: true,
             skip: [0; 2],
         }],
     )
@@ -56,6 +58,9 @@ pub struct Proposal<'a> {
     /// Whether the candidate periods are tried too (the adaptive loop's early rounds try the
     /// detector's period only: a point they leave undecided runs on anyway).
     pub candidates: bool,
+    /// Whether period 1 is tried as a last resort where nothing else was proposed (not in
+    /// the adaptive loop's early rounds: a point they leave undecided runs on anyway).
+    pub last_resort: bool,
     /// Candidate periods not to try again (those a continued point tried in its previous
     /// window without finding its cycle; 0: none).
     pub skip: [u32; 2],
@@ -66,13 +71,13 @@ pub struct Proposal<'a> {
 /// leaves once a stable cycle is found).
 pub fn confirm_many(settings: &Settings, points: &[Proposal]) -> Vec<Verdict> {
     let periods: Vec<Vec<(u32, Option<Candidate>)>> = points
-        .iter()
+        .par_iter()
         .map(|q| {
             let r = q.run;
             if r.diag.nonfinite || !r.final_y.iter().all(|v| v.is_finite()) {
                 return Vec::new();
             }
-            let mut p = proposals(&r.evidence(q.class));
+            let mut p = proposals(&r.evidence(q.class), q.last_resort);
             if !q.candidates {
                 p.truncate(q.class.period().map_or(0, |_| 1));
             }
@@ -141,6 +146,7 @@ pub fn confirm_all(
     results: &[RunResult],
     classes: &[Class],
     skip: &[[u32; 2]],
+    last_resort: bool,
 ) -> Vec<Verdict> {
     let points: Vec<Proposal> = results
         .iter()
@@ -151,6 +157,7 @@ pub fn confirm_all(
             run: r,
             class: *c,
             candidates: true,
+            last_resort,
             skip: skip.get(i).copied().unwrap_or([0; 2]),
         })
         .collect();
@@ -204,6 +211,7 @@ impl Summary {
         spec: &RunSpec,
         points: &Points,
         skip: &[[u32; 2]],
+        last_resort: bool,
     ) -> Vec<Summary> {
         confirm_all(
             |i| points.params(&spec.params, i),
@@ -211,6 +219,7 @@ impl Summary {
             results,
             detected,
             skip,
+            last_resort,
         )
         .into_iter()
         .zip(results)
@@ -267,10 +276,11 @@ pub fn summaries(
     results: &mut [RunResult],
     pools: &mut [Pool],
     skip: &[[u32; 2]],
+    last_resort: bool,
 ) -> Vec<Summary> {
     for (r, p) in results.iter_mut().zip(pools) {
         r.pool(p);
     }
     let detected: Vec<Class> = results.iter().map(|r| r.class(spec.period_tol)).collect();
-    Summary::many(&detected, results, spec, points, skip)
+    Summary::many(&detected, results, spec, points, skip, last_resort)
 }

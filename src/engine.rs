@@ -6,7 +6,10 @@
 //! calls a backend.
 
 use crate::config::Backend;
-use crate::gpu::{Gpu, GpuError, Job, Rung};
+use crate::gpu::{Gpu, GpuError, Job};
+/// The kernel ladder's rungs ([`Engine::time_rung`]) and the adapters report, for `bench` and
+/// `adapters`.
+pub use crate::gpu::{Rung, adapters_report};
 use crate::method::RunResult;
 pub use crate::method::Timings;
 use crate::progress::Progress;
@@ -187,6 +190,12 @@ impl Engine {
         g.run(&job, &crate::progress::Silent)?;
         Ok(g.run(&job, &crate::progress::Silent)?.timings.integration_s)
     }
+}
+
+/// Every point by the CPU twin's scalar schedule, one point per task (the schedule the batches
+/// replaced, with the same results): `rattle bench` measures the twin's scalar speed with it.
+pub fn run_scalar(spec: &RunSpec, points: &Points) -> Vec<RunResult> {
+    crate::cpu::run_scalar(spec, points)
 }
 
 /// Computes the points the GPU driver cut short on the CPU twin (same spec and precision) and

@@ -2,7 +2,7 @@
 //!
 //! One module per concept: [`model`] (equations), [`method`] (the CPU integrator and its tangent
 //! dynamics, twin of the kernel's pieces in `shaders/`), [`cpu`] and [`gpu`] (the backends) under
-//! [`engine`], [`classify`] and [`stability`] (what a run is), [`bifurcation`], [`map`], [`basin`]
+//! [`engine`], [`classify`], [`decide`], [`cycles`] and [`stability`] (what a run is), [`bifurcation`], [`map`], [`basin`]
 //! and [`point`] (the commands), [`config`], [`render`], [`output`].
 
 pub mod accuracy;
@@ -14,6 +14,7 @@ pub mod caption;
 pub mod classify;
 pub mod config;
 pub mod cpu;
+pub mod cycles;
 pub mod decide;
 pub mod engine;
 pub mod error;
@@ -32,6 +33,5 @@ pub mod render;
 pub mod sensitivity;
 pub mod spec;
 pub mod stability;
-pub mod tangent;
 
 pub use error::{Error, Result};

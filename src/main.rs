@@ -307,7 +307,7 @@ fn run(cli: Cli) -> Result<()> {
             write_outputs(&out, &cfg, &rows, &reference, t0.elapsed().as_secs_f64())?
         }
         Cmd::Adapters => {
-            say(rattle::gpu::adapters_report()?)?;
+            say(rattle::engine::adapters_report()?)?;
             vec![]
         }
         Cmd::Validate {

@@ -6,6 +6,7 @@ pub mod plot;
 
 use crate::classify::Class;
 use crate::config::{Config, Tangent};
+use crate::cycles::{Cycle, modulus, spectrum};
 use crate::decide::confirm;
 use crate::engine::Engine;
 use crate::error::Result;
@@ -14,7 +15,6 @@ use crate::model::{Mode, Params};
 use crate::observables::{Distribution, Observables, impact_speeds};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
-use crate::tangent::{Cycle, modulus, spectrum};
 use serde::Serialize;
 use std::fmt;
 use std::time::Instant;

@@ -2,9 +2,9 @@
 //! kind and its multipliers, located by continuation and bisection, and the grazing of an
 //! impact-free motion. (Whether one point is a `period-n` is decided in [`crate::decide`].)
 
+use crate::cycles::{Cycle, Refine, Tangent, modulus, run_parallel};
 use crate::method::{FlowTask, Integrator, PointState, Settings};
 use crate::model::{Param, Params};
-use crate::tangent::{Cycle, Refine, Tangent, modulus, run_parallel};
 use serde::Serialize;
 
 /// Kind of a bifurcation point along a sweep.
@@ -206,13 +206,13 @@ fn graze(
     let mut p = *base;
     param.set(&mut p, good);
     let it = Integrator::<f64>::new(&p, settings);
-    let (_, tan) = crate::tangent::flow(&it, &last, 1);
+    let (_, tan) = crate::cycles::flow(&it, &last, 1);
     Some(BifurcationPoint {
         kind: Kind::Grazing,
         value: 0.5 * (good + bad),
         uncertainty: 0.5 * (good - bad).abs(),
         period: 1,
-        multipliers: crate::tangent::eigenvalues(&tan.matrix()),
+        multipliers: crate::cycles::eigenvalues(&tan.matrix()),
     })
 }
 

@@ -7,9 +7,9 @@
 //! kernel in f64 and in f32 must report what the independent computation measures.
 
 use rattle::config::Precision;
+use rattle::cycles::{Cycle, refine};
 use rattle::method::{Integrator, RunResult, Settings};
 use rattle::model::{Mode, Param, Params};
-use rattle::tangent::{Cycle, refine};
 
 mod common;
 

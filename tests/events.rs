@@ -174,7 +174,7 @@ fn quiet_steps_are_the_steps_of_the_event_code() {
         let it = Integrator::<F>::new(p, &Settings::default());
         let mut a = it.start([0.0; 4]);
         let mut b = a;
-        let mut tan = rattle::tangent::Tangent::<F>::identity(1);
+        let mut tan = rattle::cycles::Tangent::<F>::identity(1);
         for q in 0..300 {
             it.period(&mut a);
             it.period_observed(&mut b, &mut tan);

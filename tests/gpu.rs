@@ -400,9 +400,7 @@ fn map_over_all_adapters_equals_the_single_adapter_map() {
     let text = "[model]\neta = 1.26\n[method]\nsteps_per_period = 128\n[run]\n\
         transient_periods = 30\nsample_periods = 10\n[map]\nx_points = 7\ny_points = 5\n";
     let cfg = rattle::config::Config::from_toml(text, &[]).unwrap();
-    let d = std::env::temp_dir().join(format!("rattle-adapters-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
+    let d = common::scratch("adapters");
     let shared = rattle::map::run_shared(&engines, &cfg, &d.join("shared"), 1).unwrap();
     assert_eq!(shared.device, "2 engines");
     let opts = rattle::map::MapOptions {
@@ -738,7 +736,7 @@ fn tangent_exponent_where_an_impact_falls_near_the_section() {
                 mode: res.final_mode,
                 diag: Default::default(),
             };
-            let c = rattle::tangent::refine(&Integrator::<f64>::new(&p, &s), &start, 1);
+            let c = rattle::cycles::refine(&Integrator::<f64>::new(&p, &s), &start, 1);
             assert!(c.is_stable(), "lambda {lambda}: {c:?}");
             let floquet = c.leading_modulus().ln() / (2.0 * std::f64::consts::PI / p.eta);
             eprintln!(

@@ -2,9 +2,10 @@
 //! different method: every point's samples, diagnostics, final state and exponent must be those
 //! of the scalar `Integrator::run`, bit for bit, whatever the mix of modes, events and failures
 //! in its batch. The same holds for Newton's method on the lanes (`method::run_flows`): every
-//! refined cycle is that of the scalar `tangent::refine`.
+//! refined cycle is that of the scalar `cycles::refine`.
 
 use rattle::classify::Class;
+use rattle::cycles::{Cycle, Refine, refine};
 use rattle::decide::{Proposal, confirm, confirm_many};
 use rattle::method::{
     FlowTask, ImpactMethod, Integrator, LANES, PointState, RunResult, Settings, batches, run_flows,
@@ -12,7 +13,6 @@ use rattle::method::{
 };
 use rattle::model::Params;
 use rattle::real::Real;
-use rattle::tangent::{Cycle, Refine, refine};
 
 /// Points that between them stick, lock after chattering, impact, slip with Stribeck friction,
 /// never touch the stops, and fail (a Stribeck l2 that f32 overflows).
@@ -290,6 +290,7 @@ fn confirm_many_equals_confirm_point_by_point() {
             class: r.class(1e-4),
             // With the candidate periods and with the detector's period only.
             candidates: i % 2 == 0,
+            last_resort: i % 2 == 0,
             skip: [0; 2],
         })
         .collect();

@@ -2,11 +2,11 @@
 //! in tests/gpu.rs).
 
 use rattle::classify::{Class, classify};
+use rattle::cycles::{modulus, refine, spectrum};
 use rattle::decide::confirm;
 use rattle::method::{Integrator, PointState, Settings};
 use rattle::model::Params;
 use rattle::real::Real;
-use rattle::tangent::{modulus, refine, spectrum};
 
 fn settings() -> Settings {
     Settings {

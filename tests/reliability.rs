@@ -11,7 +11,7 @@ const COEXIST: &str = "[model]\neta = 1.33\n[method]\nsteps_per_period = 64\n[ru
     transient_periods = 300\nsample_periods = 50\n[map]\nx = \"R\"\nx_from = 0.58\n\
     x_to = 0.60\nx_points = 1\ny = \"lambda\"\ny_from = 0.085\ny_to = 0.115\ny_points = 3\n";
 
-fn setup(name: &str) -> (PathBuf, PathBuf) {
+fn setup(name: &str) -> (common::Scratch, PathBuf) {
     let d = scratch(name);
     let cfg = d.join("c.toml");
     std::fs::write(&cfg, COEXIST).unwrap();

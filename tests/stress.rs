@@ -2,6 +2,8 @@
 //! grids. The event-located method must keep the reference class and impact count; the naive
 //! end-of-step impact must be detected as wrong (so the accuracy chart's claims are tested).
 
+mod common;
+
 use rattle::accuracy::{N_REF, point_outcome, stress_cases, stress_match};
 use rattle::method::ImpactMethod;
 
@@ -49,10 +51,8 @@ fn located_keeps_class_and_impacts_naive_is_detected_wrong() {
 
 #[test]
 fn accuracy_command_writes_charts_with_observed_orders() {
-    let d = std::env::temp_dir().join(format!("rattle-acc-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rattle"))
+    let d = common::scratch("accuracy");
+    let out = common::rattle()
         .args([
             "accuracy",
             "--backend",

@@ -7,9 +7,9 @@
 
 use nalgebra::Matrix4;
 use rattle::classify::detect_period;
+use rattle::cycles::{Cycle, Saltation, eigenvalues, flow, modulus, refine, spectrum};
 use rattle::method::{EV_IMPACT_NEG, EV_IMPACT_POS, Event, Integrator, PointState, Settings};
 use rattle::model::{Mode, Params, impact};
-use rattle::tangent::{Cycle, Saltation, eigenvalues, flow, modulus, refine, spectrum};
 
 /// Central finite differences of the n-period stroboscopic map at `st`, along the columns of
 /// `basis`.

@@ -401,7 +401,7 @@ fn polished(
         mode: r.final_mode,
         diag: Default::default(),
     };
-    let c = crate::tangent::refine(&it, &start, c_ref.period().unwrap_or(1));
+    let c = crate::cycles::refine(&it, &start, c_ref.period().unwrap_or(1));
     let newton_s = t.elapsed().as_secs_f64();
     Row {
         method: POLISHED.into(),

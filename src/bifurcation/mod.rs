@@ -4,6 +4,7 @@
 
 use crate::classify::Class;
 use crate::config::Config;
+use crate::cycles::Cycle;
 use crate::decide::confirm_all;
 use crate::engine::Engine;
 use crate::engine::{EngineError, Timings};
@@ -13,13 +14,12 @@ use crate::model::Mode;
 use crate::progress::{Progress, Silent};
 use crate::spec::{Points, RunSpec};
 use crate::stability::{BifurcationPoint, Branch, bifurcation_points};
-use crate::tangent::Cycle;
 use std::time::Instant;
 
-mod output;
+mod files;
 mod paper;
 
-pub use output::{title, write_outputs};
+pub use files::{title, write_outputs};
 pub use paper::{PAPER_CONFIGS, paper_figure};
 
 /// One point of a finished sweep.
@@ -54,7 +54,7 @@ pub fn finish(cfg: &Config, results: Vec<RunResult>) -> Vec<SweepPoint> {
         .iter()
         .map(|r| r.class(cfg.run.period_tol))
         .collect();
-    let verdicts = confirm_all(at, &cfg.settings(), &results, &detected, &[]);
+    let verdicts = confirm_all(at, &cfg.settings(), &results, &detected, &[], true);
     values
         .into_iter()
         .zip(results)

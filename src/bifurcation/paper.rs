@@ -1,6 +1,6 @@
 //! The paper's four-panel figure (Figs. 2-4b on shared axes).
 
-use super::output::{marks, marks_sentence, panel, plot_points};
+use super::files::{marks, marks_sentence, panel, plot_points};
 use super::run;
 use crate::caption::computed_with;
 use crate::config::{Config, FrictionLaw};

@@ -146,7 +146,7 @@ fn consts<F: Real>(spec: &RunSpec, table: &[F]) -> Vec<F> {
         c[slot as usize] = F::of(v);
     }
     c[C_TOL as usize] = F::EPSILON * F::of(16.0);
-    c[C_TAN_FLOOR as usize] = crate::tangent::collapse_floor::<F>();
+    c[C_TAN_FLOOR as usize] = crate::cycles::collapse_floor::<F>();
     let (hc, hs) = half_step::<F>(nsteps);
     c[C_HALF_COS as usize] = hc;
     c[C_HALF_SIN as usize] = hs;

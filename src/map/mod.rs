@@ -2,11 +2,11 @@
 //! shards, checkpoints, adapters and merging ([`parts`]), and the final PNG / NPY / JSON files
 //! ([`output`]).
 
-mod output;
+mod files;
 mod parts;
 pub mod refine;
 
-pub use output::{
+pub use files::{
     CompareReport, MapReport, MapTimings, RASTER, RefineReport, category, compare_caption,
     model_title, title, write_compare, write_outputs,
 };

@@ -14,6 +14,7 @@
 //! but the first p, which have nothing p periods earlier to return to.
 
 use crate::config::{Backend, Config, Precision};
+use crate::cycles::Cycle;
 use crate::engine::Engine;
 use crate::error::OptionError;
 use crate::error::{Error, Result};
@@ -25,7 +26,6 @@ use crate::model::{Mode, Params};
 use crate::output::{Staged, with_ext};
 use crate::progress::Progress;
 use crate::render::{PointFigure, point_figure_png, point_figure_svg};
-use crate::tangent::Cycle;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;

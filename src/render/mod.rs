@@ -6,13 +6,13 @@
 //! together or not at all; rendering does not stage files a second time.
 //!
 //! This module holds what all figures share (font, checks, layout, axes, PNG
-//! writing); the figure kinds live in `density`, `maps`, `lines` and `point`.
+//! writing); the figure kinds live in `density`, `maps`, `lines`, `orbit` (one point's figure) and `sensitivity`.
 
 mod density;
 mod lines;
 mod maps;
+mod orbit;
 mod palette;
-mod point;
 mod sensitivity;
 
 pub use density::{
@@ -20,8 +20,8 @@ pub use density::{
 };
 pub use lines::{LinePlot, Scale, Series, line_plot_png, line_plot_svg};
 pub use maps::{CategoryMap, ScalarMap, category_map_png, grouped, percent, scalar_map_png};
+pub use orbit::{PointFigure, point_figure_png, point_figure_svg};
 pub use palette::{ATTRACTOR_COLORS, ClassKind, MAX_PERIOD, PERIOD_FAMILIES, period_color};
-pub use point::{PointFigure, point_figure_png, point_figure_svg};
 pub use sensitivity::{
     Bar, Plane, SensitivityFigure, class_color, sensitivity_png, sensitivity_svg,
 };

@@ -16,12 +16,43 @@ pub fn config(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// An empty directory of this test process.
-pub fn scratch(name: &str) -> PathBuf {
+/// An empty directory of this test process, removed when the test ends well (kept after a
+/// failure, to be looked at).
+pub fn scratch(name: &str) -> Scratch {
     let d = std::env::temp_dir().join(format!("rattle-test-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    Scratch(d)
+}
+
+/// See [`scratch`].
+pub struct Scratch(PathBuf);
+
+impl std::ops::Deref for Scratch {
+    type Target = PathBuf;
+    fn deref(&self) -> &PathBuf {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for Scratch {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
 
 /// Runs a command that must succeed; returns its stdout.
