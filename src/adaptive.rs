@@ -15,7 +15,7 @@
 //! measured, not assumed.
 
 use crate::classify::{Class, Pool, detect_period};
-use crate::decide::{Proposal, Summary, Verdict, confirm_many};
+use crate::decide::{Proposal, Summary, Trials, Verdict, confirm_many};
 use crate::engine::{Engine, EngineError, Timings};
 use crate::method::{Diagnostics, RunResult};
 use crate::model::Mode;
@@ -129,8 +129,7 @@ fn decide_all(spec: &RunSpec, points: &Points, rs: &[RunResult], live: &[usize])
             params: points.params(&spec.params, i),
             run: r,
             class: r.class(spec.period_tol),
-            candidates: true,
-            last_resort: true,
+            trials: Trials::All,
             skip: [0; 2],
         })
         .collect();
@@ -176,8 +175,7 @@ pub fn run(
                 params: params(i),
                 run: r,
                 class,
-                candidates: false,
-                last_resort: false,
+                trials: Trials::Detected,
                 skip: [0; 2],
             })
             .collect();
@@ -318,7 +316,7 @@ pub fn run_once(
             &mut rs,
             &mut [],
             &[],
-            true,
+            Trials::All,
         ));
     })?;
     Ok((out, timings))
@@ -419,7 +417,10 @@ pub fn run_summaries(
                 &mut rs,
                 &mut live_pools[start..end],
                 &live_skip[start..end],
-                !matches!(stage, Stage::Early(..)),
+                match stage {
+                    Stage::Early(..) => Trials::Candidates,
+                    _ => Trials::All,
+                },
             ));
             decide_s += td.elapsed().as_secs_f64();
         })?;

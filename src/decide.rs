@@ -40,8 +40,7 @@ pub fn confirm(p: &Params<f64>, settings: &Settings, r: &RunResult, detected: Cl
             params: *p,
             run: r,
             class: detected,
-            candidates: true,
-            last_resort: true,
+            trials: Trials::All,
             skip: [0; 2],
         }],
     )
@@ -55,15 +54,23 @@ pub struct Proposal<'a> {
     pub run: &'a RunResult,
     /// The strict detector's class.
     pub class: Class,
-    /// Whether the candidate periods are tried too (the adaptive loop's early rounds try the
-    /// detector's period only: a point they leave undecided runs on anyway).
-    pub candidates: bool,
-    /// Whether period 1 is tried as a last resort where nothing else was proposed (not in
-    /// the adaptive loop's early rounds: a point they leave undecided runs on anyway).
-    pub last_resort: bool,
+    /// Which of the proposed periods Newton tries.
+    pub trials: Trials,
     /// Candidate periods not to try again (those a continued point tried in its previous
     /// window without finding its cycle; 0: none).
     pub skip: [u32; 2],
+}
+
+/// Which of the [`proposals`] Newton tries for a point. The adaptive loop's early rounds try
+/// fewer: a point they leave undecided runs on anyway.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Trials {
+    /// The strict detector's period only (a sweep's early rounds).
+    Detected,
+    /// The detector's period and the candidates (a map's early rounds).
+    Candidates,
+    /// Those and period 1 as the last resort where nothing else could decide the point.
+    All,
 }
 
 /// [`confirm`] of many points: their Newton trials run [`LANES`](crate::method::LANES) at a
@@ -77,8 +84,8 @@ pub fn confirm_many(settings: &Settings, points: &[Proposal]) -> Vec<Verdict> {
             if r.diag.nonfinite || !r.final_y.iter().all(|v| v.is_finite()) {
                 return Vec::new();
             }
-            let mut p = proposals(&r.evidence(q.class), q.last_resort);
-            if !q.candidates {
+            let mut p = proposals(&r.evidence(q.class), q.trials == Trials::All);
+            if q.trials == Trials::Detected {
                 p.truncate(q.class.period().map_or(0, |_| 1));
             }
             p.retain(|t| t.1.is_none() || !q.skip.contains(&t.0));
@@ -146,7 +153,7 @@ pub fn confirm_all(
     results: &[RunResult],
     classes: &[Class],
     skip: &[[u32; 2]],
-    last_resort: bool,
+    trials: Trials,
 ) -> Vec<Verdict> {
     let points: Vec<Proposal> = results
         .iter()
@@ -156,8 +163,7 @@ pub fn confirm_all(
             params: params(i),
             run: r,
             class: *c,
-            candidates: true,
-            last_resort,
+            trials,
             skip: skip.get(i).copied().unwrap_or([0; 2]),
         })
         .collect();
@@ -211,7 +217,7 @@ impl Summary {
         spec: &RunSpec,
         points: &Points,
         skip: &[[u32; 2]],
-        last_resort: bool,
+        trials: Trials,
     ) -> Vec<Summary> {
         confirm_all(
             |i| points.params(&spec.params, i),
@@ -219,7 +225,7 @@ impl Summary {
             results,
             detected,
             skip,
-            last_resort,
+            trials,
         )
         .into_iter()
         .zip(results)
@@ -276,11 +282,11 @@ pub fn summaries(
     results: &mut [RunResult],
     pools: &mut [Pool],
     skip: &[[u32; 2]],
-    last_resort: bool,
+    trials: Trials,
 ) -> Vec<Summary> {
     for (r, p) in results.iter_mut().zip(pools) {
         r.pool(p);
     }
     let detected: Vec<Class> = results.iter().map(|r| r.class(spec.period_tol)).collect();
-    Summary::many(&detected, results, spec, points, skip, last_resort)
+    Summary::many(&detected, results, spec, points, skip, trials)
 }

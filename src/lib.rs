@@ -2,8 +2,9 @@
 //!
 //! One module per concept: [`model`] (equations), [`method`] (the CPU integrator and its tangent
 //! dynamics, twin of the kernel's pieces in `shaders/`), [`cpu`] and [`gpu`] (the backends) under
-//! [`engine`], [`classify`], [`decide`], [`cycles`] and [`stability`] (what a run is), [`bifurcation`], [`map`], [`basin`]
-//! and [`point`] (the commands), [`config`], [`render`], [`output`].
+//! [`engine`], [`classify`], [`decide`], [`cycles`] and [`stability`] (what a run is),
+//! [`bifurcation`], [`map`], [`basin`] and [`point`] (the commands), [`config`], [`render`],
+//! [`output`].
 
 pub mod accuracy;
 pub mod adaptive;

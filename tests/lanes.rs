@@ -6,7 +6,7 @@
 
 use rattle::classify::Class;
 use rattle::cycles::{Cycle, Refine, refine};
-use rattle::decide::{Proposal, confirm, confirm_many};
+use rattle::decide::{Proposal, Trials, confirm, confirm_many};
 use rattle::method::{
     FlowTask, ImpactMethod, Integrator, LANES, PointState, RunResult, Settings, batches, run_flows,
     run_flows_portable, run_lanes, run_lanes_portable,
@@ -289,15 +289,18 @@ fn confirm_many_equals_confirm_point_by_point() {
             run: r,
             class: r.class(1e-4),
             // With the candidate periods and with the detector's period only.
-            candidates: i % 2 == 0,
-            last_resort: i % 2 == 0,
+            trials: if i % 2 == 0 {
+                Trials::All
+            } else {
+                Trials::Detected
+            },
             skip: [0; 2],
         })
         .collect();
     let many = confirm_many(&s, &proposals);
     let mut tried = 0;
     for (q, v) in proposals.iter().zip(&many) {
-        let one = if q.candidates {
+        let one = if q.trials == Trials::All {
             confirm(&q.params, &s, q.run, q.class)
         } else {
             confirm_many(&s, std::slice::from_ref(q)).remove(0)

@@ -5,7 +5,7 @@
 use crate::classify::Class;
 use crate::config::Config;
 use crate::cycles::Cycle;
-use crate::decide::confirm_all;
+use crate::decide::{Trials, confirm_all};
 use crate::engine::Engine;
 use crate::engine::{EngineError, Timings};
 use crate::error::Result;
@@ -54,7 +54,7 @@ pub fn finish(cfg: &Config, results: Vec<RunResult>) -> Vec<SweepPoint> {
         .iter()
         .map(|r| r.class(cfg.run.period_tol))
         .collect();
-    let verdicts = confirm_all(at, &cfg.settings(), &results, &detected, &[], true);
+    let verdicts = confirm_all(at, &cfg.settings(), &results, &detected, &[], Trials::All);
     values
         .into_iter()
         .zip(results)
