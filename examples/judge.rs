@@ -1,143 +1,185 @@
-//! The independent judge of a map's classes: long f64 runs of a stratified sample of cells,
-//! decided without the map's classifier, written as the fixture that tests/classes.rs scores
-//! the classifier against.
+//! The independent judge of a map's classes: long runs of a sample of cells by the reference of
+//! `rattle::reference::dry` (exact motion between events under Coulomb friction, Dormand-Prince
+//! under Stribeck friction; no code of the integrator or of the classifier), written as the
+//! fixture that tests/classes.rs scores the map's classes against.
 //!
 //! `cargo run --release --example judge -- CONFIG CLASS_NPY SAMPLE SEED OUT_CSV`
 //!
 //! CLASS_NPY is a map's `PREFIX-class.npy` over the config's [map] grid. SAMPLE `s30` draws 30
-//! cells of each map class group (chaotic, periodic, quasi-periodic, unresolved; fewer where
-//! the map has fewer), `u100` 100 cells uniformly over the grid (each class in proportion to
-//! its share), with a fixed-seed generator. Each is judged from the map's start state by a
-//! run of 10^4 forcing periods at the map's steps per period, in f64 (the same discrete
-//! system, so that a long chaotic transient is not judged on another path):
-//! - periodic: the last 256 sections repeat with the smallest lag n <= 128 to 1e-7 of the range,
-//!   and Newton's method at n (f64, the judge's N) converges to a cycle with every multiplier
-//!   inside the unit circle;
-//! - otherwise two exponent estimators over the last 3000 periods: the tangent vector
-//!   (Benettin) and a second trajectory 1e-8 away in y1, renormalised every period;
-//!   chaotic where both exceed 0.002 per unit time; quasi-periodic where both are within
-//!   0.001 of zero and weighted Birkhoff averages of y1 over two halves of 1500 periods agree to
-//!   8 digits; anything else is `unclear` (left out of the score).
+//! cells of each map class group (chaotic, periodic of period 1-4, periodic of period 5 or more,
+//! quasi-periodic, unresolved; fewer where the map has fewer), `u100` 100 cells uniformly over
+//! the grid, with a fixed-seed generator; `cells:FILE.csv` judges the cells (ix, iy) of an
+//! earlier fixture again. Each cell is judged from the map's start state:
+//! - a run of 2000 periods, then windows of 1000 sampled periods (up to 10^4 periods in all) until
+//!   one decides;
+//! - periodic: the window's last 256 sections repeat with the smallest lag n <= 128 to 1e-9 of
+//!   max(1, range), and a neighbour 1e-8 away converges onto it (a negative exponent); a cycle
+//!   that still converges slowly (its alternating part repeats at twice the lag sooner) waits
+//!   for a later window;
+//! - chaotic: the two-trajectory exponent (a neighbour 1e-8 away in y1, renormalised every
+//!   period) exceeds 0.002 per unit time over the window and over each of its halves;
+//! - quasi-periodic: that exponent is within 0.0002 of zero (a slowly contracting cycle, with
+//!   exponents of -0.0005 and below, waits), weighted Birkhoff averages of y1 over the window's
+//!   two halves agree to 8 digits, and no lag <= 128 repeats to 1e-6;
+//! - no_impact: no impact in the window; failed: the reference could not follow the motion;
+//! - anything else after 10^4 periods is `unclear` (left out of the score).
 
-use rattle::classify::{Birkhoff, Class};
 use rattle::config::Config;
-use rattle::cycles::refine;
-use rattle::method::{Integrator, PointState, Settings};
 use rattle::model::Params;
+use rattle::reference::dry::{DryReference, RefState};
 use std::io::Write;
 use std::path::Path;
 
+/// Scan points per period of the reference (its states agree with 8192 to 3e-14 over a period,
+/// tests/stickslip.rs).
+const SCAN: u32 = 1024;
+const FIRST: u32 = 2000;
+const WINDOW: u32 = 1000;
 const TOTAL: u32 = 10_000;
-const TAIL: u32 = 3_000;
 
 /// The fixed-seed generator of the sample: the same on every machine.
 use rattle::sensitivity::stats::SplitMix as Mix;
 
 fn group(code: i32) -> Option<&'static str> {
-    match Class::from_code(code) {
-        Class::Chaotic => Some("chaotic"),
-        Class::Periodic(_) => Some("periodic"),
-        Class::QuasiPeriodic => Some("quasi_periodic"),
-        Class::Unresolved => Some("unresolved"),
+    match code {
+        -4 => Some("chaotic"),
+        1..=4 => Some("periodic"),
+        5.. => Some("long_periodic"),
+        -3 => Some("quasi_periodic"),
+        -5 => Some("unresolved"),
         _ => None,
     }
 }
 
-/// The judge's verdict: (class name, period, tangent exponent, two-trajectory exponent,
-/// Birkhoff digits).
-fn judge(p: &Params<f64>, plain: &Settings, y0: [f64; 4]) -> (String, u32, f64, f64, f64) {
-    let settings = Settings {
-        lyapunov: true,
-        ..*plain
+/// Weighted Birkhoff average of `x` (the smooth bump weight), the judge's own.
+fn birkhoff(x: &[f64]) -> f64 {
+    let n = x.len() as f64;
+    let (mut num, mut den) = (0.0, 0.0);
+    for (k, v) in x.iter().enumerate() {
+        let t = (k as f64 + 0.5) / n;
+        let w = (-1.0 / (t * (1.0 - t))).exp();
+        num += w * v;
+        den += w;
+    }
+    num / den
+}
+
+/// A verdict: (class, period, exponent over the window, over its first half, Birkhoff digits).
+type Verdict = (String, u32, f64, f64, f64);
+
+fn judge(p: &Params<f64>, zeno: f64, y0: [f64; 4]) -> Verdict {
+    let failed = |e: rattle::reference::ReferenceError| -> Verdict {
+        eprintln!("eta {} R {} fs {}: {e}", p.eta, p.restitution, p.fs);
+        ("failed".into(), 0, f64::NAN, f64::NAN, f64::NAN)
     };
-    let it = Integrator::<f64>::new(p, &settings);
-    let mut st = it.start(y0);
-    for _ in 0..TOTAL - TAIL {
-        it.period(&mut st);
+    let r = match DryReference::new(p, SCAN, zeno) {
+        Ok(r) => r,
+        Err(e) => return failed(e),
+    };
+    let mut st = r.start(y0);
+    if let Err(e) = r.run(&mut st, FIRST, None) {
+        return failed(e);
     }
-    // The reference run over the tail, with the tangent vector.
-    let mut copy = st;
-    let r = it.sample(&mut copy, TAIL);
-    if r.diag.nonfinite {
-        return ("failed".into(), 0, f64::NAN, f64::NAN, f64::NAN);
-    }
-    if r.sample_impacts == 0 {
-        return ("no_impact".into(), 0, f64::NAN, f64::NAN, f64::NAN);
-    }
-    let s = &r.samples;
-    let (lo, hi) = s
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-            (a.min(x[0]), b.max(x[0]))
-        });
-    let tol = 1e-7 * (hi - lo).max(1.0);
-    let len = s.len();
-    let lag = (1..=128usize)
-        .find(|&n| (len - 256..len).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() <= tol)));
-    if let Some(n) = lag {
-        let start = PointState {
-            y: r.final_y,
-            mode: r.final_mode,
-            diag: Default::default(),
-        };
-        let c = refine(&it, &start, n as u32);
-        if c.is_stable() {
-            return (
-                format!("period-{}", c.period),
-                c.period,
-                r.lyapunov,
-                f64::NAN,
-                f64::NAN,
-            );
+    let mut done = FIRST;
+    let mut last = ("unclear".to_string(), 0, f64::NAN, f64::NAN, f64::NAN);
+    while done < TOTAL {
+        match window(&r, &mut st) {
+            Ok(v) => {
+                if v.0 != "unclear" {
+                    return v;
+                }
+                last = v;
+            }
+            Err(e) => return failed(e),
         }
+        done += WINDOW;
     }
-    // Second estimator: a neighbour 1e-8 away in y1, renormalised each period.
-    let period = 2.0 * std::f64::consts::PI / p.eta;
-    let plain = Integrator::<f64>::new(p, plain);
+    last
+}
+
+/// One window of WINDOW periods from `st` (which it advances), with its neighbour.
+fn window(
+    r: &DryReference,
+    st: &mut RefState,
+) -> Result<Verdict, rattle::reference::ReferenceError> {
     let d0 = 1e-8;
-    let (mut a, mut b) = (st, st);
+    let mut b = *st;
     b.y[0] += d0;
-    let mut logs = 0.0;
-    for _ in 0..TAIL {
-        plain.period(&mut a);
-        plain.period(&mut b);
+    let (mut logs, mut first) = (0.0, 0.0);
+    let mut samples = Vec::with_capacity(WINDOW as usize);
+    let mut impacts = 0usize;
+    let mut log = Vec::new();
+    for k in 0..WINDOW {
+        log.clear();
+        r.period_from(st, 0.0, Some(&mut log))?;
+        impacts += log.iter().filter(|e| e.kind.starts_with("impact")).count();
+        r.period_from(&mut b, 0.0, None)?;
         let d = (0..4)
-            .map(|i| (a.y[i] - b.y[i]).powi(2))
+            .map(|i| (st.y[i] - b.y[i]).powi(2))
             .sum::<f64>()
             .sqrt();
-        logs += (d / d0).ln();
-        for i in 0..4 {
-            b.y[i] = a.y[i] + (b.y[i] - a.y[i]) * d0 / d;
+        let l = (d / d0).ln();
+        logs += l;
+        if k < WINDOW / 2 {
+            first += l;
         }
-        b.mode = a.mode;
+        // Renormalise; a neighbour that collapsed onto the state (a stick removes directions)
+        // restarts 1e-8 away in y1.
+        if d > 0.0 {
+            for i in 0..4 {
+                b.y[i] = st.y[i] + (b.y[i] - st.y[i]) * d0 / d;
+            }
+        } else {
+            b.y = st.y;
+            b.y[0] += d0;
+        }
+        b.mode = st.mode;
+        samples.push(st.y);
     }
-    let two = logs / (f64::from(TAIL) * period);
-    let mut wb = Birkhoff::new(TAIL);
-    s.iter().for_each(|x| wb.push(x[0]));
-    let digits = wb.digits();
-    let l = r.lyapunov;
-    let class = if l > 0.002 && two > 0.002 {
+    let t = r.period();
+    let lyap = logs / (f64::from(WINDOW) * t);
+    let lyap1 = first / (f64::from(WINDOW / 2) * t);
+    let lyap2 = (logs - first) / (f64::from(WINDOW / 2) * t);
+    let x: Vec<f64> = samples.iter().map(|s| s[0]).collect();
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let (a, b) = (birkhoff(&x[..x.len() / 2]), birkhoff(&x[x.len() / 2..]));
+    let digits = -((a - b).abs() / (hi - lo).max(1e-300)).max(1e-16).log10();
+    if impacts == 0 {
+        return Ok(("no_impact".into(), 0, lyap, lyap1, digits));
+    }
+    let len = samples.len();
+    let lag = |tol: f64| {
+        let tol = tol * (hi - lo).max(1.0);
+        (1..=128usize).find(|&n| {
+            (len - 256..len)
+                .all(|k| (0..4).all(|c| (samples[k][c] - samples[k - n][c]).abs() <= tol))
+        })
+    };
+    let class = if let Some(n) = lag(1e-9).filter(|_| lyap < 0.0) {
+        return Ok((format!("period-{n}"), n as u32, lyap, lyap1, digits));
+    } else if lyap > 0.002 && lyap1 > 0.002 && lyap2 > 0.002 {
         "chaotic"
-    } else if l.abs() < 0.001 && two.abs() < 0.001 && digits >= 8.0 {
+    } else if lyap.abs() < 2e-4 && digits >= 8.0 && lag(1e-6).is_none() {
         "quasi_periodic"
     } else {
         "unclear"
     };
-    (class.into(), 0, l, two, digits)
+    Ok((class.into(), 0, lyap, lyap1, digits))
 }
 
 fn main() -> anyhow::Result<()> {
     let a: Vec<String> = std::env::args().collect();
     anyhow::ensure!(
         a.len() == 6,
-        "usage: judge CONFIG CLASS_NPY PER_CLASS SEED OUT_CSV"
+        "usage: judge CONFIG CLASS_NPY SAMPLE SEED OUT_CSV"
     );
     let cfg = Config::load(Path::new(&a[1]), &[])?;
     let bytes = std::fs::read(&a[2])?;
     let classes: Vec<i32> = npyz::NpyFile::new(&bytes[..])?.into_vec()?;
-    let (how, count) = a[3].split_at(1);
-    let count: usize = count.parse()?;
-    let mut rng = Mix(a[4].parse()?);
     let (nx, ny) = (cfg.map.x_points as usize, cfg.map.y_points as usize);
     anyhow::ensure!(
         classes.len() == nx * ny,
@@ -145,28 +187,42 @@ fn main() -> anyhow::Result<()> {
     );
     let xs = Config::map_axis(cfg.map.x_from, cfg.map.x_to, cfg.map.x_points);
     let ys = Config::map_axis(cfg.map.y_from, cfg.map.y_to, cfg.map.y_points);
-    let settings = cfg.settings();
+    let zeno = cfg.settings().zeno_speed;
+    let name = |c: usize| group(classes[c]).unwrap_or("other");
     let mut picked: Vec<(usize, &str)> = Vec::new();
-    let groups: &[&str] = if how == "u" {
-        &["any"]
-    } else {
-        &["chaotic", "periodic", "quasi_periodic", "unresolved"]
-    };
-    for &g in groups {
-        let mut cells: Vec<usize> = (0..classes.len())
-            .filter(|&c| g == "any" || group(classes[c]) == Some(g))
-            .collect();
-        // Fisher-Yates with the fixed generator, then the first `count`.
-        for i in (1..cells.len()).rev() {
-            let j = (rng.next_u64() % (i as u64 + 1)) as usize;
-            cells.swap(i, j);
+    if let Some(file) = a[3].strip_prefix("cells:") {
+        let mut r = csv::Reader::from_path(file)?;
+        for row in r.records() {
+            let row = row?;
+            let c = row[1].parse::<usize>()? * nx + row[0].parse::<usize>()?;
+            picked.push((c, name(c)));
         }
-        picked.extend(
-            cells
-                .into_iter()
-                .take(count)
-                .map(|c| (c, group(classes[c]).unwrap_or("other"))),
-        );
+    } else {
+        let (how, count) = a[3].split_at(1);
+        let count: usize = count.parse()?;
+        let mut rng = Mix(a[4].parse()?);
+        let groups: &[&str] = if how == "u" {
+            &["any"]
+        } else {
+            &[
+                "chaotic",
+                "periodic",
+                "long_periodic",
+                "quasi_periodic",
+                "unresolved",
+            ]
+        };
+        for &g in groups {
+            let mut cells: Vec<usize> = (0..classes.len())
+                .filter(|&c| g == "any" || group(classes[c]) == Some(g))
+                .collect();
+            // Fisher-Yates with the fixed generator, then the first `count`.
+            for i in (1..cells.len()).rev() {
+                let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+                cells.swap(i, j);
+            }
+            picked.extend(cells.into_iter().take(count).map(|c| (c, name(c))));
+        }
     }
     let rows: Vec<String> = {
         use rayon::prelude::*;
@@ -177,9 +233,9 @@ fn main() -> anyhow::Result<()> {
                 let mut p = cfg.params();
                 cfg.map.x.set(&mut p, xs[ix]);
                 cfg.map.y.set(&mut p, ys[iy]);
-                let (class, period, l, two, digits) = judge(&p, &settings, cfg.initial.y);
+                let (class, period, l, l1, digits) = judge(&p, zeno, cfg.initial.y);
                 format!(
-                    "{ix},{iy},{:.9},{:.9},{g},{class},{period},{l:.6},{two:.6},{digits:.2}",
+                    "{ix},{iy},{:.9},{:.9},{g},{class},{period},{l:.6},{l1:.6},{digits:.2}",
                     xs[ix], ys[iy]
                 )
             })
@@ -188,7 +244,7 @@ fn main() -> anyhow::Result<()> {
     let mut f = std::fs::File::create(&a[5])?;
     writeln!(
         f,
-        "ix,iy,x,y,map_group,judge,judge_period,lyapunov_tangent,lyapunov_two_trajectories,birkhoff_digits"
+        "ix,iy,x,y,map_group,judge,judge_period,lyapunov,lyapunov_first_half,birkhoff_digits"
     )?;
     for r in rows {
         writeln!(f, "{r}")?;

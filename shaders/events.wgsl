@@ -35,7 +35,7 @@ fn no_bracket() -> Bracket {
     return Bracket(F(0.0), F(0.0), F(0.0), F(0.0), F(2.0), F(2.0), F(0.0), F(0.0), EV_NONE);
 }
 
-fn bracket(g0: F, g1: F, m0: F, m1: F, ev: u32) -> Bracket {
+fn bracket(g0: F, g1: F, m0: F, m1: F, floor: F, ev: u32) -> Bracket {
     let d = g1 - g0;
     let bound = F(0.25) * fmax(fabs(m0 - d), fabs(m1 - d));
     if (fmin(g0, g1) > bound || fmax(g0, g1) < -bound) {
@@ -68,27 +68,36 @@ fn bracket(g0: F, g1: F, m0: F, m1: F, ev: u32) -> Bracket {
         t1 = t2;
         t2 = t;
     }
+    // An extremum before the step does not bound a piece: the later one must still split it.
+    if (t1 <= F(0.0)) {
+        t1 = t2;
+        t2 = none;
+    }
     // The three monotone pieces, unrolled: llvmpipe caps the loop iterations of one
     // invocation, so the hot path has no loops with a small fixed trip count.
     let b1 = select(F(1.0), t1, t1 > F(0.0) && t1 < F(1.0));
     let b2 = select(F(1.0), t2, t2 > b1 && t2 < F(1.0));
-    let p1 = hermite(g0, a1, a2, a3, b1);
-    if (g0 > F(0.0) && p1 <= F(0.0)) {
+    // At the step's end the guard itself (the power form's rounding could lift a zero); a
+    // guard that ends at zero while rising has not crossed (events.rs `bracket`).
+    let crossed_end = g1 < F(0.0) || (g1 == F(0.0) && m1 < F(0.0));
+    let end1 = b1 >= F(1.0);
+    let p1 = select(hermite(g0, a1, a2, a3, b1), g1, end1);
+    if (g0 > F(0.0) && select(p1 <= -floor, crossed_end, end1)) {
         return Bracket(g0, a1, a2, a3, F(0.0), b1, g0, p1, ev);
     }
-    if (b1 >= F(1.0)) {
+    if (end1) {
         return no_bracket();
     }
-    let p2 = hermite(g0, a1, a2, a3, b2);
-    if (p1 > F(0.0) && p2 <= F(0.0)) {
+    let end2 = b2 >= F(1.0);
+    let p2 = select(hermite(g0, a1, a2, a3, b2), g1, end2);
+    if (p1 > F(0.0) && select(p2 <= -floor, crossed_end, end2)) {
         return Bracket(g0, a1, a2, a3, b1, b2, p1, p2, ev);
     }
-    if (b2 >= F(1.0)) {
+    if (end2) {
         return no_bracket();
     }
-    let p3 = hermite(g0, a1, a2, a3, F(1.0));
-    if (p2 > F(0.0) && p3 <= F(0.0)) {
-        return Bracket(g0, a1, a2, a3, b2, F(1.0), p2, p3, ev);
+    if (p2 > F(0.0) && crossed_end) {
+        return Bracket(g0, a1, a2, a3, b2, F(1.0), p2, g1, ev);
     }
     return no_bracket();
 }

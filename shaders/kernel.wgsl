@@ -69,6 +69,8 @@ struct PointState {
     sticks: u32,
     locks: u32,
     overflows: u32,
+    // Diagnostics::wrong_slips: steps ending in slip against the mode's direction.
+    wrong_slips: u32,
     nonfinite: u32,
     // Sum of the impact speeds over the current period, and the largest since sampling started
     // (Diagnostics::impact_speed; main.wgsl adds the period's sums to the totals).

@@ -50,6 +50,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     st.sticks = us[U_STICKS * n + i];
     st.locks = us[U_LOCKS * n + i];
     st.overflows = us[U_OVERFLOWS * n + i];
+    st.wrong_slips = us[U_WRONG_SLIPS * n + i];
     st.nonfinite = us[U_NONFINITE * n + i];
     var sample_impacts = us[U_SAMPLE_IMPACTS * n + i];
     // The observables per sampled period, as running means over the periods since sampling
@@ -145,6 +146,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     us[U_STICKS * n + i] = st.sticks;
     us[U_LOCKS * n + i] = st.locks;
     us[U_OVERFLOWS * n + i] = st.overflows;
+    us[U_WRONG_SLIPS * n + i] = st.wrong_slips;
     us[U_NONFINITE * n + i] = st.nonfinite;
     ring[R_IMPACT_SPEED_SUM * n + i] = means.x;
     ring[R_IMPACT_SPEED_MAX * n + i] = st.impact_speed.y;

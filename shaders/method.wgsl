@@ -95,22 +95,43 @@ fn locate(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, cs0: ve
             if (r() + z0 <= F(0.0) && zd0 < F(0.0)) {
                 return Hit(F(0.0), EV_IMPACT_NEG);
             }
-            b0 = bracket(r() - z0, r() - z1, -zd0, -zd1, EV_IMPACT_POS);
-            b1 = bracket(r() + z0, r() + z1, zd0, zd1, EV_IMPACT_NEG);
+            b0 = bracket(r() - z0, r() - z1, -zd0, -zd1, F(0.0), EV_IMPACT_POS);
+            b1 = bracket(r() + z0, r() + z1, zd0, zd1, F(0.0), EV_IMPACT_NEG);
         }
         let s = select(F(-1.0), F(1.0), mode == MODE_SLIP_POS);
-        b2 = bracket(s * (y0.y - y0.w), s * (y1.y - y1.w), s * (f0.y - f0.w) * dt,
-                     s * (f1.y - f1.w) * dt, EV_REVERSAL);
+        let g0 = s * (y0.y - y0.w);
+        let g1 = s * (y1.y - y1.w);
+        let m0 = s * (f0.y - f0.w) * dt;
+        // A slip past v = 0, or at it and turning against the mode for the step: a reversal
+        // now (method/mod.rs `locate`).
+        if (m0 < F(0.0) && (g0 < F(0.0) || (g0 == F(0.0) && g1 < F(0.0)))) {
+            return Hit(F(0.0), EV_REVERSAL);
+        }
+        // v = y2 - y4 rounds at a few units of the velocities' last place (tol = 16 units).
+        let floor = F(0.25) * tol * (fabs(y0.y) + fabs(y0.w));
+        b2 = bracket(g0, g1, m0, s * (f1.y - f1.w) * dt, floor, EV_REVERSAL);
     } else {
         let tn0 = needed_force(y0, cs0.x);
         let tn1 = needed_force(y1, cs1.x);
         let td0 = needed_force_rate(y0, f0.y, cs0.y) * dt;
         let td1 = needed_force_rate(y1, f1.y, cs1.y) * dt;
+        // A holding inequality already failed, or at its limit and failing for the step, and
+        // failing further: a release now.
+        let gp0 = fs() - tn0;
+        let gp1 = fs() - tn1;
+        let gn0 = fs() + tn0;
+        let gn1 = fs() + tn1;
+        if (mode != MODE_LOCK_NEG && td0 > F(0.0) && (gp0 < F(0.0) || (gp0 == F(0.0) && gp1 < F(0.0)))) {
+            return Hit(F(0.0), EV_RELEASE_POS);
+        }
+        if (mode != MODE_LOCK_POS && td0 < F(0.0) && (gn0 < F(0.0) || (gn0 == F(0.0) && gn1 < F(0.0)))) {
+            return Hit(F(0.0), EV_RELEASE_NEG);
+        }
         if (mode != MODE_LOCK_NEG) {
-            b0 = bracket(fs() - tn0, fs() - tn1, -td0, -td1, EV_RELEASE_POS);
+            b0 = bracket(gp0, gp1, -td0, -td1, F(0.0), EV_RELEASE_POS);
         }
         if (mode != MODE_LOCK_POS) {
-            b1 = bracket(fs() + tn0, fs() + tn1, td0, td1, EV_RELEASE_NEG);
+            b1 = bracket(gn0, gn1, td0, td1, F(0.0), EV_RELEASE_NEG);
         }
     }
     // Refine brackets in order of their left end while one can still hold an earlier root
@@ -223,8 +244,13 @@ fn apply_event(ev: u32, c: F) {
         let va = st.y.y - st.y.w;
         count_impact(vb, impact_loss(vb, va));
     } else if (ev == EV_REVERSAL) {
+        let left = st.mode;
         st.y = co_move(st.y);
         st.mode = mode_at_rest(0, needed_force(st.y, c));
+        // Back into the slip it left: a tie with the static limit that rounding split.
+        if (st.mode == left) {
+            st.mode = MODE_STICK;
+        }
         if (st.mode == MODE_STICK) {
             st.sticks += 1u;
         }
@@ -233,6 +259,12 @@ fn apply_event(ev: u32, c: F) {
     } else {
         st.mode = MODE_SLIP_NEG;
     }
+}
+
+// method/mod.rs `wrong_slip`: a slip mode whose slip velocity has the opposite sign.
+fn wrong_slip() -> bool {
+    let v = st.y.y - st.y.w;
+    return (st.mode == MODE_SLIP_POS && v < F(0.0)) || (st.mode == MODE_SLIP_NEG && v > F(0.0));
 }
 
 fn naive_impact(k: u32) -> bool {
@@ -319,6 +351,9 @@ fn step(k: u32) {
     }
     if (LADDER_EVENTS && ctl.naive != 0u && naive_impact(k)) {
         f0 = field(st.y, st.mode, forcing(k, F(1.0)).x);
+    }
+    if (wrong_slip()) {
+        st.wrong_slips += 1u;
     }
     if (LADDER_FINITE && !finite_state(st.y)) {
         st.nonfinite = 1u;

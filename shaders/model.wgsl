@@ -9,7 +9,9 @@ fn friction(w: F) -> F {
     if (COULOMB) {
         return fk();
     }
-    return (fs() - fk()) / fmax(F(1.0) + l1() * w, F(0.5)) + fk() + l2() * w * w;
+    // fs to the last bit at w = 0 (the static limit of the stick and lock tests).
+    let m = fmax(l1() * w, F(-0.5));
+    return fs() - (fs() - fk()) * m / (F(1.0) + m) + l2() * w * w;
 }
 
 // model.rs `friction_slope`: d friction / dw, zero where the divisor is clamped.

@@ -57,6 +57,7 @@ fn add(d: &mut Diagnostics, o: &Diagnostics) {
     d.sticks += o.sticks;
     d.locks += o.locks;
     d.overflows += o.overflows;
+    d.wrong_slips += o.wrong_slips;
     d.nonfinite |= o.nonfinite;
     d.cpu_rerun |= o.cpu_rerun;
 }

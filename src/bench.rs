@@ -283,6 +283,7 @@ fn totals(rs: &[RunResult]) -> Diagnostics {
         d.sticks += r.diag.sticks;
         d.locks += r.diag.locks;
         d.overflows += r.diag.overflows;
+        d.wrong_slips += r.diag.wrong_slips;
         d.nonfinite |= r.diag.nonfinite;
         d
     })
@@ -419,7 +420,7 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
     let cref = classes(&reference);
     let _ = writeln!(
         out,
-        "{:<12} {:>10} {:>18} {:>10} {:>8} {:>7} {:>10} {:>10}",
+        "{:<12} {:>10} {:>18} {:>10} {:>8} {:>7} {:>10} {:>11} {:>10}",
         "side",
         "agreement",
         "periodic agreement",
@@ -427,6 +428,7 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
         "sticks",
         "locks",
         "overflows",
+        "wrong slips",
         "nonfinite"
     );
     let row = |out: &mut String, name: &str, rs: &[RunResult]| {
@@ -441,7 +443,7 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
         let d = totals(rs);
         let _ = writeln!(
             out,
-            "{:<12} {:>9.2}% {:>17.2}% {:>10} {:>8} {:>7} {:>10} {:>10}",
+            "{:<12} {:>9.2}% {:>17.2}% {:>10} {:>8} {:>7} {:>10} {:>11} {:>10}",
             name,
             100.0 * agree as f64 / cl.len() as f64,
             100.0 * pagree as f64 / periodic.len().max(1) as f64,
@@ -449,6 +451,7 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
             d.sticks,
             d.locks,
             d.overflows,
+            d.wrong_slips,
             rs.iter().filter(|r| r.diag.nonfinite).count()
         );
     };

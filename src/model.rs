@@ -244,10 +244,14 @@ impl std::str::FromStr for Param {
 /// is continued past w = 0 (until the reversal event ends the mode), so a step that crosses
 /// v = 0 sees no kink and keeps fourth order; |v| would put a kink in the step. The divisor is
 /// kept from vanishing far below any overshoot a step can make. Coulomb friction
-/// (fs = fk, l1 = l2 = 0) is the constant fk.
+/// (fs = fk, l1 = l2 = 0) is the constant fk. Written as `fs - (fs - fk) m/(1 + m)` with
+/// `m = l1 w`, so that at w = 0 it is fs to the last bit, the static limit the stick and lock
+/// tests use (`(fs - fk) + fk` may round off fs, and then a slip that starts at rest can
+/// accelerate against the direction the needed force chose), with the old form's latency.
 #[inline(always)]
 pub fn friction<F: Real>(p: &Params<F>, w: F) -> F {
-    (p.fs - p.fk) / (F::one() + p.l1 * w).max(F::of(0.5)) + p.fk + p.l2 * w * w
+    let m = (p.l1 * w).max(F::of(-0.5));
+    p.fs - (p.fs - p.fk) * m / (F::one() + m) + p.l2 * w * w
 }
 
 /// d[`friction`]/dw: zero where the divisor is clamped.

@@ -236,8 +236,8 @@ impl fmt::Display for PointReport {
         }
         writeln!(
             f,
-            "diagnostics        impacts {} sticks {} locks {} overflows {} nonfinite {}",
-            d.impacts, d.sticks, d.locks, d.overflows, d.nonfinite
+            "diagnostics        impacts {} sticks {} locks {} overflows {} wrong slips {} nonfinite {}",
+            d.impacts, d.sticks, d.locks, d.overflows, d.wrong_slips, d.nonfinite
         )?;
         writeln!(
             f,

@@ -976,7 +976,7 @@ fn an_interrupted_run_leaves_one_runs_whole_set() {
         })
         .collect();
     let (a, b) = (&sets[0].0, &sets[1].0);
-    assert_eq!(a.len(), 24);
+    assert_eq!(a.len(), 25);
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
     let full = sets[1].1;
     let work = d.join("work");
@@ -1150,7 +1150,7 @@ fn a_sweep_where_every_point_fails_is_an_error_that_says_so() {
     let cfg = d.join("c.toml");
     std::fs::write(
         &cfg,
-        "[model]\nfriction = \"stribeck\"\nl2 = 1e6\n[method]\nsteps_per_period = 64\n\
+        "[model]\nfriction = \"stribeck\"\nb1 = 1e6\n[method]\nsteps_per_period = 64\n\
          [run]\ntransient_periods = 30\nsample_periods = 10\n[sweep]\npoints = 20\n",
     )
     .unwrap();

@@ -7,7 +7,7 @@ use super::layout::{
     R_HI, R_IMPACT_SPEED_MAX, R_IMPACT_SPEED_SUM, R_LO, R_LOG_SUM, R_LOSS_FRICTION, R_LOSS_IMPACTS,
     R_SLOTS, R_STUCK, R_WB_FIRST, R_WB_SECOND, STATE_DIM, TAIL, U_DET_COUNT, U_DET_HI, U_DET_LO,
     U_IMPACTS, U_LOCKS, U_MODE, U_NONFINITE, U_OVERFLOWS, U_SAMPLE_IMPACTS, U_SLOTS, U_STICKS,
-    U_TAN_BAD, U_TRUNCATED, UTAB_BYTES, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
+    U_TAN_BAD, U_TRUNCATED, U_WRONG_SLIPS, UTAB_BYTES, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
 };
 use super::{Gpu, GpuError, Job};
 use crate::classify::{BLOCKS, Growth, PeriodDetector, birkhoff_digits, block_len};
@@ -368,6 +368,7 @@ impl<F: Real> ReadBack<F> {
                 sticks: u(U_STICKS) as u64,
                 locks: u(U_LOCKS) as u64,
                 overflows: u(U_OVERFLOWS) as u64,
+                wrong_slips: u(U_WRONG_SLIPS) as u64,
                 nonfinite,
                 cpu_rerun: false,
                 // The kernel keeps means per sampled period over the periods it sampled.

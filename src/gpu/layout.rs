@@ -106,7 +106,9 @@ u32_group!(US, "Slots of `us`, u32 per point: us[slot * n_points + i]." {
     U_TRUNCATED = 10;
     /// The Lyapunov tangent vector overflowed: the point has no exponent.
     U_TAN_BAD = 11;
-    U_SLOTS = 12;
+    /// Steps that ended in slip against the mode's direction (Diagnostics::wrong_slips).
+    U_WRONG_SLIPS = 12;
+    U_SLOTS = 13;
 });
 
 // The last TAIL section values sit at slots 0..TAIL (value k at k % TAIL).

@@ -601,6 +601,7 @@ pub fn write_outputs(
     npy(&mut st, "sticks", &|p| save(p, &shape, &f.sticks))?;
     npy(&mut st, "locks", &|p| save(p, &shape, &f.locks))?;
     npy(&mut st, "overflows", &|p| save(p, &shape, &f.overflows))?;
+    npy(&mut st, "wrong_slips", &|p| save(p, &shape, &f.wrong_slips))?;
     npy(&mut st, "nonfinite", &|p| save(p, &shape, &f.nonfinite))?;
     npy(&mut st, "cpu_rerun", &|p| save(p, &shape, &f.cpu_rerun))?;
     npy(&mut st, "attractors", &|p| save(p, &shape, &f.attractors))?;

@@ -150,6 +150,8 @@ pub struct Fields {
     pub sticks: Vec<u64>,
     pub locks: Vec<u64>,
     pub overflows: Vec<u64>,
+    /// Steps ending in slip against the mode's direction (Diagnostics::wrong_slips).
+    pub wrong_slips: Vec<u64>,
     pub nonfinite: Vec<u8>,
     /// 1 where the GPU driver cut the kernel short and the CPU twin computed the cell.
     pub cpu_rerun: Vec<u8>,
@@ -214,6 +216,7 @@ impl Fields {
             sticks: s.iter().map(|c| c.diag.sticks).collect(),
             locks: s.iter().map(|c| c.diag.locks).collect(),
             overflows: s.iter().map(|c| c.diag.overflows).collect(),
+            wrong_slips: s.iter().map(|c| c.diag.wrong_slips).collect(),
             nonfinite: s.iter().map(|c| c.diag.nonfinite as u8).collect(),
             cpu_rerun: s.iter().map(|c| c.diag.cpu_rerun as u8).collect(),
             periods: s.iter().map(|c| c.periods).collect(),
@@ -261,6 +264,7 @@ impl Fields {
         self.sticks.extend(o.sticks);
         self.locks.extend(o.locks);
         self.overflows.extend(o.overflows);
+        self.wrong_slips.extend(o.wrong_slips);
         self.nonfinite.extend(o.nonfinite);
         self.cpu_rerun.extend(o.cpu_rerun);
         self.attractors.extend(o.attractors);
@@ -307,6 +311,7 @@ impl Fields {
             sticks: self.sticks[i],
             locks: self.locks[i],
             overflows: self.overflows[i],
+            wrong_slips: self.wrong_slips[i],
             nonfinite: self.nonfinite[i] != 0,
             cpu_rerun: self.cpu_rerun[i] != 0,
             ..Diagnostics::default()

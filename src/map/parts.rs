@@ -96,6 +96,7 @@ impl Part {
             f.sticks.len(),
             f.locks.len(),
             f.overflows.len(),
+            f.wrong_slips.len(),
             f.nonfinite.len(),
             f.cpu_rerun.len(),
             f.attractors.len(),

@@ -95,9 +95,12 @@ impl<F: Real> Bracket<F> {
 /// `m0, m1` its time derivatives times the step length. The cubic is split at its extrema so
 /// that each piece is monotone: a grazing double crossing inside one step is not missed. Cheap
 /// when there is no crossing, which is almost every step; the root itself is refined only for
-/// the guards that can be the earliest event ([`Integrator::locate`]).
+/// the guards that can be the earliest event ([`Integrator::locate`]). A dip inside the step
+/// counts only where it reaches `-floor`, the guard's rounding level: a dip shallower than
+/// that is the interpolant bridging values the precision cannot tell apart (a sub-step far
+/// shorter than a step, whose end the state rounds to the start), not a crossing.
 #[inline(always)]
-pub fn bracket<F: Real>(g0: F, g1: F, m0: F, m1: F, ev: u32) -> Bracket<F> {
+pub fn bracket<F: Real>(g0: F, g1: F, m0: F, m1: F, floor: F, ev: u32) -> Bracket<F> {
     let mut b = Bracket::none();
     let d = g1 - g0;
     // The Hermite cubic stays within max(|m0-d|,|m1-d|)/4 of its chord.
@@ -132,6 +135,12 @@ pub fn bracket<F: Real>(g0: F, g1: F, m0: F, m1: F, ev: u32) -> Bracket<F> {
     if t1 > t2 {
         std::mem::swap(&mut t1, &mut t2);
     }
+    // An extremum before the step does not bound a piece: the later one must still split it
+    // (a slip that starts at v = 0, turns back and reverses a fraction of a step later).
+    if t1 <= F::zero() {
+        t1 = t2;
+        t2 = none;
+    }
     // The three monotone pieces, unrolled as in the shader.
     let (mut lo, mut plo) = (F::zero(), g0);
     let b1 = if t1 > F::zero() && t1 < F::one() {
@@ -145,8 +154,17 @@ pub fn bracket<F: Real>(g0: F, g1: F, m0: F, m1: F, ev: u32) -> Bracket<F> {
         F::one()
     };
     for hi in [b1, b2, F::one()] {
-        let phi = hermite(g0, a1, a2, a3, hi);
-        if plo > F::zero() && phi <= F::zero() {
+        // At the step's end the guard itself: the power form's rounding could lift a guard
+        // that ends at zero above it, and the event would be lost. A guard that ends at zero
+        // while rising has not crossed (a sub-step too short for the precision to resolve).
+        let end = hi >= F::one();
+        let phi = if end { g1 } else { hermite(g0, a1, a2, a3, hi) };
+        let crossed = if end {
+            g1 < F::zero() || (g1 == F::zero() && m1 < F::zero())
+        } else {
+            phi <= -floor
+        };
+        if plo > F::zero() && crossed {
             b = Bracket {
                 a0: g0,
                 a1,

@@ -110,9 +110,8 @@ fn slip_field<F: Real, const N: usize>(
         let v = y[1][l] - y[3][l];
         let w = s[l] * v;
         // model::friction at w.
-        let law = (q.fs[l] - q.fk[l]) / (F::one() + q.l1[l] * w).max(F::of(0.5))
-            + q.fk[l]
-            + q.l2[l] * w * w;
+        let m = (q.l1[l] * w).max(F::of(-0.5));
+        let law = q.fs[l] - (q.fs[l] - q.fk[l]) * m / (F::one() + m) + q.l2[l] * w * w;
         let t = s[l] * law;
         let d = q.b1[l] * q.delta[l] * v;
         out[0][l] = y[1][l];

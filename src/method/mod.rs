@@ -242,8 +242,8 @@ impl<F: Real> Integrator<F> {
                 if p.r + z0 <= F::zero() && zd0 < F::zero() {
                     return (F::zero(), EV_IMPACT_NEG);
                 }
-                b[0] = bracket(p.r - z0, p.r - z1, -zd0, -zd1, EV_IMPACT_POS);
-                b[1] = bracket(p.r + z0, p.r + z1, zd0, zd1, EV_IMPACT_NEG);
+                b[0] = bracket(p.r - z0, p.r - z1, -zd0, -zd1, F::zero(), EV_IMPACT_POS);
+                b[1] = bracket(p.r + z0, p.r + z1, zd0, zd1, F::zero(), EV_IMPACT_NEG);
             }
             // Slip reversal: s*v reaches 0.
             let s = if mode == Mode::SlipPos {
@@ -251,13 +251,18 @@ impl<F: Real> Integrator<F> {
             } else {
                 -F::one()
             };
-            b[2] = bracket(
-                s * (y0[1] - y0[3]),
-                s * (y1[1] - y1[3]),
-                s * (f0[1] - f0[3]) * dt,
-                s * (f1[1] - f1[3]) * dt,
-                EV_REVERSAL,
-            );
+            let (g0, g1) = (s * (y0[1] - y0[3]), s * (y1[1] - y1[3]));
+            let m0 = s * (f0[1] - f0[3]) * dt;
+            // A slip past v = 0, or at it and turning against the mode for the step (as where
+            // a reversal fell on a step's end): a reversal now, as a stop already passed. At
+            // v = 0 with the step ending the right way, the start is a tie that rounding set
+            // against the mode (a slip entered as the needed force just passes the limit).
+            if m0 < F::zero() && (g0 < F::zero() || (g0 == F::zero() && g1 < F::zero())) {
+                return (F::zero(), EV_REVERSAL);
+            }
+            // v = y2 - y4 rounds at a few units of the velocities' last place (tol = 16 units).
+            let floor = F::of(0.25) * self.tol * (y0[1].abs() + y0[3].abs());
+            b[2] = bracket(g0, g1, m0, s * (f1[1] - f1[3]) * dt, floor, EV_REVERSAL);
         } else {
             // Release: the needed force leaves the holding interval.
             let (c0, s0) = self.forcing(k, theta0);
@@ -266,11 +271,21 @@ impl<F: Real> Integrator<F> {
             let tn1 = needed_force(p, y1, c1);
             let td0 = needed_force_rate(p, y0, f0[1], s0) * dt;
             let td1 = needed_force_rate(p, y1, f1[1], s1) * dt;
+            // A holding inequality already failed, or at its limit and failing for the step,
+            // and failing further: a release now (as for the slip above).
+            let (gp0, gp1, gn0, gn1) = (p.fs - tn0, p.fs - tn1, p.fs + tn0, p.fs + tn1);
+            let z = F::zero();
+            if mode != Mode::LockNeg && td0 > z && (gp0 < z || (gp0 == z && gp1 < z)) {
+                return (F::zero(), EV_RELEASE_POS);
+            }
+            if mode != Mode::LockPos && td0 < z && (gn0 < z || (gn0 == z && gn1 < z)) {
+                return (F::zero(), EV_RELEASE_NEG);
+            }
             if mode != Mode::LockNeg {
-                b[0] = bracket(p.fs - tn0, p.fs - tn1, -td0, -td1, EV_RELEASE_POS);
+                b[0] = bracket(gp0, gp1, -td0, -td1, z, EV_RELEASE_POS);
             }
             if mode != Mode::LockPos {
-                b[1] = bracket(p.fs + tn0, p.fs + tn1, td0, td1, EV_RELEASE_NEG);
+                b[1] = bracket(gn0, gn1, td0, td1, z, EV_RELEASE_NEG);
             }
         }
         // Refine brackets in order of their left end while one can still hold an earlier root
@@ -376,14 +391,32 @@ impl<F: Real> Integrator<F> {
                     .count_impact(vb.to_f64(), impact_loss(p, vb, va).to_f64());
             }
             EV_REVERSAL => {
+                let left = st.mode;
                 co_move(p, &mut st.y);
                 st.mode = mode_at_rest(p, 0, needed_force(p, &st.y, c));
+                // Back into the slip it left: the needed force ties with the static limit
+                // and rounding decided the two tests apart; the masses stick.
+                if st.mode == left {
+                    st.mode = Mode::Stick;
+                }
                 if st.mode == Mode::Stick {
                     st.diag.sticks += 1;
                 }
             }
             EV_RELEASE_POS => st.mode = Mode::SlipPos,
             _ => st.mode = Mode::SlipNeg,
+        }
+    }
+
+    /// A slip mode whose slip velocity has the opposite sign: friction pushes the wrong way,
+    /// an event was missed (the invariant [`Diagnostics::wrong_slips`] counts).
+    #[inline(always)]
+    pub fn wrong_slip(st: &PointState<F>) -> bool {
+        let v = st.y[1] - st.y[3];
+        match st.mode {
+            Mode::SlipPos => v < F::zero(),
+            Mode::SlipNeg => v > F::zero(),
+            _ => false,
         }
     }
 
@@ -497,6 +530,9 @@ impl<F: Real> Integrator<F> {
             let (c, _) = self.forcing(k, F::one());
             *f0 = field(&self.p, &st.y, st.mode, c);
         }
+        // The invariant of the slip modes: v never has the sign opposite to the mode (a quiet
+        // step cannot end so: its reversal guard stays positive).
+        st.diag.wrong_slips += u64::from(Self::wrong_slip(st));
         if !finite_state(&st.y) {
             st.diag.nonfinite = true;
         }

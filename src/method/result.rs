@@ -50,6 +50,9 @@ pub struct Diagnostics {
     pub locks: u64,
     /// Steps whose event budget ran out (finished without further event handling).
     pub overflows: u64,
+    /// Steps that ended in a slip mode with the slip velocity against the mode's direction
+    /// (friction pushing the wrong way): an event the integrator missed. Zero is the invariant.
+    pub wrong_slips: u64,
     /// The state became non-finite; integration stopped there.
     pub nonfinite: bool,
     /// Computed by the CPU twin because the GPU driver cut the kernel's loops short.

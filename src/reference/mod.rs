@@ -8,6 +8,8 @@
 
 use std::f64::consts::TAU;
 
+pub mod dry;
+
 /// The closed-form reference could not follow the motion.
 #[derive(Debug, thiserror::Error)]
 #[error("frictionless reference: {0}")]
