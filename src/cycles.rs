@@ -77,40 +77,6 @@ pub fn refine(it: &Integrator<f64>, start: &PointState<f64>, n: u32) -> Cycle {
     r.out
 }
 
-/// The cycle at its least period: where the points of a confirmed period-m cycle repeat after
-/// a divisor d of m (Newton at m also converges on a period-d cycle), the period-d cycle,
-/// refined again at d for its own multipliers. A point repeats where it returns to within
-/// [`NEWTON_TOL`] times max(1, |x|), or within 100 times the m-cycle's residual where that is
-/// larger. Cycles that are not stable, or do not repeat earlier, are returned as they are.
-pub fn least_period(it: &Integrator<f64>, c: Cycle) -> Cycle {
-    if c.period < 2 || !c.is_stable() {
-        return c;
-    }
-    let start = PointState {
-        y: c.point,
-        mode: c.mode,
-        diag: Default::default(),
-    };
-    let scale = c.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-    let tol = (NEWTON_TOL * scale).max(100.0 * c.residual);
-    let mut st = start;
-    for d in 1..c.period {
-        it.period(&mut st);
-        if st.diag.nonfinite {
-            break;
-        }
-        let back = (0..4).fold(0.0f64, |a, i| a.max((st.y[i] - c.point[i]).abs()));
-        if c.period.is_multiple_of(d) && back <= tol {
-            let least = refine(it, &start, d);
-            if least.is_stable() {
-                return least;
-            }
-            break;
-        }
-    }
-    c
-}
-
 /// Newton's method of [`refine`], one flow of `n` periods per iteration.
 #[derive(Clone, Debug)]
 pub struct Refine {

@@ -9,7 +9,7 @@
 //! unstable orbit converges to that orbit, whose multipliers reject it).
 
 use crate::classify::{Candidate, Class, Pool, Rule, approaches, conclude, proposals};
-use crate::cycles::{Cycle, Refine, least_period, run_parallel};
+use crate::cycles::{Cycle, Refine, run_parallel};
 use crate::method::{Diagnostics, Integrator, PointState, RunResult, Settings};
 use crate::model::{Mode, Params};
 use crate::spec::{Points, RunSpec};
@@ -122,8 +122,7 @@ pub fn confirm_many(settings: &Settings, points: &[Proposal]) -> Vec<Verdict> {
                 approaches(&r.tail, &r.final_y, cand, &c.point, c.leading_modulus())
             };
             if c.is_stable() && cand.as_ref().is_none_or(on_it) {
-                let it = Integrator::<f64>::new(&points[i].params, settings);
-                stable[i] = Some(least_period(&it, c));
+                stable[i] = Some(c);
             } else if first[i].is_none() {
                 first[i] = Some(c);
             }

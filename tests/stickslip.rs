@@ -236,3 +236,48 @@ fn the_kernel_finds_the_same_events() {
         }
     }
 }
+
+#[test]
+fn a_cycle_is_reported_at_its_least_period() {
+    // Newton at periods 2 and 4 from Fig. 2's period-1 cycle at eta = 1.5 converges (its points
+    // repeat every period): the cycle comes back at period 1, with the period-1 multipliers; on
+    // the lanes as in the scalar iteration (`cycles::least_return`).
+    let p = Params::paper(1.5);
+    let it = Integrator::<f64>::new(&p, &Settings::default());
+    let mut st = it.start([0.0; 4]);
+    for _ in 0..500 {
+        it.period(&mut st);
+    }
+    let one = rattle::cycles::refine(&it, &st, 1);
+    assert!(one.is_stable());
+    for n in [2, 4] {
+        let c = rattle::cycles::refine(&it, &st, n);
+        let lanes = rattle::cycles::run_parallel(
+            vec![rattle::cycles::Refine::new(it.clone(), &st, n)],
+            |t| u64::from(t.period()),
+        )
+        .pop()
+        .unwrap()
+        .cycle();
+        eprintln!(
+            "Newton at {n}: period {} (lanes {}), |mu| {:.9} against period-1 Newton {:.9}",
+            c.period,
+            lanes.period,
+            c.leading_modulus(),
+            one.leading_modulus()
+        );
+        assert_eq!((c.period, lanes.period), (1, 1));
+        assert!(c.is_stable());
+        assert!((c.leading_modulus() - one.leading_modulus()).abs() < 1e-9);
+    }
+    // A genuine period-2 cycle (eta = 1.3, after the crisis) stays period-2.
+    let p = Params::paper(1.3);
+    let it = Integrator::<f64>::new(&p, &Settings::default());
+    let mut st = it.start([0.0; 4]);
+    for _ in 0..500 {
+        it.period(&mut st);
+    }
+    let two = rattle::cycles::refine(&it, &st, 2);
+    assert!(two.is_stable());
+    assert_eq!(two.period, 2);
+}
