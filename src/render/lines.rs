@@ -341,9 +341,19 @@ fn draw_line_plot<DB: DrawingBackend>(
     let legend_w = text_w.map_or(0, |w| w + sample_w as u32 + (l.tick * 1.5) as u32);
     let legend_w = legend_w.min(plot.width / 2);
     let (left, right) = root.split_horizontally(plot.width - legend_w);
+    // A title wider than the plot's side is set smaller, so that it is never cut at the edges.
+    let room = f64::from(plot.width - legend_w) - 2.0 * f64::from(l.margin);
+    let title_w = root
+        .estimate_text_size(plot.title, &TextStyle::from((FONT, l.title).into_font()))
+        .map_or(0.0, |d| f64::from(d.0));
+    let title_size = if title_w > room && title_w > 0.0 {
+        l.title * room / title_w
+    } else {
+        l.title
+    };
 
     let mut chart = ChartBuilder::on(&left)
-        .caption(plot.title, (FONT, l.title))
+        .caption(plot.title, (FONT, title_size))
         .margin(l.margin)
         .margin_right(l.margin * 2)
         .x_label_area_size(l.x_area)
