@@ -13,7 +13,7 @@ use std::path::Path;
 use std::time::Instant;
 
 const MAPS: [(&str, &str); 3] = [
-    ("tests/data/stribeck_128x64.toml", "stribeck"),
+    ("configs/stribeck_eta_r.toml", "stribeck"),
     ("configs/eta_lambda.toml", "eta_lambda"),
     ("tests/data/r_lambda_128.toml", "r_lambda"),
 ];

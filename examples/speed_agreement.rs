@@ -1,5 +1,6 @@
-//! Speed against agreement of the sensitivity maps `configs/r_lambda.toml` (n x n cells) and
-//! `configs/eta_lambda.toml` (2n x n cells): brute force, early termination, and early
+//! Speed against agreement of the sensitivity maps `configs/r_lambda.toml` (n x n cells),
+//! `configs/eta_lambda.toml` (2n x n cells, Coulomb friction up to lambda = 0.1) and the
+//! stick-slip map `configs/stribeck_eta_r.toml` (n x n/2 cells): brute force, early termination, and early
 //! termination with coarse-to-fine refinement at three coarse spacings. Agreement = share of
 //! cells whose class equals the brute-force map's. Writes OUT-MAP.csv, .png and .svg per map.
 //!
@@ -32,10 +33,22 @@ fn main() -> anyhow::Result<()> {
     std::fs::create_dir_all(&dir)?;
     let engine = Engine::open(backend)?;
     let device = engine.device();
-    for (map, title, nx) in [
-        ("r_lambda", "Speed against agreement: R x lambda", n),
-        ("eta_lambda", "Speed against agreement: eta x lambda", 2 * n),
+    for (map, title, nx, ny) in [
+        ("r_lambda", "Speed against agreement: R x lambda", n, n),
+        (
+            "eta_lambda",
+            "Speed against agreement: eta x lambda",
+            2 * n,
+            n,
+        ),
+        (
+            "stribeck_eta_r",
+            "Speed against agreement: Stribeck, eta x R",
+            n,
+            n / 2,
+        ),
     ] {
+        let n = ny;
         let rows = measure(&engine, &dir, map, nx, n)?;
         let mut w = csv::Writer::from_path(format!("{out}-{map}.csv"))?;
         w.write_record([

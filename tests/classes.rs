@@ -175,7 +175,7 @@ fn the_exponent_error_bar_covers_the_mean() {
 /// The judged R x lambda grid (128 x 128, Coulomb, eta = 1.26).
 const R_LAMBDA: &str = "tests/data/r_lambda_128.toml";
 /// The judged Stribeck grid (eta x R, 128 x 64).
-const STRIBECK: &str = "tests/data/stribeck_128x64.toml";
+const STRIBECK: &str = "configs/stribeck_eta_r.toml";
 /// The eta x lambda map as shipped (256 x 128, Coulomb, R = 0.6).
 const ETA_LAMBDA: &str = "configs/eta_lambda.toml";
 
