@@ -109,6 +109,44 @@ fn the_risk_of_a_straight_boundary_is_a_normal_cdf_of_the_distance() {
     }
 }
 
+#[test]
+fn a_sigma_far_beyond_the_grid_costs_no_more_than_the_grid() {
+    // Issue H1 of the reliability round: sigma of 1e300 cells overflowed the kernel's length
+    // (a panic), 1e9 aborted for memory, 2e5 took 35 s on 8 x 8 cells. The kernel needs no
+    // more than the grid's extent (offsets beyond it never land on the grid), and in the limit
+    // the perturbation lands anywhere on the grid alike: the risk is 1 - the share of the
+    // cell's class. Two classes of 24 and 40 cells on 8 x 8.
+    let (nx, ny) = (8, 8);
+    let classes: Vec<i32> = (0..nx * ny)
+        .map(|k| if k % nx < 3 { 1 } else { 2 })
+        .collect();
+    for s in [2e5, 1e9, 1e300, f64::MAX] {
+        let t = std::time::Instant::now();
+        let r = risk(&classes, nx, ny, s, s);
+        assert!(
+            t.elapsed().as_secs_f64() < 1.0,
+            "sigma {s}: {:?}",
+            t.elapsed()
+        );
+        for (k, v) in r.iter().enumerate() {
+            let want = if k % nx < 3 {
+                1.0 - 24.0 / 64.0
+            } else {
+                1.0 - 40.0 / 64.0
+            };
+            assert!(
+                (v - want).abs() < 1e-6,
+                "sigma {s}, cell {k}: {v} against {want}"
+            );
+        }
+    }
+    // One axis huge, the other small: the limit along x only.
+    let r = risk(&classes, nx, ny, 1e300, 0.3);
+    let row = |x: usize| r[4 * nx + x];
+    assert!((row(0) - (1.0 - 3.0 / 8.0)).abs() < 1e-6, "{}", row(0));
+    assert!((row(5) - (1.0 - 5.0 / 8.0)).abs() < 1e-6, "{}", row(5));
+}
+
 /// The risk by its definition: every neighbour's Gaussian mass, class by class.
 fn risk_by_definition(c: &[i32], nx: usize, ny: usize, sx: f64, sy: f64) -> Vec<f64> {
     let n = Normal::standard();

@@ -111,19 +111,31 @@ impl SplitMix {
 /// probability that a Gaussian perturbation of the two parameters with standard deviations
 /// `sx`, `sy` (in cells) lands on a cell of another class. The perturbation's mass over each
 /// neighbouring cell is the product of the normal masses of its x and y intervals (the
-/// convolution of the class-difference indicator with the Gaussian, out to 4 sigma); mass that
-/// falls outside the grid is unknown and left out, so a cell's probability is over the mass
-/// inside.
+/// convolution of the class-difference indicator with the Gaussian, out to 4 sigma or the
+/// grid's extent, whichever is less); mass that falls outside the grid is unknown and left out,
+/// so a cell's probability is over the mass inside. Time and memory are bounded by the grid
+/// whatever sigma is: cells x (kx + ky) with kx < 2 nx, ky < 2 ny.
 pub fn risk(classes: &[i32], nx: usize, ny: usize, sx: f64, sy: f64) -> Vec<f64> {
-    let weights = |s: f64| -> Vec<f64> {
+    // Only ratios of the weights enter (the mass on other classes over the mass inside the
+    // grid), so each axis may be scaled freely.
+    let weights = |s: f64, n: usize| -> Vec<f64> {
+        // Offsets beyond the grid's extent never land on it: the kernel needs no more, however
+        // large sigma is (its length, memory and time are bounded by the grid).
+        let reach = (4.0 * s).ceil().min(n.saturating_sub(1) as f64) as i64;
+        if s > 1e3 {
+            // The cell masses are the density at the cell centres to 1/(24 s^2); the density's
+            // shape, unnormalised, keeps them from underflowing where s is huge.
+            return (-reach..=reach)
+                .map(|k| (-0.5 * (k as f64 / s).powi(2)).exp())
+                .collect();
+        }
         // Cell k's mass: the normal's mass over [k - 1/2, k + 1/2] cell widths.
-        let reach = (4.0 * s).ceil() as i64;
         let n = Normal::new(0.0, s.max(1e-300)).expect("a positive standard deviation");
         (-reach..=reach)
             .map(|k| n.cdf(k as f64 + 0.5) - n.cdf(k as f64 - 0.5))
             .collect()
     };
-    let (wx, wy) = (weights(sx), weights(sy));
+    let (wx, wy) = (weights(sx, nx), weights(sy, ny));
     let (rx, ry) = ((wx.len() / 2) as i64, (wy.len() / 2) as i64);
     // The Gaussian is separable and P(same class) at a cell of class c is the convolution of
     // class c's indicator there: class by class, spread each class-c cell along x into a row
