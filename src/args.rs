@@ -7,6 +7,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use rattle::bifurcation::Continuation;
 use rattle::config::{Backend, Config, Overrides, Precision};
 use rattle::map;
+use rattle::model::Param;
 use std::path::{Path, PathBuf};
 
 /// A clap parser for one of the library's named choices (the library knows no clap): the
@@ -294,7 +295,49 @@ impl Common {
     pub fn load_map(&self, path: &Path) -> Result<Config> {
         let cfg = self.load_from(path)?;
         cfg.validate_map()?;
+        self.refuse_varied(&[cfg.map.x], "map.x")?;
+        self.refuse_varied(&[cfg.map.y], "map.y")?;
         Ok(cfg)
+    }
+
+    /// Refuses a flag or `--set` value for a parameter the command varies (a map axis, the
+    /// swept parameter, an uncertain one), named by `by`: it would be dropped unread. Lambda
+    /// sets fs and fk, so it overlaps both.
+    pub fn refuse_varied(&self, varied: &[Param], by: &str) -> Result<()> {
+        let overlaps = |a: Param, b: Param| {
+            a == b
+                || (a == Param::Lambda && matches!(b, Param::Fs | Param::Fk))
+                || (b == Param::Lambda && matches!(a, Param::Fs | Param::Fk))
+        };
+        let flags = [
+            ("--eta", Param::Eta, self.eta),
+            ("--R", Param::R, self.restitution),
+            ("--lambda", Param::Lambda, self.lambda),
+        ];
+        for &v in varied {
+            for (flag, p, value) in flags {
+                if let Some(x) = value.filter(|_| overlaps(p, v)) {
+                    anyhow::bail!(
+                        "{flag} {x} sets `{}`, which {by} varies ({}): its value would be dropped; \
+                         give the range there instead",
+                        p.name(),
+                        v.name()
+                    );
+                }
+            }
+            for set in &self.set {
+                let key = set.split('=').next().unwrap_or("").trim();
+                let key = key.strip_prefix("model.").unwrap_or(key);
+                if key.parse::<Param>().is_ok_and(|p| overlaps(p, v)) {
+                    anyhow::bail!(
+                        "--set {set} sets `{key}`, which {by} varies ({}): its value would be \
+                         dropped; give the range there instead",
+                        v.name()
+                    );
+                }
+            }
+        }
+        Ok(())
     }
 
     /// With `[basin]` checked too.
@@ -308,6 +351,7 @@ impl Common {
     pub fn load_sweep(&self) -> Result<Config> {
         let cfg = self.load_from(&self.config)?;
         cfg.validate_sweep()?;
+        self.refuse_varied(&[cfg.sweep.param], "sweep.param")?;
         Ok(cfg)
     }
 }

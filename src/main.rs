@@ -227,6 +227,8 @@ fn run(cli: Cli) -> Result<()> {
                 seed: seed.unwrap_or(s.seed),
             };
             o.check()?;
+            let params: Vec<rattle::model::Param> = o.uncertain.iter().map(|u| u.param).collect();
+            common.refuse_varied(&params, "--uncertain")?;
             rattle::memory::check_option("samples", rattle::sensitivity::points(&o) as u64, 1)?;
             check_prefix(&out, &["json", "csv", "png", "svg"])?;
             let engine = Engine::open(cfg.method.backend)?;

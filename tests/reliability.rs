@@ -1162,3 +1162,159 @@ fn a_sweep_where_every_point_fails_is_an_error_that_says_so() {
     refused(&mut c, &["every one of the 20 points failed"]);
     assert!(!d.join("b.json").exists() && !d.join("b.csv").exists());
 }
+
+#[test]
+fn a_value_for_a_parameter_the_command_varies_is_refused() {
+    // Issue M2 of the reliability round: the flag's value was dropped without a word (the
+    // study or map used its own values; the JSON's config said the flag's).
+    let d = scratch("varied_flags");
+    let out = d.join("x");
+    let cheap = [
+        "--set",
+        "map.x_points=4",
+        "--set",
+        "map.y_points=4",
+        "--set",
+        "run.transient_periods=2",
+        "--set",
+        "run.sample_periods=2",
+    ];
+    let cases: Vec<(Vec<&str>, &[&str])> = vec![
+        (
+            vec!["map", "--config", "configs/r_lambda.toml", "--R", "0.55"],
+            &["--R", "map.x"],
+        ),
+        (
+            vec!["map", "--config", "configs/eta_lambda.toml", "--eta", "1.3"],
+            &["--eta", "map.x"],
+        ),
+        (
+            vec![
+                "map",
+                "--config",
+                "configs/eta_lambda.toml",
+                "--set",
+                "lambda=0.03",
+            ],
+            &["lambda=0.03", "map.y"],
+        ),
+        (
+            vec![
+                "map",
+                "--config",
+                "configs/r_lambda.toml",
+                "--set",
+                "fk=0.03",
+            ],
+            &["fk=0.03", "map.y"],
+        ),
+        (
+            vec![
+                "bifurcation",
+                "--config",
+                "configs/fig2.toml",
+                "--eta",
+                "1.3",
+            ],
+            &["--eta", "sweep.param"],
+        ),
+        (
+            vec![
+                "sensitivity",
+                "--config",
+                "configs/fig2.toml",
+                "--lambda",
+                "0.05",
+                "--uncertain",
+                "lambda=0.02+-0.005",
+            ],
+            &["--lambda", "--uncertain"],
+        ),
+    ];
+    for (args, keys) in cases {
+        let mut c = rattle();
+        c.current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(&args)
+            .args(cheap)
+            .arg("--backend")
+            .arg("cpu")
+            .arg("--out")
+            .arg(&out);
+        refused(&mut c, keys);
+        assert!(
+            std::fs::read_dir(&d).unwrap().next().is_none(),
+            "{args:?} wrote files"
+        );
+    }
+    // A flag for a parameter the command keeps fixed is still taken.
+    let mut c = rattle();
+    c.current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["map", "--config", "configs/r_lambda.toml", "--eta", "1.3"])
+        .args(cheap)
+        .args(["--backend", "cpu", "--out"])
+        .arg(&out);
+    ok(&mut c);
+}
+
+#[test]
+fn compare_checks_the_grid_only_and_before_computing() {
+    // Issue M4-M6 of the reliability round: --compare refused a config whose [map] differed
+    // only in title or risk, refused a different grid only after the main map was computed,
+    // and was ignored with --shard.
+    let d = scratch("compare_grid");
+    let cheap = [
+        "--set",
+        "map.x_points=4",
+        "--set",
+        "map.y_points=4",
+        "--set",
+        "run.transient_periods=2",
+        "--set",
+        "run.sample_periods=2",
+        "--backend",
+        "cpu",
+    ];
+    // The R = 0.62 config with one [map] line replaced.
+    let other = |from: &str, to: &str| {
+        let p = d.join(format!("o{}.toml", to.len()));
+        let base = std::fs::read_to_string(common::config("eta_lambda_r062.toml")).unwrap();
+        assert!(base.contains(from));
+        std::fs::write(&p, base.replace(from, to)).unwrap();
+        p
+    };
+    // Only the title differs: compared.
+    let titled = other("[map]\n", "[map]\ntitle = \"another title\"\n");
+    let mut c = rattle();
+    c.args(["map", "--config"])
+        .arg(common::config("eta_lambda.toml"))
+        .args(cheap)
+        .arg("--compare")
+        .arg(&titled)
+        .arg("--out")
+        .arg(d.join("t"));
+    ok(&mut c);
+    assert!(d.join("t-compare.png").exists());
+    // Another grid: refused before computing (a 2000 x 2000 main map would take minutes).
+    let coarse = other("x_from = 1.0", "x_from = 1.1");
+    let mut c = rattle();
+    c.args(["map", "--config"])
+        .arg(common::config("eta_lambda.toml"))
+        .args(["--set", "map.x_points=2000", "--set", "map.y_points=2000"])
+        .args(["--backend", "cpu", "--compare"])
+        .arg(&coarse)
+        .arg("--out")
+        .arg(d.join("g"));
+    let t = std::time::Instant::now();
+    refused(&mut c, &["--compare", "map.x_from"]);
+    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+    // With a shard: refused, not ignored.
+    let mut c = rattle();
+    c.args(["map", "--config"])
+        .arg(common::config("eta_lambda.toml"))
+        .args(cheap)
+        .arg("--compare")
+        .arg(&titled)
+        .args(["--shard", "0/2", "--out"])
+        .arg(d.join("s"));
+    refused(&mut c, &["--compare", "--shard"]);
+}

@@ -22,6 +22,26 @@ pub struct MapConfig {
     pub risk: Vec<f64>,
 }
 
+impl MapConfig {
+    /// The first key of the grid (axes, ranges, points) in which `other` differs, or None:
+    /// the title and the risk map's sigmas are not the grid.
+    pub fn grid_difference(&self, other: &MapConfig) -> Option<&'static str> {
+        [
+            ("x", self.x == other.x),
+            ("x_from", self.x_from == other.x_from),
+            ("x_to", self.x_to == other.x_to),
+            ("x_points", self.x_points == other.x_points),
+            ("y", self.y == other.y),
+            ("y_from", self.y_from == other.y_from),
+            ("y_to", self.y_to == other.y_to),
+            ("y_points", self.y_points == other.y_points),
+        ]
+        .into_iter()
+        .find(|(_, same)| !same)
+        .map(|(key, _)| key)
+    }
+}
+
 impl Default for MapConfig {
     fn default() -> Self {
         MapConfig {

@@ -379,6 +379,25 @@ impl MapOptions<'_> {
                 );
             }
         }
+        if let Some(other) = self.compare {
+            // Both maps on one grid, checked before either is computed; a shard holds part of
+            // the grid, so there is nothing to compare it with.
+            if self.shard.is_some() || self.checkpoint.is_some() {
+                return bad(OptionError::Conflict {
+                    option: "compare",
+                    with: &["shard", "checkpoint"],
+                    why: "the comparison needs both whole maps",
+                });
+            }
+            if let Some(key) = cfg.map.grid_difference(&other.map) {
+                return bad(OptionError::Unsuitable {
+                    option: "compare",
+                    why: format!(
+                        "the other config must have the same grid; its `map.{key}` differs"
+                    ),
+                });
+            }
+        }
         if let Some(c) = self.refine_clear {
             if self.refine.is_none() {
                 return bad(OptionError::Needs {
@@ -570,13 +589,7 @@ pub fn run(
         ..MapReport::default()
     };
     if let Some(other) = o.compare {
-        if other.map != cfg.map {
-            return Err(OptionError::Unsuitable {
-                option: "compare",
-                why: "the other config must have the same [map] grid".into(),
-            }
-            .into());
-        }
+        // The grids were checked by `o.check` before computing.
         let (s, _) = compute(engine, other, 0..cells, 1, progress)?;
         let other_fields = Fields::from_cells(&s);
         let (a, b) = (fields.classes(), other_fields.classes());
