@@ -1163,22 +1163,25 @@ fn a_sweep_where_every_point_fails_is_an_error_that_says_so() {
     assert!(!d.join("b.json").exists() && !d.join("b.csv").exists());
 }
 
+/// A map of 4 x 4 cells over 2 + 2 periods: cheap enough to run where only the checks matter.
+const CHEAP_MAP: [&str; 8] = [
+    "--set",
+    "map.x_points=4",
+    "--set",
+    "map.y_points=4",
+    "--set",
+    "run.transient_periods=2",
+    "--set",
+    "run.sample_periods=2",
+];
+
 #[test]
 fn a_value_for_a_parameter_the_command_varies_is_refused() {
     // Issue M2 of the reliability round: the flag's value was dropped without a word (the
     // study or map used its own values; the JSON's config said the flag's).
     let d = scratch("varied_flags");
     let out = d.join("x");
-    let cheap = [
-        "--set",
-        "map.x_points=4",
-        "--set",
-        "map.y_points=4",
-        "--set",
-        "run.transient_periods=2",
-        "--set",
-        "run.sample_periods=2",
-    ];
+    let cheap = CHEAP_MAP;
     let cases: Vec<(Vec<&str>, &[&str])> = vec![
         (
             vec!["map", "--config", "configs/r_lambda.toml", "--R", "0.55"],
@@ -1262,18 +1265,7 @@ fn compare_checks_the_grid_only_and_before_computing() {
     // only in title or risk, refused a different grid only after the main map was computed,
     // and was ignored with --shard.
     let d = scratch("compare_grid");
-    let cheap = [
-        "--set",
-        "map.x_points=4",
-        "--set",
-        "map.y_points=4",
-        "--set",
-        "run.transient_periods=2",
-        "--set",
-        "run.sample_periods=2",
-        "--backend",
-        "cpu",
-    ];
+    let cheap = [CHEAP_MAP.as_slice(), &["--backend", "cpu"]].concat();
     // The R = 0.62 config with one [map] line replaced.
     let other = |from: &str, to: &str| {
         let p = d.join(format!("o{}.toml", to.len()));
@@ -1287,7 +1279,7 @@ fn compare_checks_the_grid_only_and_before_computing() {
     let mut c = rattle();
     c.args(["map", "--config"])
         .arg(common::config("eta_lambda.toml"))
-        .args(cheap)
+        .args(&cheap)
         .arg("--compare")
         .arg(&titled)
         .arg("--out")
@@ -1311,7 +1303,7 @@ fn compare_checks_the_grid_only_and_before_computing() {
     let mut c = rattle();
     c.args(["map", "--config"])
         .arg(common::config("eta_lambda.toml"))
-        .args(cheap)
+        .args(&cheap)
         .arg("--compare")
         .arg(&titled)
         .args(["--shard", "0/2", "--out"])
