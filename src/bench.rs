@@ -73,6 +73,38 @@ pub struct BenchOptions {
     pub output: BenchOutput,
 }
 
+/// Periods per point a bench may ask for: a measurement of more measures nothing more, and
+/// 10^6 periods of one point already take minutes.
+pub const MAX_PERIODS: u32 = 1_000_000;
+
+/// Samples per point the bench keeps: the last two, or the second half with the exponent.
+fn bench_samples(periods: u32, lyapunov: bool) -> u32 {
+    if lyapunov { periods / 2 } else { 2 }
+}
+
+/// The bench's sizes, each refused by its own option: points and periods in range, then the
+/// memory of the points at the samples they keep.
+fn check_sizes(points: usize, periods: u32, lyapunov: bool) -> Result<()> {
+    if points == 0 {
+        return Err(OptionError::Range {
+            option: "points",
+            value: "0".into(),
+            allowed: ">= 1".into(),
+        }
+        .into());
+    }
+    if !(3..=MAX_PERIODS).contains(&periods) {
+        return Err(OptionError::Range {
+            option: "periods",
+            value: periods.to_string(),
+            allowed: format!("3 to {MAX_PERIODS}"),
+        }
+        .into());
+    }
+    crate::memory::check_option("points", points as u64, bench_samples(periods, lyapunov))?;
+    Ok(())
+}
+
 /// The bench sweep: `points` values of eta over the config's sweep range, `periods` periods
 /// each (the last two sampled; the second half with `lyapunov`, where the exponent is
 /// estimated, so that its cost shows).
@@ -82,24 +114,9 @@ fn bench_sweep(
     periods: u32,
     lyapunov: bool,
 ) -> Result<(RunSpec, Vec<f64>)> {
-    if points == 0 {
-        return Err(OptionError::Range {
-            option: "points",
-            value: "0".into(),
-            allowed: ">= 1".into(),
-        }
-        .into());
-    }
-    if periods < 3 {
-        return Err(OptionError::Range {
-            option: "periods",
-            value: periods.to_string(),
-            allowed: ">= 3".into(),
-        }
-        .into());
-    }
+    check_sizes(points, periods, lyapunov)?;
     let mut spec = RunSpec::new(cfg);
-    spec.samples = if lyapunov { periods / 2 } else { 2 };
+    spec.samples = bench_samples(periods, lyapunov);
     spec.transient = periods - spec.samples;
     Ok((spec, cfg.sweep_values_n(points as u32)))
 }
@@ -488,7 +505,7 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
 /// `rattle bench`: the table of every backend and precision (and its JSON), or the ladder.
 pub fn report(cfg: &Config, o: &BenchOptions) -> Result<String> {
     let (points, periods) = (o.points, o.periods);
-    crate::memory::check_option("points", points as u64, periods)?;
+    check_sizes(points, periods, o.lyapunov)?;
     if o.output == BenchOutput::Ladder {
         return self::ladder(cfg, points, periods, o.lyapunov);
     }

@@ -1310,3 +1310,32 @@ fn compare_checks_the_grid_only_and_before_computing() {
         .arg(d.join("s"));
     refused(&mut c, &["--compare", "--shard"]);
 }
+
+#[test]
+fn bench_sizes_are_refused_by_the_option_at_fault() {
+    // Issue M8 of the reliability round: `--points 1 --periods 4294967295` blamed --points and
+    // advised "points <= 0". The bench holds 2 samples per point (half the periods with
+    // --lyapunov), and its periods have an upper bound of their own.
+    for (args, keys) in [
+        (
+            vec!["--points", "1", "--periods", "4294967295"],
+            &["--periods", "1000000"][..],
+        ),
+        (
+            vec!["--points", "1", "--periods", "2"],
+            &["--periods", "3"][..],
+        ),
+        (vec!["--points", "0"], &["--points", ">= 1"][..]),
+    ] {
+        let mut c = rattle();
+        c.current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(["bench", "--config", "configs/fig2.toml", "--backend", "cpu"])
+            .args(&args);
+        refused(&mut c, keys);
+        let mut c = rattle();
+        c.current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(["bench", "--ladder", "--config", "configs/fig2.toml"])
+            .args(&args);
+        refused(&mut c, keys);
+    }
+}
