@@ -304,11 +304,6 @@ impl Common {
     /// swept parameter, an uncertain one), named by `by`: it would be dropped unread. Lambda
     /// sets fs and fk, so it overlaps both.
     pub fn refuse_varied(&self, varied: &[Param], by: &str) -> Result<()> {
-        let overlaps = |a: Param, b: Param| {
-            a == b
-                || (a == Param::Lambda && matches!(b, Param::Fs | Param::Fk))
-                || (b == Param::Lambda && matches!(a, Param::Fs | Param::Fk))
-        };
         let flags = [
             ("--eta", Param::Eta, self.eta),
             ("--R", Param::R, self.restitution),
@@ -316,7 +311,7 @@ impl Common {
         ];
         for &v in varied {
             for (flag, p, value) in flags {
-                if let Some(x) = value.filter(|_| overlaps(p, v)) {
+                if let Some(x) = value.filter(|_| p.overlaps(v)) {
                     anyhow::bail!(
                         "{flag} {x} sets `{}`, which {by} varies ({}): its value would be dropped; \
                          give the range there instead",
@@ -328,7 +323,7 @@ impl Common {
             for set in &self.set {
                 let key = set.split('=').next().unwrap_or("").trim();
                 let key = key.strip_prefix("model.").unwrap_or(key);
-                if key.parse::<Param>().is_ok_and(|p| overlaps(p, v)) {
+                if key.parse::<Param>().is_ok_and(|p| p.overlaps(v)) {
                     anyhow::bail!(
                         "--set {set} sets `{key}`, which {by} varies ({}): its value would be \
                          dropped; give the range there instead",

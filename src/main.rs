@@ -227,6 +227,7 @@ fn run(cli: Cli) -> Result<()> {
                 seed: seed.unwrap_or(s.seed),
             };
             o.check()?;
+            o.check_values(&cfg)?;
             let params: Vec<rattle::model::Param> = o.uncertain.iter().map(|u| u.param).collect();
             common.refuse_varied(&params, "--uncertain")?;
             rattle::memory::check_option("samples", rattle::sensitivity::points(&o) as u64, 1)?;

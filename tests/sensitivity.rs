@@ -361,19 +361,25 @@ fn the_command_writes_its_set_and_refuses_bad_uncertainties() {
         ),
         (&[][..], "--uncertain"),
     ] {
-        let o = rattle()
-            .args(["sensitivity", "--backend", "cpu", "--config"])
-            .arg(common::config("fig2.toml"))
-            .args(args)
-            .arg("--out")
-            .arg(d.join("bad"))
-            .output()
-            .unwrap();
-        let e = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
-        assert!(e.contains(key), "{args:?}: {e}");
-        assert!(!d.join("bad.json").exists());
+        refused(&d, args, &[key]);
     }
+}
+
+/// `rattle sensitivity` at Fig. 2 with `args`: refused before computing (exit 2, every one of
+/// `keys` in the message, no output set).
+fn refused(d: &std::path::Path, args: &[&str], keys: &[&str]) {
+    let o = rattle()
+        .args(["sensitivity", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args(args)
+        .arg("--out")
+        .arg(d.join("bad"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+    assert!(keys.iter().all(|k| e.contains(k)), "{args:?}: {e}");
+    assert!(!d.join("bad.json").exists(), "{args:?}");
 }
 
 #[test]
@@ -425,4 +431,38 @@ fn a_map_with_risk_writes_its_layer_and_warns_below_the_grid_spacing() {
     let o = map("bad", "0.05,-1");
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("map.risk"));
+}
+
+#[test]
+fn uncertain_values_pass_the_checks_of_a_config() {
+    // Issue M1 of the reliability round: the nominal value and the draws (out to 6 standard
+    // deviations, or the uniform range) must be values a config would accept; each of these
+    // exited 0 with a full output set.
+    let d = scratch("uncertain_checks");
+    let cases: [(&[&str], &str); 7] = [
+        (&["--uncertain", "eta=0+-0.1"], "eta"),
+        (&["--uncertain", "mu=0+-0.1"], "mu"),
+        (&["--uncertain", "r=0+-0.1"], "r"),
+        (&["--uncertain", "lambda=1e308+-1e308"], "lambda"),
+        (
+            &["--uncertain", "lambda=1e300+-1e299", "--precision", "f32"],
+            "f32",
+        ),
+        (
+            &["--uncertain", "r=1e-12+-1e-13", "--precision", "f32"],
+            "f32",
+        ),
+        (
+            &[
+                "--uncertain",
+                "r=0.3+-0.01",
+                "--set",
+                "initial.y=[0,0,0.35,0]",
+            ],
+            "initial.y",
+        ),
+    ];
+    for (args, key) in cases {
+        refused(&d, args, &["--uncertain", key]);
+    }
 }

@@ -188,20 +188,8 @@ impl Config {
             ("map.y_from", m.y, m.y_from),
             ("map.y_to", m.y, m.y_to),
         ] {
-            let mut p = self.params();
-            name.set(&mut p, v);
-            p.validate()
-                .map_err(|e| ConfigError::range(key, v, &format!("{} for `{name}`", e.range)))?;
-            if name == Param::Clearance {
-                self.check_clearance(key, v)?;
-            }
+            self.check_value(key, name, v)?;
         }
-        self.check_precision([
-            ("map.x_from", m.x_from),
-            ("map.x_to", m.x_to),
-            ("map.y_from", m.y_from),
-            ("map.y_to", m.y_to),
-        ])?;
         for (key, from, to) in [
             ("map.x_to", m.x_from, m.x_to),
             ("map.y_to", m.y_from, m.y_to),
@@ -216,6 +204,21 @@ impl Config {
             }
         }
         Ok(())
+    }
+
+    /// Refuses a value `v` of `name` (given at `key`: a map's range end, an uncertain
+    /// parameter's draw) that this config would not accept as its own: outside the
+    /// parameter's range, a clearance the initial state lies outside of or f32 cannot
+    /// resolve, a magnitude the precision cannot hold.
+    pub fn check_value(&self, key: &str, name: Param, v: f64) -> Result<(), ConfigError> {
+        let mut p = self.params();
+        name.set(&mut p, v);
+        p.validate()
+            .map_err(|e| ConfigError::range(key, v, &format!("{} for `{name}`", e.range)))?;
+        if name == Param::Clearance {
+            self.check_clearance(key, v)?;
+        }
+        self.check_precision([(key, v)])
     }
 
     /// Parameter values of map cell (ix, iy): grid points at cell centres.

@@ -121,6 +121,18 @@ impl Uncertain {
         }
     }
 
+    /// The values the draws span: the nominal and the extremes (6 standard deviations either
+    /// side, which no draw of 65536 passes, cut at the parameter's bounds; or the range).
+    pub fn span(&self) -> [f64; 3] {
+        let (lo, hi) = bounds(self.param);
+        match self.dist {
+            Dist::Normal { mean, sd } => {
+                [mean, (mean - 6.0 * sd).max(lo), (mean + 6.0 * sd).min(hi)]
+            }
+            Dist::Uniform { lo, hi } => [0.5 * (lo + hi), lo, hi],
+        }
+    }
+
     /// The scale distances are reported in: the standard deviation, or half the range.
     pub fn scale(&self) -> f64 {
         match self.dist {
@@ -156,6 +168,26 @@ pub struct Options {
 
 impl Options {
     /// Refuses what cannot run, before anything is computed.
+    /// Refuses uncertain parameters whose nominal value or draws `cfg` would not accept as
+    /// its own values ([`Config::check_value`]), before anything runs.
+    pub fn check_values(&self, cfg: &Config) -> Result<()> {
+        for u in &self.uncertain {
+            for v in u.span() {
+                if let Err(crate::config::ConfigError::Range { key, value, range }) =
+                    cfg.check_value(u.param.name(), u.param, v)
+                {
+                    return Err(OptionError::Range {
+                        option: "uncertain",
+                        value: format!("{} (its draws reach `{key}` = {value})", u.param.name()),
+                        allowed: format!("draws a config accepts: {range}"),
+                    }
+                    .into());
+                }
+            }
+        }
+        Ok(())
+    }
+
     pub fn check(&self) -> Result<()> {
         let d = self.uncertain.len();
         if !(1..=MAX_UNCERTAIN).contains(&d) {
