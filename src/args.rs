@@ -76,14 +76,14 @@ pub enum Cmd {
         /// Standard deviations SX,SY (the axes' units) of the risk map: PREFIX-risk.png and
         /// .npy, the probability that a Gaussian perturbation lands on another class (sets
         /// map.risk).
-        #[arg(long, value_name = "SX,SY")]
+        #[arg(long, value_name = "SX,SY", allow_hyphen_values = true)]
         risk: Option<String>,
         /// Compute only the contiguous share I of N (0-based) and write PREFIX.part-I-of-N.json.
-        #[arg(long, value_name = "I/N", value_parser = map::parse_shard)]
+        #[arg(long, value_name = "I/N", value_parser = map::parse_shard, allow_hyphen_values = true)]
         shard: Option<(usize, usize)>,
         /// Run in K shards, keeping each finished one on disk: an interrupted run started again
         /// with the same arguments resumes from the completed shards.
-        #[arg(long, value_name = "K")]
+        #[arg(long, value_name = "K", allow_negative_numbers = true)]
         checkpoint: Option<usize>,
         /// Also compute the map of OTHER.toml (same grid) and render where the class differs.
         #[arg(long, value_name = "OTHER.toml")]
@@ -93,11 +93,12 @@ pub enum Cmd {
         adapters: Adapters,
         /// K initial states per cell; cells whose starts end on different attractors are
         /// marked "coexisting attractors".
-        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64),
+              allow_negative_numbers = true)]
         starts: u32,
         /// Coarse-to-fine: compute every K-th cell, refine only blocks whose corners differ in
         /// class, fill uniform blocks (flagged in PREFIX-inferred.npy).
-        #[arg(long, value_name = "K")]
+        #[arg(long, value_name = "K", allow_negative_numbers = true)]
         refine: Option<usize>,
         /// With --refine: a chaotic corner lets its block be filled only where its exponent
         /// exceeds X times run.lyapunov_tol (default 3; lower is faster and misses more
@@ -125,10 +126,10 @@ pub enum Cmd {
         #[arg(long, value_name = "NAME=MEAN+-SD")]
         uncertain: Vec<String>,
         /// Draws per matrix of the Saltelli design, 16 to 65536 (overrides sensitivity.samples).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         samples: Option<u32>,
         /// Seed of the Sobol sequence's scrambling (overrides sensitivity.seed).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         seed: Option<u32>,
         /// Output prefix: PREFIX.json, PREFIX.csv, PREFIX.png, PREFIX.svg.
         #[arg(long, default_value = "sensitivity")]

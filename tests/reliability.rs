@@ -1339,3 +1339,33 @@ fn bench_sizes_are_refused_by_the_option_at_fault() {
         refused(&mut c, keys);
     }
 }
+
+#[test]
+fn negative_values_are_read_as_values_and_refused_by_their_option() {
+    // Issue L1 of the reliability round: `--risk -0.01,0.005` gave "unexpected argument '-0'"
+    // (the value read as a flag) and named no option; likewise the other numeric options.
+    let d = scratch("negative_values");
+    let map = |opt: &str, v: &str, keys: &[&str]| {
+        let mut c = rattle();
+        c.args(["map", "--config"])
+            .arg(common::config("r_lambda.toml"))
+            .args(CHEAP_MAP)
+            .args(["--backend", "cpu", opt, v, "--out"])
+            .arg(d.join("m"));
+        refused(&mut c, keys);
+    };
+    map("--risk", "-0.01,0.005", &["risk", "> 0"]);
+    map("--refine", "-1", &["--refine", "-1"]);
+    map("--starts", "-1", &["--starts", "-1"]);
+    map("--shard", "-1/2", &["--shard", "-1/2"]);
+    map("--checkpoint", "-2", &["--checkpoint", "-2"]);
+    for opt in ["--samples", "--seed"] {
+        let mut c = rattle();
+        c.args(["sensitivity", "--config"])
+            .arg(common::config("fig2.toml"))
+            .args(["--uncertain", "R=0.6+-0.02", opt, "-1", "--out"])
+            .arg(d.join("s"));
+        refused(&mut c, &[opt, "-1"]);
+    }
+    assert!(std::fs::read_dir(&d).unwrap().next().is_none());
+}
