@@ -270,6 +270,23 @@ impl Common {
             ("--precision", "method.precision", self.precision.is_some()),
             ("--backend", "method.backend", self.backend.is_some()),
         ];
+        // The same key twice: the last would win silently. Bare keys are the model's.
+        let full_key = |set: &str| {
+            let key = set.split('=').next().unwrap_or("").trim().to_string();
+            if key.contains('.') {
+                key
+            } else {
+                format!("model.{key}")
+            }
+        };
+        for (i, a) in self.set.iter().enumerate() {
+            if let Some(b) = self.set[..i].iter().find(|b| full_key(b) == full_key(a)) {
+                anyhow::bail!(
+                    "--set {b} and --set {a} both set `{}`: give one of them",
+                    full_key(a)
+                );
+            }
+        }
         for set in &self.set {
             let key = set.split('=').next().unwrap_or("").trim();
             for (flag, full, given) in flags {

@@ -1369,3 +1369,19 @@ fn negative_values_are_read_as_values_and_refused_by_their_option() {
     }
     assert!(std::fs::read_dir(&d).unwrap().next().is_none());
 }
+
+#[test]
+fn a_key_set_twice_is_refused() {
+    // Issue L5 of the reliability round: the last --set of a key won silently.
+    for sets in [
+        ["model.eta=1.3", "eta=1.4"],
+        ["R=0.5", "R=0.6"],
+        ["run.sample_periods=10", "run.sample_periods=20"],
+    ] {
+        let mut c = rattle();
+        c.args(["point", "--backend", "cpu", "--config"])
+            .arg(common::config("fig2.toml"))
+            .args(["--set", sets[0], "--set", sets[1]]);
+        refused(&mut c, &["--set", sets[0], sets[1]]);
+    }
+}
