@@ -227,6 +227,7 @@ fn run(cli: Cli) -> Result<()> {
                 seed: seed.unwrap_or(s.seed),
             };
             o.check()?;
+            cfg.check_tangent("`sensitivity`")?;
             o.check_values(&cfg)?;
             let params: Vec<rattle::model::Param> = o.uncertain.iter().map(|u| u.param).collect();
             common.refuse_varied(&params, "--uncertain")?;

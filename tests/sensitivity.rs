@@ -466,3 +466,19 @@ fn uncertain_values_pass_the_checks_of_a_config() {
         refused(&d, args, &["--uncertain", key]);
     }
 }
+
+#[test]
+fn the_spectrum_is_refused_as_maps_and_sweeps_refuse_it() {
+    // Issue L6 of the reliability round: sensitivity accepted run.tangent = "spectrum".
+    let d = scratch("spectrum");
+    refused(
+        &d,
+        &[
+            "--uncertain",
+            "R=0.6+-0.02",
+            "--set",
+            "run.tangent=\"spectrum\"",
+        ],
+        &["run.tangent", "spectrum"],
+    );
+}
