@@ -152,8 +152,9 @@ pub enum Cmd {
         /// copies of configs/).
         #[arg(long)]
         configs: Option<PathBuf>,
-        /// Parameter points per panel (overrides sweep.points), 1 to 10000000.
-        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=10_000_000))]
+        /// Parameter points per panel (overrides sweep.points), 2 to 10000000 (a diagram over
+        /// eta needs two values at least).
+        #[arg(long, value_parser = clap::value_parser!(u32).range(2..=10_000_000))]
         points: Option<u32>,
         /// The PNG file (its name must end in .png).
         #[arg(long, default_value = "paper.png")]

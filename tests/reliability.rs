@@ -1385,3 +1385,17 @@ fn a_key_set_twice_is_refused() {
         refused(&mut c, &["--set", sets[0], sets[1]]);
     }
 }
+
+#[test]
+fn a_paper_figure_of_one_value_is_refused_before_computing() {
+    // Issue L9 of the reliability round: `figure paper --points 1` computed the four panels and
+    // then failed with an internal plot message; a diagram over eta needs two values at least.
+    let d = scratch("paper_one");
+    let mut c = rattle();
+    c.args(["figure", "paper", "--points", "1", "--out"])
+        .arg(d.join("p.png"));
+    let t = std::time::Instant::now();
+    refused(&mut c, &["--points", "2..=10000000"]);
+    assert!(t.elapsed().as_secs_f64() < 2.0);
+    assert!(std::fs::read_dir(&d).unwrap().next().is_none());
+}
