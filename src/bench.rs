@@ -505,6 +505,8 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
 /// `rattle bench`: the table of every backend and precision (and its JSON), or the ladder.
 pub fn report(cfg: &Config, o: &BenchOptions) -> Result<String> {
     let (points, periods) = (o.points, o.periods);
+    // Before the ladder opens an adapter, so that a bad size is named as such on any machine
+    // (the sweep checks again for the library's callers).
     check_sizes(points, periods, o.lyapunov)?;
     if o.output == BenchOutput::Ladder {
         return self::ladder(cfg, points, periods, o.lyapunov);

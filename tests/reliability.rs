@@ -1274,41 +1274,44 @@ fn compare_checks_the_grid_only_and_before_computing() {
         std::fs::write(&p, base.replace(from, to)).unwrap();
         p
     };
+    // `map` of eta_lambda.toml with `args`, compared with `other`, written to `out`.
+    let compare = |args: &[&str], other: &Path, out: &str| {
+        let mut c = rattle();
+        c.args(["map", "--config"])
+            .arg(common::config("eta_lambda.toml"))
+            .args(args)
+            .arg("--compare")
+            .arg(other)
+            .arg("--out")
+            .arg(d.join(out));
+        c
+    };
     // Only the title differs: compared.
     let titled = other("[map]\n", "[map]\ntitle = \"another title\"\n");
-    let mut c = rattle();
-    c.args(["map", "--config"])
-        .arg(common::config("eta_lambda.toml"))
-        .args(&cheap)
-        .arg("--compare")
-        .arg(&titled)
-        .arg("--out")
-        .arg(d.join("t"));
-    ok(&mut c);
+    ok(&mut compare(&cheap, &titled, "t"));
     assert!(d.join("t-compare.png").exists());
     // Another grid: refused before computing (a 2000 x 2000 main map would take minutes).
     let coarse = other("x_from = 1.0", "x_from = 1.1");
-    let mut c = rattle();
-    c.args(["map", "--config"])
-        .arg(common::config("eta_lambda.toml"))
-        .args(["--set", "map.x_points=2000", "--set", "map.y_points=2000"])
-        .args(["--backend", "cpu", "--compare"])
-        .arg(&coarse)
-        .arg("--out")
-        .arg(d.join("g"));
+    let big = [
+        "--set",
+        "map.x_points=2000",
+        "--set",
+        "map.y_points=2000",
+        "--backend",
+        "cpu",
+    ];
     let t = std::time::Instant::now();
-    refused(&mut c, &["--compare", "map.x_from"]);
+    refused(
+        &mut compare(&big, &coarse, "g"),
+        &["--compare", "map.x_from"],
+    );
     assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
     // With a shard: refused, not ignored.
-    let mut c = rattle();
-    c.args(["map", "--config"])
-        .arg(common::config("eta_lambda.toml"))
-        .args(&cheap)
-        .arg("--compare")
-        .arg(&titled)
-        .args(["--shard", "0/2", "--out"])
-        .arg(d.join("s"));
-    refused(&mut c, &["--compare", "--shard"]);
+    let sharded = [cheap.as_slice(), &["--shard", "0/2"]].concat();
+    refused(
+        &mut compare(&sharded, &titled, "s"),
+        &["--compare", "--shard"],
+    );
 }
 
 #[test]
