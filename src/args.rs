@@ -263,6 +263,21 @@ impl Common {
 
     /// The configuration of `path` with this command line's overrides, validated.
     pub fn load_from(&self, path: &Path) -> Result<Config> {
+        self.load_as(path, self.precision, self.backend)
+    }
+
+    /// The configuration for `point --plot`, which integrates in CPU f64 whatever is named:
+    /// validated as f64, so a value only f32 cannot hold is not refused.
+    pub fn load_plot(&self) -> Result<Config> {
+        self.load_as(&self.config, Some(Precision::F64), Some(Backend::Cpu))
+    }
+
+    fn load_as(
+        &self,
+        path: &Path,
+        precision: Option<Precision>,
+        backend: Option<Backend>,
+    ) -> Result<Config> {
         // A flag and a `--set` of the same key: one would be dropped unread (and unchecked).
         let flags = [
             ("--eta", "model.eta", self.eta.is_some()),
@@ -301,8 +316,8 @@ impl Common {
             eta: self.eta,
             restitution: self.restitution,
             lambda: self.lambda,
-            precision: self.precision,
-            backend: self.backend,
+            precision,
+            backend,
         };
         let cfg = Config::load_with(path, &self.set, &o)?;
         for n in cfg.notes() {

@@ -129,7 +129,7 @@ fn run(cli: Cli) -> Result<()> {
             ..
         } => {
             use rattle::point::plot::{PlotOptions, compute, write_outputs};
-            let cfg = common.load_from(&common.config)?;
+            let cfg = common.load_plot()?;
             check_prefix(&out, &["png", "svg", "json"])?;
             let o = PlotOptions {
                 periods,

@@ -291,3 +291,22 @@ fn bad_plot_options_fail_cleanly_without_output() {
         .unwrap();
     assert!(!out.status.success());
 }
+
+/// `--plot` integrates in CPU f64 whatever the configuration names, so an initial state that
+/// only f32 cannot hold (1e-40 is below f32's normal range) is drawn, not refused.
+#[test]
+fn plot_takes_what_f64_holds_under_an_f32_config() {
+    let dir = scratch("plot-f64-state");
+    let j = plot(&dir, "1.5", &["initial.y=[1e-40,0,1e-40,0]"], 4);
+    assert_eq!(j["precision"], "f64", "{j}");
+    assert_eq!(j["backend"], "cpu", "{j}");
+    // The plain point still refuses it in f32: the refusal is right where f32 integrates.
+    let out = rattle()
+        .args(["point", "--config"])
+        .arg(config("fig2.toml"))
+        .args(["--set", "initial.y=[1e-40,0,1e-40,0]", "--precision", "f32"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("initial.y[0]"));
+}
