@@ -1,7 +1,7 @@
 //! rattle command line: parses arguments, opens the backend, shows progress and prints what
 //! was written; every computation and output file is the library's.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rattle::bench;
@@ -183,7 +183,12 @@ fn run(cli: Cli) -> Result<()> {
                 eta: None,
                 ..common.clone()
             };
-            let other = compare.map(|p| c.load_map(&p)).transpose()?;
+            let other = compare
+                .map(|p| {
+                    c.load_map(&p)
+                        .with_context(|| format!("--compare {}", p.display()))
+                })
+                .transpose()?;
             let opts = MapOptions {
                 starts: starts as usize,
                 shard,

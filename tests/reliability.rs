@@ -1402,3 +1402,55 @@ fn a_paper_figure_of_one_value_is_refused_before_computing() {
     assert!(t.elapsed().as_secs_f64() < 2.0);
     assert!(std::fs::read_dir(&d).unwrap().next().is_none());
 }
+
+#[test]
+fn errors_in_secondary_configs_name_the_file_before_computing() {
+    // Issue L7 of the reliability round: a bad `--compare` config or a bad file of
+    // `figure paper --configs` was reported without its file name (and the paper figure
+    // computed the panels before it).
+    let d = scratch("secondary_configs");
+    let bad = d.join("bad.toml");
+    let base = std::fs::read_to_string(common::config("r_lambda.toml")).unwrap();
+    assert!(base.contains("\neta = 1.26"));
+    std::fs::write(&bad, base.replacen("\neta = 1.26", "\neta = -1", 1)).unwrap();
+    let mut c = rattle();
+    c.args(["map", "--config"])
+        .arg(common::config("r_lambda.toml"))
+        .args(CHEAP_MAP)
+        .args(["--backend", "cpu", "--compare"])
+        .arg(&bad)
+        .arg("--out")
+        .arg(d.join("m"));
+    refused(&mut c, &["--compare", "bad.toml", "model.eta"]);
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1);
+    // The paper figure's four files: the last one bad, refused before the first is computed.
+    let dir = d.join("configs");
+    std::fs::create_dir(&dir).unwrap();
+    for name in ["fig2", "fig3", "fig4a", "fig4b"] {
+        let text = std::fs::read_to_string(common::config(&format!("{name}.toml"))).unwrap();
+        let text = if name == "fig4b" {
+            assert!(text.contains("\nR = 0.62"));
+            text.replacen("\nR = 0.62", "\nR = 5", 1)
+        } else {
+            text
+        };
+        std::fs::write(dir.join(format!("{name}.toml")), text).unwrap();
+    }
+    let t = std::time::Instant::now();
+    let mut c = rattle();
+    c.args([
+        "figure",
+        "paper",
+        "--backend",
+        "cpu",
+        "--points",
+        "3000",
+        "--configs",
+    ])
+    .arg(&dir)
+    .arg("--out")
+    .arg(d.join("p.png"));
+    refused(&mut c, &["fig4b.toml", "model.R"]);
+    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+    assert!(!d.join("p.png").exists());
+}

@@ -77,14 +77,24 @@ pub fn paper_figure(
     out: &Path,
     progress: &dyn Progress,
 ) -> Result<Vec<PathBuf>> {
-    let mut data = Vec::new();
+    // All four read and checked before the first is computed, each error naming its file.
+    let mut cfgs = Vec::new();
     for (name, text) in PAPER_CONFIGS {
-        let mut cfg = match dir {
-            Some(d) => Config::read(&d.join(format!("{name}.toml")), &[])?,
-            None => Config::parse(text, &[])?,
+        let (file, cfg) = match dir {
+            Some(d) => {
+                let file = d.join(format!("{name}.toml"));
+                (file.display().to_string(), Config::read(&file, &[]))
+            }
+            None => (format!("{name}.toml (built in)"), Config::parse(text, &[])),
         };
-        adjust(&mut cfg);
-        cfg.validate()?;
+        let cfg = cfg.and_then(|mut cfg| {
+            adjust(&mut cfg);
+            cfg.validate().map(|()| cfg)
+        });
+        cfgs.push((name, cfg.map_err(|e| e.in_file(&file))?));
+    }
+    let mut data = Vec::new();
+    for (name, cfg) in cfgs {
         let engine = Engine::open(cfg.method.backend)?;
         let b = run(&engine, &cfg, None, &Silent)?;
         progress.advance(cfg.sweep.points as u64);

@@ -28,9 +28,26 @@ pub enum ConfigError {
         value: String,
         range: String,
     },
+    /// An error of a configuration other than the command's `--config`, with its file.
+    #[error("{path}: {error}")]
+    In {
+        path: String,
+        error: Box<ConfigError>,
+    },
 }
 
 impl ConfigError {
+    /// This error, naming the file it is in.
+    pub fn in_file(self, path: &str) -> Self {
+        if let ConfigError::Read { .. } = self {
+            return self; // names its file already
+        }
+        ConfigError::In {
+            path: path.into(),
+            error: Box::new(self),
+        }
+    }
+
     fn range(key: &str, value: impl std::fmt::Display, range: &str) -> Self {
         // Rust writes 1e308 with all its 309 digits: long numbers read better in exponent form.
         let value = value.to_string();
