@@ -1454,3 +1454,70 @@ fn errors_in_secondary_configs_name_the_file_before_computing() {
     assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
     assert!(!d.join("p.png").exists());
 }
+
+#[test]
+fn forged_parts_are_refused_and_the_parts_version_is_kept() {
+    // Issue L2 of the reliability round: parts whose config was edited to an impossible one
+    // (R = 5) or relabelled (8 x 8 cells as 4 x 16) merged, and parts of 0.1.0 gave a merged
+    // JSON that said the merging binary's version.
+    let d = scratch("forged_parts");
+    let cfg = common::config("r_lambda.toml");
+    let parts: Vec<PathBuf> = (0..2)
+        .map(|i| {
+            let mut c = rattle();
+            c.args(["map", "--backend", "cpu", "--config"])
+                .arg(&cfg)
+                .args(CHEAP_MAP)
+                .args(["--shard", &format!("{i}/2"), "--out"])
+                .arg(d.join("m"));
+            ok(&mut c);
+            d.join(format!("m.part-{i}-of-2.json"))
+        })
+        .collect();
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let originals: Vec<serde_json::Value> = parts.iter().map(|p| read(p)).collect();
+    let write = |edit: &dyn Fn(&mut serde_json::Value)| {
+        for (p, o) in parts.iter().zip(&originals) {
+            let mut j = o.clone();
+            edit(&mut j);
+            std::fs::write(p, serde_json::to_string(&j).unwrap()).unwrap();
+        }
+    };
+    // The same edits resealed by the library, as a part that says what it holds would be.
+    let reseal = |edit: &dyn Fn(&mut serde_json::Value)| {
+        for (p, o) in parts.iter().zip(&originals) {
+            let mut j = o.clone();
+            edit(&mut j);
+            let part: rattle::map::Part = serde_json::from_value(j).unwrap();
+            rattle::map::write_part(p, &part).unwrap();
+        }
+    };
+    let merged = d.join("merged");
+    let refused_merge = |keys: &[&str]| {
+        let mut c = rattle();
+        c.arg("merge").args(&parts).arg("--out").arg(&merged);
+        refused(&mut c, keys);
+        assert!(!d.join("merged.json").exists());
+    };
+    let impossible = |j: &mut serde_json::Value| j["config"]["model"]["R"] = 5.0.into();
+    let relabelled = |j: &mut serde_json::Value| {
+        j["config"]["map"]["x_points"] = 2.into();
+        j["config"]["map"]["y_points"] = 8.into();
+    };
+    write(&impossible);
+    refused_merge(&["m.part-0-of-2.json", "model.R"]);
+    reseal(&impossible);
+    refused_merge(&["m.part-0-of-2.json", "model.R"]);
+    write(&relabelled);
+    refused_merge(&["m.part-0-of-2.json", "checksum"]);
+    // Resealed parts of another version merge, and the map says which version computed it.
+    reseal(&|j| j["version"] = "0.1.0".into());
+    let mut c = rattle();
+    c.arg("merge").args(&parts).arg("--out").arg(&merged);
+    ok(&mut c);
+    let j = common::json(&d.join("merged.json"));
+    assert_eq!(j["version"], "0.1.0", "{j}");
+    assert_eq!(j["merged_by"], env!("CARGO_PKG_VERSION"), "{j}");
+}

@@ -109,6 +109,13 @@ pub fn model_title(cfg: &Config, except: &[&str]) -> String {
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct MapReport {
     pub command: &'static str,
+    /// The version that computed the cells, where not this one (merged parts); the JSON's
+    /// `version`.
+    #[serde(skip)]
+    pub version: Option<String>,
+    /// The version that merged the parts.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub merged_by: Option<&'static str>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub backend: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -179,7 +186,7 @@ struct MapJson<'a> {
     /// The same for PREFIX-lyapunov.png and PREFIX-multiplier.png (null where not drawn).
     caption_lyapunov: Option<String>,
     caption_multiplier: Option<String>,
-    version: &'static str,
+    version: &'a str,
     config: &'a Config,
     class_counts: BTreeMap<String, usize>,
     /// Cells per rule that decided them (docs/classes.md).
@@ -644,7 +651,10 @@ pub fn write_outputs(
         caption_lyapunov: lyapunov_caption(cfg, lyap_raw, lim),
         caption_multiplier: multiplier_caption(cfg, &mult),
         report,
-        version: env!("CARGO_PKG_VERSION"),
+        version: report
+            .version
+            .as_deref()
+            .unwrap_or(env!("CARGO_PKG_VERSION")),
         config: cfg,
         class_counts: fields.counts(),
         rule_counts: fields.rule_counts(),

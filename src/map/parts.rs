@@ -35,6 +35,31 @@ pub struct Part {
     /// The file it was read from (for messages).
     #[serde(skip)]
     pub source: Option<PathBuf>,
+    /// CRC-32 of the part as written ([`Part::checksum`]); read, never written from here
+    /// ([`write_part`] adds it).
+    #[serde(default, skip_serializing)]
+    pub checksum: Option<String>,
+}
+
+/// A part as written to disk: its contents and their checksum.
+#[derive(Serialize)]
+struct Sealed<'a> {
+    #[serde(flatten)]
+    part: &'a Part,
+    checksum: String,
+}
+
+/// A writer that only feeds a CRC-32.
+struct Crc(crc32fast::Hasher);
+
+impl std::io::Write for Crc {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.0.update(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
 }
 
 impl Part {
@@ -73,9 +98,22 @@ impl Part {
         }
     }
 
-    /// Checks that the contents are possible: array lengths, class codes, failure flags,
-    /// attractor counts, the cell range of the shard.
+    /// CRC-32 of the part's JSON without its checksum, in hex. A part whose stored checksum
+    /// differs was changed after rattle wrote it (a config edited by hand, a grid relabelled):
+    /// its numbers may not be what its config says.
+    pub fn checksum(&self) -> String {
+        let mut crc = Crc(crc32fast::Hasher::new());
+        serde_json::to_writer(&mut crc, self).expect("a part serialises");
+        format!("{:08x}", crc.0.finalize())
+    }
+
+    /// Checks that the contents are possible: a config rattle accepts, array lengths, class
+    /// codes, failure flags, attractor counts, the cell range of the shard.
     pub fn check(&self) -> Result<(), PartError> {
+        self.config
+            .validate()
+            .and_then(|()| self.config.validate_map())
+            .map_err(|e| PartError(e.to_string()))?;
         let f = &self.fields;
         let (i, n) = self.shard;
         let cells = cell_count(&self.config);
@@ -185,6 +223,7 @@ pub fn compute_part(
         timings,
         fields: Fields::from_cells(&cells),
         source: None,
+        checksum: None,
     })
 }
 
@@ -219,6 +258,7 @@ fn refined_part(
             ..Fields::from_cells(&r.cells)
         },
         source: None,
+        checksum: None,
     })
 }
 
@@ -236,7 +276,11 @@ pub fn write_part(path: &Path, part: &Part) -> Result<(), MapError> {
     };
     let f = std::fs::File::create(st.path(path)).map_err(io)?;
     let mut w = std::io::BufWriter::new(f);
-    serde_json::to_writer(&mut w, part)?;
+    let sealed = Sealed {
+        part,
+        checksum: part.checksum(),
+    };
+    serde_json::to_writer(&mut w, &sealed)?;
     std::io::Write::flush(&mut w).map_err(io)?;
     drop(w);
     st.commit()?;
@@ -251,6 +295,17 @@ pub fn read_part(path: &Path) -> Result<Part, MapError> {
     let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
     let mut part: Part = serde_json::from_str(&text).map_err(|e| err(e.to_string()))?;
     part.check().map_err(|e| err(e.to_string()))?;
+    match &part.checksum {
+        None => return Err(err("no checksum: not a part rattle wrote".into())),
+        Some(c) if *c != part.checksum() => {
+            return Err(err(format!(
+                "checksum {c} does not match its contents ({}): the file was changed after \
+                 rattle wrote it",
+                part.checksum()
+            )));
+        }
+        Some(_) => {}
+    }
     part.source = Some(path.to_path_buf());
     Ok(part)
 }
@@ -708,6 +763,8 @@ pub fn merge_files(paths: &[PathBuf], out: &Path) -> Result<MapSummary, MapError
     let (cfg, fields, parts) = merge(parts)?;
     let report = MapReport {
         command: "map (merged)",
+        version: Some(parts[0].version.clone()),
+        merged_by: Some(env!("CARGO_PKG_VERSION")),
         shards: Some(parts.len()),
         devices: Some(parts.iter().map(|p| p.device.clone()).collect()),
         timings: MapTimings {
