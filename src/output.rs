@@ -314,6 +314,19 @@ impl Drop for DirLock {
     }
 }
 
+/// Reads an input file as text, refusing what is not a regular file (a FIFO nobody writes
+/// would block forever; a directory or a device is no config or part either).
+pub fn read_input(path: &Path) -> std::io::Result<String> {
+    let kind = std::fs::metadata(path)?.file_type();
+    if !kind.is_file() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file",
+        ));
+    }
+    std::fs::read_to_string(path)
+}
+
 /// `PREFIX.ext` for an output prefix.
 pub fn with_ext(prefix: &Path, ext: &str) -> PathBuf {
     let mut s = prefix.as_os_str().to_owned();

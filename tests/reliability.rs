@@ -1521,3 +1521,90 @@ fn forged_parts_are_refused_and_the_parts_version_is_kept() {
     assert_eq!(j["version"], "0.1.0", "{j}");
     assert_eq!(j["merged_by"], env!("CARGO_PKG_VERSION"), "{j}");
 }
+
+/// Runs `cmd` and kills it if it has not ended within `secs`; the output, or None if killed.
+fn within(cmd: &mut std::process::Command, secs: f64) -> Option<std::process::Output> {
+    use std::process::Stdio;
+    let mut child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t = std::time::Instant::now();
+    while t.elapsed().as_secs_f64() < secs {
+        if child.try_wait().unwrap().is_some() {
+            return Some(child.wait_with_output().unwrap());
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    None
+}
+
+#[test]
+fn a_fifo_is_refused_as_a_config_and_replaced_as_a_checkpoint_part() {
+    // Issue L3 of the reliability round: a FIFO as --config, or in the place of a checkpoint
+    // part, blocked forever (nobody writes to it).
+    let d = scratch("fifo");
+    let fifo = |name: &str| {
+        let p = d.join(name);
+        let st = std::process::Command::new("mkfifo")
+            .arg(&p)
+            .status()
+            .unwrap();
+        assert!(st.success());
+        p
+    };
+    let c = fifo("c.toml");
+    let mut cmd = rattle();
+    cmd.args(["point", "--backend", "cpu", "--config"]).arg(&c);
+    let o = within(&mut cmd, 20.0).expect("point --config FIFO blocked");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("c.toml") && stderr(&o).contains("regular file"));
+    // --compare reads its config the same way.
+    let mut cmd = rattle();
+    cmd.args(["map", "--backend", "cpu", "--config"])
+        .arg(common::config("r_lambda.toml"))
+        .args(CHEAP_MAP)
+        .arg("--compare")
+        .arg(&c)
+        .arg("--out")
+        .arg(d.join("x"));
+    let o = within(&mut cmd, 20.0).expect("map --compare FIFO blocked");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("regular file"), "{}", stderr(&o));
+    // A checkpoint whose part 1 is a FIFO: recomputed and replaced, as an unreadable part is.
+    fifo("m.part-1-of-2.json");
+    let mut cmd = rattle();
+    cmd.args(["map", "--backend", "cpu", "--config"])
+        .arg(common::config("r_lambda.toml"))
+        .args(CHEAP_MAP)
+        .args(["--checkpoint", "2", "--out"])
+        .arg(d.join("m"));
+    let o = within(&mut cmd, 60.0).expect("a FIFO checkpoint part blocked");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.join("m.json").is_file());
+    let part = d.join("m.part-1-of-2.json");
+    assert!(std::fs::symlink_metadata(&part).map_or(true, |m| m.is_file()));
+    // merge names it: it is not a part.
+    let mut cmd = rattle();
+    cmd.args(["map", "--backend", "cpu", "--config"])
+        .arg(common::config("r_lambda.toml"))
+        .args(CHEAP_MAP)
+        .args(["--shard", "0/2", "--out"])
+        .arg(d.join("s"));
+    ok(&mut cmd);
+    let part = fifo("s.part-1-of-2.json");
+    let mut cmd = rattle();
+    cmd.arg("merge")
+        .arg(d.join("s.part-0-of-2.json"))
+        .arg(&part)
+        .arg("--out")
+        .arg(d.join("merged"));
+    let o = within(&mut cmd, 20.0).expect("merge of a FIFO blocked");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("s.part-1-of-2.json"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("regular file"), "{}", stderr(&o));
+}

@@ -408,7 +408,7 @@ impl Config {
     /// [`Config::load`] without the validation, for callers that change typed fields first
     /// and validate the result.
     pub fn read(path: &Path, overrides: &[String]) -> Result<Config, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+        let text = crate::output::read_input(path).map_err(|source| ConfigError::Read {
             path: path.display().to_string(),
             source,
         })?;

@@ -292,7 +292,7 @@ pub fn read_part(path: &Path) -> Result<Part, MapError> {
         path: path.display().to_string(),
         message,
     };
-    let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
+    let text = crate::output::read_input(path).map_err(|e| err(e.to_string()))?;
     let mut part: Part = serde_json::from_str(&text).map_err(|e| err(e.to_string()))?;
     part.check().map_err(|e| err(e.to_string()))?;
     match &part.checksum {
