@@ -57,6 +57,46 @@ pub struct Staged {
     files: Vec<(PathBuf, PathBuf)>,
     /// Files of an earlier run that this set does not produce.
     stale: Vec<PathBuf>,
+    /// The set's JSON, which lists the set's files ([`Staged::manifest`]).
+    manifest: Option<PathBuf>,
+    /// Files of this run committed by a set of their own, listed in this one's manifest.
+    listed: Vec<PathBuf>,
+}
+
+/// The part of a set's JSON that lists its files.
+#[derive(serde::Deserialize)]
+struct Manifest {
+    #[serde(default)]
+    files: Vec<String>,
+}
+
+/// The files the JSON at `json` lists as its set's (none if it lists none or is not a set's
+/// JSON), among those that exist as files. Only plain names that begin with the JSON's own stem
+/// (`x.csv`, `x-class.npy` for `x.json`) count: a JSON cannot name files elsewhere.
+fn listed_by(json: &Path) -> Vec<PathBuf> {
+    let is_file = |p: &Path| std::fs::symlink_metadata(p).is_ok_and(|m| m.is_file());
+    if !is_file(json) {
+        return Vec::new();
+    }
+    let Ok(f) = std::fs::File::open(json) else {
+        return Vec::new();
+    };
+    let Ok(m) = serde_json::from_reader::<_, Manifest>(std::io::BufReader::new(f)) else {
+        return Vec::new();
+    };
+    let (Some(stem), dir) = (
+        json.file_stem().and_then(|s| s.to_str()),
+        json.parent().unwrap_or(Path::new("")),
+    ) else {
+        return Vec::new();
+    };
+    m.files
+        .iter()
+        .filter(|n| Path::new(n).file_name().and_then(|f| f.to_str()) == Some(n.as_str()))
+        .filter(|n| n.starts_with(&format!("{stem}.")) || n.starts_with(&format!("{stem}-")))
+        .map(|n| dir.join(n))
+        .filter(|p| is_file(p))
+        .collect()
 }
 
 /// Distinguishes the sets of one process.
@@ -109,10 +149,41 @@ impl Staged {
         final_path: &Path,
         value: &T,
     ) -> Result<(), OutputError> {
+        let files = self.manifest(final_path);
         let text = serde_json::to_value(value)
+            .map(|mut v| {
+                if let Some(o) = v.as_object_mut() {
+                    o.insert("files".into(), files.into());
+                }
+                v
+            })
             .and_then(|v| serde_json::to_string_pretty(&v))
             .map_err(|e| other(final_path, e.to_string()))?;
         self.write(final_path, text.as_bytes())
+    }
+
+    /// Makes `json` the set's manifest and returns what it must list as `files`: the names of
+    /// the set's files (those staged so far, `json` and [`Staged::also_list`]'s). At commit,
+    /// the files the JSON being replaced lists and this set does not write are removed, so that
+    /// a set never stands beside the rest of another command's set at the same prefix.
+    pub fn manifest(&mut self, json: &Path) -> Vec<String> {
+        self.manifest = Some(json.to_path_buf());
+        let mut names: Vec<String> = self
+            .files
+            .iter()
+            .map(|f| f.1.as_path())
+            .chain([json])
+            .chain(self.listed.iter().map(PathBuf::as_path))
+            .filter_map(|p| Some(p.file_name()?.to_string_lossy().into_owned()))
+            .collect();
+        names.sort();
+        names.dedup();
+        names
+    }
+
+    /// Lists `path` in the manifest though another set of the run commits it.
+    pub fn also_list(&mut self, path: &Path) {
+        self.listed.push(path.to_path_buf());
     }
 
     /// `path`, if it exists, is removed at commit: the set no longer contains it.
@@ -145,6 +216,21 @@ impl Staged {
                 return Err(other(dst, "a directory is in the way"));
             }
         }
+        // What the set being replaced listed and this one does not write, read before its JSON
+        // is replaced.
+        let ours: Vec<&Path> = files
+            .iter()
+            .map(|f| f.1.as_path())
+            .chain(self.listed.iter().map(PathBuf::as_path))
+            .collect();
+        let replaced: Vec<PathBuf> = self
+            .manifest
+            .as_deref()
+            .map(listed_by)
+            .unwrap_or_default()
+            .into_iter()
+            .filter(|p| !ours.contains(&p.as_path()))
+            .collect();
         let mut done = Vec::new();
         for (tmp, dst) in &files {
             if let Err(e) = std::fs::rename(tmp, dst) {
@@ -154,6 +240,11 @@ impl Staged {
             done.push(dst.clone());
         }
         for p in &self.stale {
+            if p.exists() {
+                std::fs::remove_file(p).map_err(io(p))?;
+            }
+        }
+        for p in &replaced {
             if p.exists() {
                 std::fs::remove_file(p).map_err(io(p))?;
             }

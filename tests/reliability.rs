@@ -1608,3 +1608,69 @@ fn a_fifo_is_refused_as_a_config_and_replaced_as_a_checkpoint_part() {
     assert!(stderr(&o).contains("s.part-1-of-2.json"), "{}", stderr(&o));
     assert!(stderr(&o).contains("regular file"), "{}", stderr(&o));
 }
+
+#[test]
+fn a_new_set_removes_the_files_of_the_set_it_replaces() {
+    // Issue L4 of the reliability round: files another command wrote under the same prefix
+    // stayed beside the new set (a bifurcation's x.csv beside a map's x.json).
+    let d = scratch("other_sets");
+    let x = d.join("x");
+    let names = || -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(&d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    std::fs::write(d.join("x-notes.txt"), "the user's own file").unwrap();
+    let cheap = [
+        "--set",
+        "run.transient_periods=2",
+        "--set",
+        "run.sample_periods=4",
+        "--set",
+        "method.steps_per_period=64",
+    ];
+    let mut c = rattle();
+    c.args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args(cheap)
+        .args(["--set", "sweep.points=8", "--out"])
+        .arg(&x);
+    ok(&mut c);
+    assert_eq!(names(), ["x-notes.txt", "x.csv", "x.json", "x.png"]);
+    let mut c = rattle();
+    c.args(["map", "--backend", "cpu", "--config"])
+        .arg(common::config("r_lambda.toml"))
+        .args(CHEAP_MAP)
+        .arg("--out")
+        .arg(&x);
+    ok(&mut c);
+    let map_set = names();
+    assert!(!map_set.contains(&"x.csv".to_string()), "{map_set:?}");
+    assert!(map_set.contains(&"x-class.npy".to_string()), "{map_set:?}");
+    let mut c = rattle();
+    c.args(["point", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args(["--periods", "2", "--plot"])
+        .arg(&x);
+    ok(&mut c);
+    assert_eq!(names(), ["x-notes.txt", "x.json", "x.png", "x.svg"]);
+    // A map with --compare, then one without: the comparison of the first does not stay.
+    let map = |compare: bool| {
+        let mut c = rattle();
+        c.args(["map", "--backend", "cpu", "--config"])
+            .arg(common::config("eta_lambda.toml"))
+            .args(CHEAP_MAP);
+        if compare {
+            c.arg("--compare")
+                .arg(common::config("eta_lambda_r062.toml"));
+        }
+        ok(c.arg("--out").arg(&x));
+        names()
+    };
+    assert!(map(true).contains(&"x-compare.png".to_string()));
+    assert!(!map(false).contains(&"x-compare.png".to_string()));
+    assert!(!names().contains(&"x.svg".to_string()));
+}

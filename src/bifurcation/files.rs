@@ -244,6 +244,8 @@ struct BifurcationJson<'a, P: Serialize> {
     /// As a JSON value, whose keys are sorted.
     config: serde_json::Value,
     device: &'a str,
+    /// The files of this set (a later set at the prefix removes those it does not write).
+    files: Vec<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     hysteresis_values: Option<Vec<f64>>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -356,7 +358,9 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
     }
     let chain = |d: Direction| b.runs.iter().find(|r| r.0 == Some(d)).map(|r| Chain(&r.1));
     let steps = b.rk4_steps();
+    let json_path = with_ext(out, "json");
     let j = BifurcationJson {
+        files: staged.manifest(&json_path),
         version: env!("CARGO_PKG_VERSION"),
         command: "bifurcation",
         backend: b.backend,
@@ -390,7 +394,6 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         points_down: chain(Direction::Down),
         hysteresis_values: b.hysteresis(),
     };
-    let json_path = with_ext(out, "json");
     let io = |source| OutputError::Io {
         path: json_path.display().to_string(),
         source,

@@ -55,6 +55,8 @@ struct PaperJson<'a> {
     caption: String,
     command: &'static str,
     dpi: f64,
+    /// The files of this set (a later set at the name removes those it does not write).
+    files: Vec<String>,
     height_cm: f64,
     height_px: u32,
     panels: Vec<PaperPanelJson<'a>>,
@@ -193,6 +195,7 @@ pub fn paper_figure(
         caption,
         command: "figure paper",
         dpi: PAPER_DPI,
+        files: st.manifest(&out.with_extension("json")),
         width_cm: PAPER_WIDTH_CM,
         height_cm: PAPER_HEIGHT_CM,
         width_px: w,

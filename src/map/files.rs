@@ -668,6 +668,13 @@ pub fn write_outputs(
             layout: "arrays have shape (y_points, x_points); row 0 is y_from",
         },
     };
+    // The comparison is committed after this set, as a set of its own.
+    let compared = with_ext(&crate::output::with_suffix(prefix, "compare"), "png");
+    if report.compare.is_some() {
+        st.also_list(&compared);
+    } else {
+        st.remove_stale(&compared);
+    }
     st.write_json(&with_ext(prefix, "json"), &j)?;
     Ok(st.commit()?)
 }
