@@ -331,6 +331,9 @@ impl Common {
         cfg.validate_map()?;
         self.refuse_varied(&[cfg.map.x], "map.x")?;
         self.refuse_varied(&[cfg.map.y], "map.y")?;
+        for w in cfg.without_effect(&[cfg.map.x, cfg.map.y]) {
+            log::warn!("{w}");
+        }
         Ok(cfg)
     }
 
@@ -381,6 +384,9 @@ impl Common {
         let cfg = self.load_from(&self.config)?;
         cfg.validate_sweep()?;
         self.refuse_varied(&[cfg.sweep.param], "sweep.param")?;
+        for w in cfg.without_effect(&[cfg.sweep.param]) {
+            log::warn!("{w}");
+        }
         Ok(cfg)
     }
 }

@@ -204,6 +204,27 @@ impl Param {
         }
     }
 
+    /// Why varying `self` cannot change the motion, where it cannot. The friction law
+    /// `fs - (fs - fk) m/(1 + m) + l2 w^2`, m = l1 w ([`friction`]), never reads fk while
+    /// l1 = 0, nor l1 while fs = fk (Coulomb friction is both). `p` holds the fixed values,
+    /// `varied` every parameter the run varies (its axes, swept or uncertain parameters).
+    pub fn without_effect(self, p: &Params<f64>, varied: &[Param]) -> Option<String> {
+        let varies = |q: Param| varied.contains(&q);
+        match self {
+            Param::Fk if p.l1 == 0.0 && !varies(Param::L1) => Some(
+                "fk has no effect: the friction law reads fk only through l1 |v|, and l1 = 0 \
+                 (Coulomb friction sets fs = fk = lambda, l1 = l2 = 0)"
+                    .into(),
+            ),
+            Param::L1 if p.fs == p.fk && !varies(Param::Fs) && !varies(Param::Fk) => Some(format!(
+                "l1 has no effect: the friction law reads l1 only through fs - fk, and fs = fk \
+                 = {} (Coulomb friction sets fs = fk = lambda, l1 = l2 = 0)",
+                p.fs
+            )),
+            _ => None,
+        }
+    }
+
     /// Code of the parameter in the kernel's `set_param` (`VARY_*` in the shader): a field's
     /// position in [`Params::FIELDS`], then `Lambda`.
     pub fn code(self) -> u32 {

@@ -482,3 +482,79 @@ fn the_spectrum_is_refused_as_maps_and_sweeps_refuse_it() {
         &["run.tangent", "spectrum"],
     );
 }
+
+#[test]
+fn a_parameter_the_friction_law_does_not_read_is_named() {
+    // Issue M3 of the reliability round: under Coulomb friction (l1 = 0, fs = fk) fk and l1
+    // do not enter the law `fs - (fs - fk) m/(1 + m) + l2 w^2`, m = l1 w; an uncertain fk or
+    // an fk axis ran without a word and the study reported a Sobol index of 0.
+    let d = scratch("no_effect");
+    let cheap = [
+        "--set",
+        "run.transient_periods=20",
+        "--set",
+        "run.sample_periods=20",
+        "--set",
+        "method.steps_per_period=64",
+    ];
+    let study = |u: &str, out: &str| {
+        let o = rattle()
+            .args(["sensitivity", "--backend", "cpu", "--config"])
+            .arg(common::config("fig2.toml"))
+            .args(cheap)
+            .args(["--samples", "16", "--uncertain", u])
+            .args(["--uncertain", "eta=1.5+-0.01", "--out"])
+            .arg(d.join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+            json(&d.join(format!("{out}.json"))),
+        )
+    };
+    for (u, name) in [("fk=0.02+-0.005", "fk"), ("l1=0.5+-0.1", "l1")] {
+        let (e, j) = study(u, name);
+        assert!(e.contains(&format!("warning: {name} has no effect")), "{e}");
+        let w = j["warnings"].as_array().unwrap();
+        assert_eq!(w.len(), 1, "{j}");
+        assert!(
+            w[0].as_str()
+                .unwrap()
+                .starts_with(&format!("{name} has no effect"))
+        );
+    }
+    // fs is read (it is the Coulomb level once l1 = 0): no warning.
+    let (e, j) = study("fs=0.02+-0.005", "fs");
+    assert!(!e.contains("warning"), "{e}");
+    assert_eq!(j["warnings"].as_array().unwrap().len(), 0);
+    // A map axis and a swept parameter: the same warning.
+    let o = rattle()
+        .args(["map", "--backend", "cpu", "--config"])
+        .arg(common::config("r_lambda.toml"))
+        .args(cheap)
+        .args(["--set", "map.x_points=2", "--set", "map.y_points=2"])
+        .args(["--set", "map.y=\"fk\"", "--out"])
+        .arg(d.join("m"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && e.contains("warning: fk has no effect"),
+        "{e}"
+    );
+    let o = rattle()
+        .args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(common::config("fig2.toml"))
+        .args(cheap)
+        .args(["--set", "sweep.points=4", "--set", "sweep.param=\"l1\""])
+        .args(["--set", "sweep.from=0", "--set", "sweep.to=1", "--out"])
+        .arg(d.join("b"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && e.contains("warning: l1 has no effect"),
+        "{e}"
+    );
+}

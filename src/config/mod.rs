@@ -453,6 +453,16 @@ impl Config {
             .collect()
     }
 
+    /// One line per parameter of `varied` that cannot change the motion under this model
+    /// ([`Param::without_effect`]); the commands warn with them before computing.
+    pub fn without_effect(&self, varied: &[Param]) -> Vec<String> {
+        let p = self.params();
+        varied
+            .iter()
+            .filter_map(|v| v.without_effect(&p, varied))
+            .collect()
+    }
+
     /// Model parameters in the integrator's form.
     pub fn params(&self) -> Params<f64> {
         let m = &self.model;

@@ -351,6 +351,8 @@ pub struct Study {
     pub draws: Vec<Sample>,
     pub plane: Option<PlaneMap>,
     pub timings: Timings,
+    /// Uncertain parameters the model does not read ([`Config::without_effect`]).
+    pub warnings: Vec<String>,
 }
 
 /// The range a plane axis spans for parameter `x`.
@@ -409,6 +411,11 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
     let n = o.samples;
     let vary: Vec<Param> = u.iter().map(|x| x.param).collect();
     let nominal: Vec<f64> = u.iter().map(Uncertain::nominal).collect();
+    // A parameter the model does not read would get an index of 0 as if it did not matter.
+    let warnings = cfg.without_effect(&vary);
+    for w in &warnings {
+        log::warn!("{w}");
+    }
     // The design: the nominal point, then A, B and AB_j, N rows each.
     let a: Vec<Vec<f64>> = (0..n).map(|i| draw(u, i, 0, o.seed)).collect();
     let b: Vec<Vec<f64>> = (0..n).map(|i| draw(u, i, d, o.seed)).collect();
@@ -574,6 +581,7 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
         draws,
         plane,
         timings,
+        warnings,
     })
 }
 

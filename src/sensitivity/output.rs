@@ -58,6 +58,9 @@ pub fn caption(s: &Study) -> String {
         same.count,
         same.of
     );
+    for w in &s.warnings {
+        c.push_str(&format!(" Warning: {w}."));
+    }
     for d in &s.distances {
         let side = |c: &Option<super::Change>| {
             c.as_ref()
