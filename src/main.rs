@@ -236,7 +236,7 @@ fn run(cli: Cli) -> Result<()> {
             o.check_values(&cfg)?;
             let params: Vec<rattle::model::Param> = o.uncertain.iter().map(|u| u.param).collect();
             common.refuse_varied(&params, "--uncertain")?;
-            rattle::memory::check_option("samples", rattle::sensitivity::points(&o) as u64, 1)?;
+            rattle::sensitivity::check_memory(&o)?;
             check_prefix(&out, &["json", "csv", "png", "svg"])?;
             let engine = Engine::open(cfg.method.backend)?;
             let spec = RunSpec::new(&cfg);

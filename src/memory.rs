@@ -99,6 +99,41 @@ pub fn check_option(option: &'static str, points: u64, samples: u32) -> crate::e
     }
 }
 
+/// [`check_option`] for an option whose value `v` sets `points = per_value v + fixed` points
+/// of `samples` samples each: refused as that option's error, advising the largest value that
+/// fits (not a count of points).
+pub fn check_option_scaled(
+    option: &'static str,
+    v: u64,
+    per_value: u64,
+    fixed: u64,
+    samples: u32,
+) -> crate::error::Result<()> {
+    let per = bifurcation_bytes_per_point(samples) as f64;
+    let points = per_value * v + fixed;
+    let need = per * points as f64;
+    let have = available()? as f64 * USABLE;
+    if need <= have {
+        return Ok(());
+    }
+    let fits = ((have / per).floor() - fixed as f64) / per_value as f64;
+    let advice = if fits >= 1.0 {
+        format!("--{option} <= {}", fits.floor() as u64)
+    } else {
+        format!("no --{option} at all: the fixed part alone is {fixed} points")
+    };
+    Err(crate::error::OptionError::Range {
+        option,
+        value: format!("{v} ({points} points, about {} in memory)", gib(need)),
+        allowed: format!(
+            "at most {} of the {} available, i.e. {advice}",
+            gib(have),
+            gib(have / USABLE)
+        ),
+    }
+    .into())
+}
+
 /// Bytes per point of the block of a map's points in flight at once (at most
 /// `engine::GPU_BLOCK` points; the CPU holds fewer): per point its result with its last 256
 /// section values, the kernel's buffers as read back, and on a software adapter (lavapipe) the

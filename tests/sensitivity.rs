@@ -558,3 +558,46 @@ fn a_parameter_the_friction_law_does_not_read_is_named() {
         "{e}"
     );
 }
+
+#[test]
+fn the_memory_refusal_advises_samples_that_fit() {
+    // Issue M7 of the reliability round: the refusal advised "samples <= 121212", a count of
+    // points (the design holds samples x (d + 2) of them, plus the scan and the plane), above
+    // the cap of 65536 and about 5x what fits. The advice must be the largest --samples that
+    // is accepted.
+    let d = scratch("memory_advice");
+    let run = |samples: u64| {
+        rattle()
+            .env("RATTLE_MEMORY_LIMIT", "9000000")
+            .args(["sensitivity", "--backend", "cpu", "--config"])
+            .arg(common::config("fig2.toml"))
+            .args([
+                "--set",
+                "run.transient_periods=2",
+                "--set",
+                "run.sample_periods=2",
+            ])
+            .args(["--set", "method.steps_per_period=16"])
+            .args(["--uncertain", "eta=1.5+-0.01", "--uncertain", "R=0.8+-0.01"])
+            .args(["--samples", &samples.to_string(), "--out"])
+            .arg(d.join("s"))
+            .output()
+            .unwrap()
+    };
+    let o = run(65536);
+    let e = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.starts_with("error: --samples 65536 "), "{e}");
+    let advice: u64 = e
+        .split("--samples <= ")
+        .nth(1)
+        .and_then(|t| t.split(|c: char| !c.is_ascii_digit()).next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no advice in `{e}`"));
+    assert!((16..65536).contains(&advice), "{e}");
+    let o = run(advice + 1);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("in memory"));
+    let o = run(advice);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -398,9 +398,31 @@ fn classify(
 
 /// Points a study integrates, for progress and memory: the design and the scan.
 pub fn points(o: &Options) -> usize {
+    let (per_sample, fixed) = points_per_sample(o);
+    o.samples * per_sample + fixed
+}
+
+/// Points of the design per sample (the rows of A, B and each AB_j), and those that do not
+/// depend on the samples (the nominal point, the scan and its sectioning, the plane).
+fn points_per_sample(o: &Options) -> (usize, usize) {
     let d = o.uncertain.len();
     let plane = if d >= 2 { PLANE_CELLS * PLANE_CELLS } else { 0 };
-    o.samples * (d + 2) + 1 + 2 * d * SCAN_STEPS + 2 * d * (SECTIONS - 1) * ROUNDS as usize + plane
+    (
+        d + 2,
+        1 + 2 * d * SCAN_STEPS + 2 * d * (SECTIONS - 1) * ROUNDS as usize + plane,
+    )
+}
+
+/// Refuses a study whose results would not fit in memory, advising the samples that fit.
+pub fn check_memory(o: &Options) -> Result<()> {
+    let (per_sample, fixed) = points_per_sample(o);
+    crate::memory::check_option_scaled(
+        "samples",
+        o.samples as u64,
+        per_sample as u64,
+        fixed as u64,
+        1,
+    )
 }
 
 /// Runs the study at the configuration's nominal point.
