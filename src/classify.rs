@@ -442,10 +442,13 @@ pub enum Rule {
     NoExponent,
     /// Nothing decided it.
     Undecided,
+    /// An exponent was asked for but the tangent vector overflowed (f32): unresolved, not
+    /// aperiodic ([`NoExponent`](Rule::NoExponent) is for runs that asked for none).
+    ExponentLost,
 }
 
 impl Rule {
-    pub const ALL: [Rule; 7] = [
+    pub const ALL: [Rule; 8] = [
         Rule::StableCycle,
         Rule::PositiveExponent,
         Rule::Torus,
@@ -453,6 +456,7 @@ impl Rule {
         Rule::Failed,
         Rule::NoExponent,
         Rule::Undecided,
+        Rule::ExponentLost,
     ];
     /// Compact code for arrays (the position in [`Rule::ALL`]; 255 for an inferred cell).
     pub fn code(self) -> u8 {
@@ -468,6 +472,7 @@ impl Rule {
             Rule::Torus => "torus",
             Rule::NoExponent => "no_exponent",
             Rule::Undecided => "undecided",
+            Rule::ExponentLost => "exponent_lost",
         }
     }
 }
@@ -484,6 +489,8 @@ pub struct Evidence<'a> {
     pub lyapunov_se: f64,
     /// Agreeing digits of the torus test (NaN when the window had no two halves).
     pub torus: f64,
+    /// The exponent was asked for and lost ([`crate::method::RunResult::exponent_lost`]).
+    pub exponent_lost: bool,
 }
 
 /// Whether the exponent is positive by [`CHAOS_MARGIN`] standard errors.
@@ -552,6 +559,9 @@ pub fn conclude(e: &Evidence, stable: Option<u32>) -> (Class, Rule) {
         return (Class::Periodic(n), Rule::StableCycle);
     }
     let (l, se) = (e.lyapunov, e.lyapunov_se);
+    if l.is_nan() && e.exponent_lost {
+        return (Class::Unresolved, Rule::ExponentLost);
+    }
     if l.is_nan() {
         return (Class::Aperiodic, Rule::NoExponent);
     }

@@ -180,7 +180,12 @@ impl fmt::Display for PointReport {
             )?;
             writeln!(f, "stick fraction     {s:.6} (of the sampled time)")?;
         }
-        if self.lyapunov.is_nan() {
+        if self.lyapunov.is_nan() && self.rule == crate::classify::Rule::ExponentLost {
+            writeln!(
+                f,
+                "lyapunov exponent  - (lost: the tangent vector overflowed; use f64)"
+            )?;
+        } else if self.lyapunov.is_nan() {
             writeln!(
                 f,
                 "lyapunov exponent  - (none: run.tangent = \"none\", or a failed run)"

@@ -113,6 +113,7 @@ fn torus_test_and_error_bar_separate_a_torus_chaos_and_a_slow_cycle() {
             lyapunov,
             lyapunov_se,
             torus,
+            exponent_lost: false,
         };
         conclude(&e, None)
     };

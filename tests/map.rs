@@ -148,6 +148,7 @@ fn failed_cells_are_never_a_valid_class() {
         lyapunov: 0.5,
         lyapunov_se: 0.01,
         torus: 10.0,
+        exponent_lost: false,
     };
     assert_eq!(rattle::classify::conclude(&e, Some(1)).0, Class::Failed);
 }
@@ -567,4 +568,67 @@ fn refinement_fills_only_corners_clear_of_the_thresholds() {
     assert_eq!(refine_synthetic((nx, ny), k, 1.5, &slow).2, nx * ny);
     let fast = |_: usize, _: usize| cell(Class::Periodic(2), f64::NAN, 0.9);
     assert_eq!(refine_synthetic((nx, ny), k, 3.0, &fast).2, 9 * 9);
+}
+
+#[test]
+fn an_exponent_lost_to_f32_overflow_is_not_a_class() {
+    // Issue M9 of the reliability round: from initial.y = [1e30, 0, 1e30, 0] the f32 tangent
+    // vector overflows within a period while the state stays finite: every cell was `aperiodic` by rule `no_exponent`, the rule of runs that asked for
+    // no exponent. It is unresolved, by a rule that says the exponent was lost; in f64 the
+    // exponent is computed.
+    let d = scratch("exponent_lost");
+    let far = ["--set", "initial.y=[1e30,0,1e30,0]"];
+    let short = [
+        "--set",
+        "run.transient_periods=20",
+        "--set",
+        "run.sample_periods=16",
+        "--set",
+        "method.steps_per_period=64",
+    ];
+    let point = |backend: &str, precision: &str| {
+        let out = ok(rattle()
+            .args(["point", "--json", "--config"])
+            .arg(common::config("r_lambda.toml"))
+            .args(far)
+            .args(short)
+            .args(["--backend", backend, "--precision", precision]));
+        serde_json::from_str::<serde_json::Value>(&out).unwrap()
+    };
+    let mut backends = vec!["cpu"];
+    if common::gpu_engine().is_some() {
+        backends.push("gpu");
+    }
+    for b in &backends {
+        let j = point(b, "f32");
+        let what =
+            |j: &serde_json::Value| format!("{b}: {} {} {}", j["class"], j["rule"], j["lyapunov"]);
+        assert_eq!(j["class"], "unresolved", "{}", what(&j));
+        assert_eq!(j["rule"], "exponent_lost", "{}", what(&j));
+        let j = point(b, "f64");
+        assert!(
+            j["lyapunov"].as_f64().is_some_and(f64::is_finite),
+            "{}",
+            what(&j)
+        );
+        assert_ne!(j["rule"], "exponent_lost", "{}", what(&j));
+        // A map: the same, cell by cell, and its JSON counts the rule.
+        let out = d.join(format!("m-{b}"));
+        ok(rattle()
+            .args(["map", "--config"])
+            .arg(common::config("r_lambda.toml"))
+            .args(far)
+            .args(short)
+            .args(["--set", "map.x_points=3", "--set", "map.y_points=3"])
+            .args(["--backend", b, "--precision", "f32", "--out"])
+            .arg(&out));
+        let class: Vec<i32> = npy(&d.join(format!("m-{b}-class.npy")));
+        assert!(class.iter().all(|&c| c == -5), "{b}: {class:?}");
+        let j = json(&d.join(format!("m-{b}.json")));
+        assert_eq!(
+            j["rule_counts"]["exponent_lost"], 9,
+            "{b}: {}",
+            j["rule_counts"]
+        );
+    }
 }

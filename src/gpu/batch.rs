@@ -424,6 +424,10 @@ impl<F: Real> ReadBack<F> {
             let (dissipation, stick_fraction) =
                 crate::method::energy(&diag, n_samples, spec.settings.steps_per_period);
             results.push(RunResult {
+                exponent_lost: spec.settings.lyapunov
+                    && lyapunov.is_nan()
+                    && u(U_NONFINITE) == 0
+                    && count > 0,
                 lyapunov,
                 lyapunov_se,
                 torus,

@@ -692,6 +692,10 @@ impl<F: Real> Integrator<F> {
         let (dissipation, stick_fraction) = energy(&st.diag, samples.len(), self.n);
         samples.iter().for_each(|s| torus.push(s[0]));
         RunResult {
+            exponent_lost: self.lyapunov
+                && lyapunov.is_nan()
+                && !st.diag.nonfinite
+                && !samples.is_empty(),
             lyapunov_se,
             torus: torus.digits(),
             tail: tail_of(&samples),

@@ -141,6 +141,10 @@ pub struct RunResult {
     /// Largest Lyapunov exponent per unit time over the sampled periods (NaN when not
     /// computed or when the tangent vector overflowed).
     pub lyapunov: f64,
+    /// The exponent was asked for but the tangent vector left the finite range while the state
+    /// did not (f32 overflows first): no exponent, and none of the conclusions drawn from
+    /// its absence ([`crate::classify::Rule::ExponentLost`]).
+    pub exponent_lost: bool,
     /// Its standard error by batch means ([`crate::classify::Growth`]); NaN with the exponent.
     pub lyapunov_se: f64,
     /// Agreeing digits of the torus test over the sampled window
@@ -214,6 +218,7 @@ impl RunResult {
             lyapunov: self.lyapunov,
             lyapunov_se: self.lyapunov_se,
             torus: self.torus,
+            exponent_lost: self.exponent_lost,
         }
     }
 
