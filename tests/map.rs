@@ -632,3 +632,26 @@ fn an_exponent_lost_to_f32_overflow_is_not_a_class() {
         );
     }
 }
+
+/// The layer table of docs/maps.md as the layer registry (`map::Fields`) writes it.
+fn layer_table() -> String {
+    let mut t = String::from("| layer | dtype | values per cell | holds |\n|---|---|---|---|\n");
+    for l in rattle::map::Fields::layer_list("PREFIX") {
+        t.push_str(&format!(
+            "| `{}` | {} | {} | {} |\n",
+            l.file, l.dtype, l.per_cell, l.holds
+        ));
+    }
+    t
+}
+
+#[test]
+fn the_docs_list_every_layer_of_the_registry() {
+    let doc =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/maps.md")).unwrap();
+    let t = layer_table();
+    assert!(
+        doc.contains(&t),
+        "docs/maps.md must contain the layer table of map::Fields:\n{t}"
+    );
+}

@@ -193,6 +193,8 @@ struct MapJson<'a> {
     rule_counts: BTreeMap<String, usize>,
     class_codes: &'static str,
     axes: Axes,
+    /// The NPY layers (`risk` besides, where `map.risk` is set).
+    layers: Vec<super::fields::LayerInfo>,
 }
 
 #[derive(Serialize)]
@@ -584,61 +586,24 @@ pub fn write_outputs(
             "png",
         ));
     }
-    let shape = [ny as u64, nx as u64];
     let npy = |st: &mut Staged, name: &str, write: &dyn Fn(&Path) -> std::io::Result<()>| {
-        let mut p = prefix.as_os_str().to_owned();
-        p.push(format!("-{name}"));
-        let path = with_ext(Path::new(&p), "npy");
+        let path = with_ext(&crate::output::with_suffix(prefix, name), "npy");
         let tmp = st.path(&path);
         write(&tmp).map_err(|source| crate::output::OutputError::Io {
             path: path.display().to_string(),
             source,
         })
     };
-    use crate::output::save_npy as save;
-    let f = fields;
-    npy(&mut st, "class", &|p| save(p, &shape, &f.class))?;
-    npy(&mut st, "period", &|p| save(p, &shape, &f.period))?;
-    npy(&mut st, "impacts_per_period", &|p| {
-        save(p, &shape, &f.impacts_per_period)
-    })?;
-    npy(&mut st, "lyapunov", &|p| save(p, &shape, lyap_raw))?;
-    npy(&mut st, "multiplier", &|p| save(p, &shape, &mult))?;
-    npy(&mut st, "impacts", &|p| save(p, &shape, &f.impacts))?;
-    npy(&mut st, "sticks", &|p| save(p, &shape, &f.sticks))?;
-    npy(&mut st, "locks", &|p| save(p, &shape, &f.locks))?;
-    npy(&mut st, "overflows", &|p| save(p, &shape, &f.overflows))?;
-    npy(&mut st, "wrong_slips", &|p| save(p, &shape, &f.wrong_slips))?;
-    npy(&mut st, "nonfinite", &|p| save(p, &shape, &f.nonfinite))?;
-    npy(&mut st, "cpu_rerun", &|p| save(p, &shape, &f.cpu_rerun))?;
-    npy(&mut st, "attractors", &|p| save(p, &shape, &f.attractors))?;
-    npy(&mut st, "periods", &|p| save(p, &shape, &f.periods))?;
-    npy(&mut st, "inferred", &|p| save(p, &shape, &f.inferred))?;
+    fields.each_npy((ny, nx), &mut |name, write| npy(&mut st, name, write))?;
     match &risk {
-        Some((r, _)) => npy(&mut st, "risk", &|p| save(p, &shape, r))?,
-        None => {
-            let mut p = prefix.as_os_str().to_owned();
-            p.push("-risk");
-            st.remove_stale(&with_ext(Path::new(&p), "npy"));
-        }
+        Some((r, _)) => npy(&mut st, "risk", &|p| {
+            crate::output::save_npy(p, &[ny as u64, nx as u64], r)
+        })?,
+        None => st.remove_stale(&with_ext(
+            &crate::output::with_suffix(prefix, "risk"),
+            "npy",
+        )),
     }
-    let nan = |v: &[Option<f64>]| -> Vec<f64> { v.iter().map(|x| x.unwrap_or(f64::NAN)).collect() };
-    let speed = nan(&f.impact_speed);
-    let speed_shape = [ny as u64, nx as u64, 2];
-    npy(&mut st, "impact_speed", &|p| save(p, &speed_shape, &speed))?;
-    let dissipation = nan(&f.dissipation);
-    npy(&mut st, "dissipation", &|p| {
-        save(p, &speed_shape, &dissipation)
-    })?;
-    let stuck = nan(&f.stick_fraction);
-    npy(&mut st, "stick_fraction", &|p| save(p, &shape, &stuck))?;
-    let se = nan(&f.lyapunov_se);
-    npy(&mut st, "lyapunov_se", &|p| save(p, &shape, &se))?;
-    let torus = nan(&f.torus);
-    npy(&mut st, "torus", &|p| save(p, &shape, &torus))?;
-    npy(&mut st, "rule", &|p| save(p, &shape, &f.rule))?;
-    let shape2 = [ny as u64, nx as u64, 2];
-    npy(&mut st, "tried", &|p| save(p, &shape2, &f.tried))?;
     let coexisting = cells.iter().filter(|&&c| c == COEXISTING).count();
     let j = MapJson {
         caption: caption(
@@ -667,6 +632,7 @@ pub fn write_outputs(
             y_values: Config::map_axis(m.y_from, m.y_to, m.y_points),
             layout: "arrays have shape (y_points, x_points); row 0 is y_from",
         },
+        layers: Fields::layer_list(&prefix.file_name().unwrap_or_default().to_string_lossy()),
     };
     // The comparison is committed after this set, as a set of its own.
     let compared = with_ext(&crate::output::with_suffix(prefix, "compare"), "png");

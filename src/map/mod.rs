@@ -2,10 +2,12 @@
 //! shards, checkpoints, adapters and merging ([`parts`]), and the final PNG / NPY / JSON files
 //! ([`output`]).
 
+mod fields;
 mod files;
 mod parts;
 pub mod refine;
 
+pub use fields::{Fields, Layer};
 pub use files::{
     CompareReport, MapReport, MapTimings, RASTER, RefineReport, category, compare_caption,
     model_title, title, write_compare, write_outputs,
@@ -20,10 +22,8 @@ use crate::config::Config;
 use crate::decide::Summary;
 use crate::engine::Engine;
 use crate::engine::Timings;
-use crate::method::Diagnostics;
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
-use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
 #[derive(Debug, thiserror::Error)]
@@ -134,187 +134,4 @@ pub fn compute_cells(
         })
         .collect();
     Ok((out, t))
-}
-
-/// Per-cell fields as stored in partial outputs and NPY files.
-#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
-pub struct Fields {
-    pub class: Vec<i32>,
-    pub period: Vec<i32>,
-    pub impacts_per_period: Vec<f64>,
-    /// NaN (null in JSON) where no estimate exists.
-    pub lyapunov: Vec<Option<f64>>,
-    /// Largest Floquet multiplier modulus of the cell's stable cycle; null where not periodic.
-    pub multiplier: Vec<Option<f64>>,
-    pub impacts: Vec<u64>,
-    pub sticks: Vec<u64>,
-    pub locks: Vec<u64>,
-    pub overflows: Vec<u64>,
-    /// Steps ending in slip against the mode's direction (Diagnostics::wrong_slips).
-    pub wrong_slips: Vec<u64>,
-    pub nonfinite: Vec<u8>,
-    /// 1 where the GPU driver cut the kernel short and the CPU twin computed the cell.
-    pub cpu_rerun: Vec<u8>,
-    /// Distinct attractors reached from the `--starts` initial states (1 without).
-    #[serde(default)]
-    pub attractors: Vec<u8>,
-    /// Forcing periods integrated (early termination: fewer where the cycle was confirmed;
-    /// 0 for inferred cells).
-    pub periods: Vec<u32>,
-    /// 1 where `--refine` filled the cell from the corners of a uniform block.
-    pub inferred: Vec<u8>,
-    /// Standard error of the exponent (batch means); None where the exponent is.
-    #[serde(default)]
-    pub lyapunov_se: Vec<Option<f64>>,
-    /// Agreeing digits of the torus test over the cell's last window; None without one.
-    #[serde(default)]
-    pub torus: Vec<Option<f64>>,
-    /// The rule that decided the cell (`classify::Rule` code).
-    #[serde(default)]
-    pub rule: Vec<u8>,
-    /// The periods Newton tried, two per cell (0: none).
-    #[serde(default)]
-    pub tried: Vec<u32>,
-    /// Mean and largest impact speed over the sampled periods, two per cell (NaN: none).
-    #[serde(default)]
-    pub impact_speed: Vec<Option<f64>>,
-    /// Energy dissipated per sampled period by impacts and by friction, two per cell.
-    #[serde(default)]
-    pub dissipation: Vec<Option<f64>>,
-    /// Fraction of the sampled time the masses moved together.
-    #[serde(default)]
-    pub stick_fraction: Vec<Option<f64>>,
-}
-
-impl Fields {
-    pub fn from_cells(cells: &[(Summary, u8)]) -> Fields {
-        let s: Vec<Summary> = cells.iter().map(|c| c.0).collect();
-        Fields {
-            attractors: cells.iter().map(|c| c.1).collect(),
-            ..Fields::from_summaries(&s)
-        }
-    }
-
-    pub fn from_summaries(s: &[Summary]) -> Fields {
-        Fields {
-            attractors: vec![1; s.len()],
-            class: s.iter().map(|c| c.class.code()).collect(),
-            period: s
-                .iter()
-                .map(|c| c.class.period().map_or(0, |p| p as i32))
-                .collect(),
-            impacts_per_period: s.iter().map(|c| c.impacts_per_period).collect(),
-            lyapunov: s
-                .iter()
-                .map(|c| c.lyapunov.is_finite().then_some(c.lyapunov))
-                .collect(),
-            multiplier: s
-                .iter()
-                .map(|c| c.multiplier.is_finite().then_some(c.multiplier))
-                .collect(),
-            impacts: s.iter().map(|c| c.diag.impacts).collect(),
-            sticks: s.iter().map(|c| c.diag.sticks).collect(),
-            locks: s.iter().map(|c| c.diag.locks).collect(),
-            overflows: s.iter().map(|c| c.diag.overflows).collect(),
-            wrong_slips: s.iter().map(|c| c.diag.wrong_slips).collect(),
-            nonfinite: s.iter().map(|c| c.diag.nonfinite as u8).collect(),
-            cpu_rerun: s.iter().map(|c| c.diag.cpu_rerun as u8).collect(),
-            periods: s.iter().map(|c| c.periods).collect(),
-            inferred: vec![0; s.len()],
-            lyapunov_se: s
-                .iter()
-                .map(|c| c.lyapunov_se.is_finite().then_some(c.lyapunov_se))
-                .collect(),
-            torus: s
-                .iter()
-                .map(|c| c.torus.is_finite().then_some(c.torus))
-                .collect(),
-            rule: s.iter().map(|c| c.rule.code()).collect(),
-            tried: s.iter().flat_map(|c| c.tried).collect(),
-            impact_speed: s
-                .iter()
-                .flat_map(|c| c.impact_speed.map(|v| v.is_finite().then_some(v)))
-                .collect(),
-            dissipation: s
-                .iter()
-                .flat_map(|c| c.dissipation.map(|v| v.is_finite().then_some(v)))
-                .collect(),
-            stick_fraction: s
-                .iter()
-                .map(|c| c.stick_fraction.is_finite().then_some(c.stick_fraction))
-                .collect(),
-        }
-    }
-
-    pub fn len(&self) -> usize {
-        self.class.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.class.is_empty()
-    }
-
-    pub(crate) fn append(&mut self, o: Fields) {
-        self.class.extend(o.class);
-        self.period.extend(o.period);
-        self.impacts_per_period.extend(o.impacts_per_period);
-        self.lyapunov.extend(o.lyapunov);
-        self.multiplier.extend(o.multiplier);
-        self.impacts.extend(o.impacts);
-        self.sticks.extend(o.sticks);
-        self.locks.extend(o.locks);
-        self.overflows.extend(o.overflows);
-        self.wrong_slips.extend(o.wrong_slips);
-        self.nonfinite.extend(o.nonfinite);
-        self.cpu_rerun.extend(o.cpu_rerun);
-        self.attractors.extend(o.attractors);
-        self.periods.extend(o.periods);
-        self.inferred.extend(o.inferred);
-        self.lyapunov_se.extend(o.lyapunov_se);
-        self.impact_speed.extend(o.impact_speed);
-        self.dissipation.extend(o.dissipation);
-        self.stick_fraction.extend(o.stick_fraction);
-        self.torus.extend(o.torus);
-        self.rule.extend(o.rule);
-        self.tried.extend(o.tried);
-    }
-
-    /// Cells per deciding rule, by the rule's name.
-    pub fn rule_counts(&self) -> std::collections::BTreeMap<String, usize> {
-        let mut m = std::collections::BTreeMap::new();
-        for &r in &self.rule {
-            let name = crate::classify::Rule::ALL
-                .iter()
-                .find(|x| x.code() == r)
-                .map_or("inferred".to_string(), |x| x.name().to_string());
-            *m.entry(name).or_default() += 1;
-        }
-        m
-    }
-
-    pub fn classes(&self) -> Vec<Class> {
-        self.class.iter().map(|&c| Class::from_code(c)).collect()
-    }
-
-    /// Counts per class name.
-    pub fn counts(&self) -> std::collections::BTreeMap<String, usize> {
-        let mut m = std::collections::BTreeMap::new();
-        for c in self.classes() {
-            *m.entry(c.name()).or_default() += 1;
-        }
-        m
-    }
-
-    pub fn diagnostics(&self, i: usize) -> Diagnostics {
-        Diagnostics {
-            impacts: self.impacts[i],
-            sticks: self.sticks[i],
-            locks: self.locks[i],
-            overflows: self.overflows[i],
-            wrong_slips: self.wrong_slips[i],
-            nonfinite: self.nonfinite[i] != 0,
-            cpu_rerun: self.cpu_rerun[i] != 0,
-            ..Diagnostics::default()
-        }
-    }
 }

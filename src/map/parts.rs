@@ -124,33 +124,9 @@ impl Part {
             )));
         }
         let len = self.range.1 - self.range.0;
-        let lens = [
-            f.class.len(),
-            f.period.len(),
-            f.impacts_per_period.len(),
-            f.lyapunov.len(),
-            f.multiplier.len(),
-            f.impacts.len(),
-            f.sticks.len(),
-            f.locks.len(),
-            f.overflows.len(),
-            f.wrong_slips.len(),
-            f.nonfinite.len(),
-            f.cpu_rerun.len(),
-            f.attractors.len(),
-            f.periods.len(),
-            f.inferred.len(),
-            f.lyapunov_se.len(),
-            f.torus.len(),
-            f.rule.len(),
-            f.tried.len() / 2,
-            f.impact_speed.len() / 2,
-            f.dissipation.len() / 2,
-            f.stick_fraction.len(),
-        ];
-        if lens.iter().any(|&l| l != len) {
+        if let Some((name, l)) = f.lengths().into_iter().find(|&(_, l)| l != len) {
             return Err(PartError(format!(
-                "field lengths {lens:?}, expected {len} each"
+                "layer {name} has {l} cells, expected {len}"
             )));
         }
         if !(1..=64).contains(&self.starts) {
