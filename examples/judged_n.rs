@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release --example judged_n -- [cpu|gpu] [N,N,...]` (default cpu, 64,128,256,512)
 
-use rattle::classify::Class;
+use rattle::class::Class;
 use rattle::config::{Backend, Config};
 use rattle::engine::Engine;
 use rattle::progress::Silent;

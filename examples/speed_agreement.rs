@@ -7,7 +7,7 @@
 //! `cargo run --release --example speed_agreement -- [n] [OUT] [cpu|gpu]`
 //! (default 160, speed_agreement, cpu)
 
-use rattle::classify::Class;
+use rattle::class::Class;
 use rattle::config::{Backend, Config};
 use rattle::engine::Engine;
 use rattle::map::{MapOptions, run};

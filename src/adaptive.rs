@@ -14,7 +14,8 @@
 //! in at the rare section that falls inside a stick or lock: the agreement with brute force is
 //! measured, not assumed.
 
-use crate::classify::{Class, Pool, detect_period};
+use crate::class::Class;
+use crate::classify::{Pool, detect_period};
 use crate::decide::{Proposal, Summary, Trials, Verdict, confirm_many};
 use crate::engine::{Engine, EngineError, Timings};
 use crate::method::{Diagnostics, RunResult};

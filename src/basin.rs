@@ -11,7 +11,7 @@
 //! which is coarser (two coexisting chaotic attractors with the same signature share an id).
 //! Failed cells have no id (-1).
 
-use crate::classify::Class;
+use crate::class::{Class, Shown};
 use crate::config::{Config, StateCoord};
 use crate::cycles::{Cycle, modulus};
 use crate::decide::confirm;
@@ -21,7 +21,7 @@ use crate::method::{Integrator, PointState, RunResult};
 use crate::model::{Mode, field};
 use crate::output::{Staged, save_npy, with_ext};
 use crate::progress::Progress;
-use crate::render::{ATTRACTOR_COLORS, CategoryMap, ClassKind, category_map_png};
+use crate::render::{ATTRACTOR_COLORS, CategoryMap, category_map_png, color};
 use crate::spec::{Points, RunSpec};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -534,7 +534,7 @@ pub fn write_outputs(prefix: &Path, cfg: &Config, b: &Basin) -> Result<Vec<PathB
         .zip(ATTRACTOR_COLORS)
         .map(|((a, l), c)| (a.id as u16, l.as_str(), c))
         .collect();
-    cats.push((FAILED_CODE, "failed", ClassKind::Failed.color()));
+    cats.push((FAILED_CODE, "failed", color(Shown::Other(Class::Failed))));
     // Attractors beyond the palette are not in `cats`: the map draws them grey as "other".
     let cells: Vec<u16> = b
         .ids

@@ -1,7 +1,7 @@
 //! `rattle bench` and `rattle validate`: speed of every backend and precision measured in one
 //! run, and agreement of the GPU kernel with its CPU twin.
 
-use crate::classify::Class;
+use crate::class::Class;
 use crate::config::{Backend, Config, Precision};
 use crate::engine::{Engine, Rung, Timings};
 use crate::error::OptionError;

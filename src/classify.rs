@@ -10,80 +10,15 @@
 //! exponent positive by [`CHAOS_MARGIN`] standard errors is chaotic, only a passed torus test
 //! is quasi-periodic, and everything else is undecided (the adaptive loop gives it more time).
 
+use crate::class::Class;
 use serde::Serialize;
 
 /// Largest period the detector looks for.
-pub const MAX_PERIOD: usize = 64;
+pub const MAX_PERIOD: usize = crate::class::MAX_PERIOD as usize;
 
 /// Section values of y1 kept per point for the candidate periods (the kernel's ring; the
 /// detector reads the last MAX_PERIOD of them).
 pub const TAIL: usize = 256;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(tag = "class", content = "period", rename_all = "snake_case")]
-pub enum Class {
-    /// The section repeats after `n` forcing periods.
-    Periodic(u32),
-    /// No period <= 64 found, no Lyapunov estimate to tell quasi-periodic from chaotic.
-    Aperiodic,
-    /// No period <= 64 and a Lyapunov exponent of about zero.
-    QuasiPeriodic,
-    /// No period <= 64 and a positive Lyapunov exponent.
-    Chaotic,
-    /// Undecided: no confirmed cycle, no exponent clearly positive, no passed torus test, even
-    /// after the extra time the adaptive horizon gives (slow transients, long cycles, chaos with
-    /// an exponent within its error of zero).
-    Unresolved,
-    /// No impact during the sampled periods.
-    NoImpact,
-    /// Non-finite state, or too few samples to decide.
-    Failed,
-}
-
-impl Class {
-    pub fn name(&self) -> String {
-        match self {
-            Class::Periodic(n) => format!("period-{n}"),
-            Class::Aperiodic => "aperiodic".into(),
-            Class::QuasiPeriodic => "quasi_periodic".into(),
-            Class::Chaotic => "chaotic".into(),
-            Class::Unresolved => "unresolved".into(),
-            Class::NoImpact => "no_impact".into(),
-            Class::Failed => "failed".into(),
-        }
-    }
-    pub fn period(&self) -> Option<u32> {
-        match self {
-            Class::Periodic(n) => Some(*n),
-            _ => None,
-        }
-    }
-    /// Compact numeric code for arrays: n > 0 period-n, 0 aperiodic, -1 no impact, -2 failed,
-    /// -3 quasi-periodic, -4 chaotic, -5 unresolved.
-    pub fn code(&self) -> i32 {
-        match self {
-            Class::Periodic(n) => *n as i32,
-            Class::Aperiodic => 0,
-            Class::NoImpact => -1,
-            Class::Failed => -2,
-            Class::QuasiPeriodic => -3,
-            Class::Chaotic => -4,
-            Class::Unresolved => -5,
-        }
-    }
-
-    pub fn from_code(c: i32) -> Class {
-        match c {
-            n if n > 0 => Class::Periodic(n as u32),
-            0 => Class::Aperiodic,
-            -1 => Class::NoImpact,
-            -3 => Class::QuasiPeriodic,
-            -4 => Class::Chaotic,
-            -5 => Class::Unresolved,
-            _ => Class::Failed,
-        }
-    }
-}
 
 /// Batches of the exponent's standard error: the sampled periods are cut into this many blocks
 /// of equal length (the rest of a window that does not divide is left out of the error, not of

@@ -8,7 +8,8 @@
 //! it judges the backend's answer with the reference arithmetic (an f32 round-off cycle near an
 //! unstable orbit converges to that orbit, whose multipliers reject it).
 
-use crate::classify::{Candidate, Class, Pool, Rule, approaches, conclude, proposals};
+use crate::class::Class;
+use crate::classify::{Candidate, Pool, Rule, approaches, conclude, proposals};
 use crate::cycles::{Cycle, Refine, run_parallel};
 use crate::method::{Diagnostics, Integrator, PointState, RunResult, Settings};
 use crate::model::{Mode, Params};

@@ -14,8 +14,12 @@ pub enum Error {
     Output(#[from] crate::output::OutputError),
     #[error(transparent)]
     Render(#[from] crate::render::RenderError),
-    #[error(transparent)]
-    Map(#[from] crate::map::MapError),
+    /// A part file that cannot be read or is not a part.
+    #[error("cannot read {path}: {message}")]
+    PartRead { path: String, message: String },
+    /// Parts that do not make one map.
+    #[error("{0}")]
+    Merge(String),
     #[error(transparent)]
     Reference(#[from] crate::reference::ReferenceError),
     #[error("cannot write {path}")]

@@ -2,7 +2,7 @@
 //!
 //! One module per concept: [`model`] (equations), [`method`] (the CPU integrator and its tangent
 //! dynamics, twin of the kernel's pieces in `shaders/`), [`cpu`] and [`gpu`] (the backends) under
-//! [`engine`], [`classify`], [`decide`], [`cycles`] and [`stability`] (what a run is),
+//! [`engine`], [`class`], [`classify`], [`decide`], [`cycles`] and [`stability`] (what a run is),
 //! [`bifurcation`], [`map`], [`basin`] and [`point`] (the commands), [`config`], [`render`],
 //! [`output`].
 
@@ -12,6 +12,7 @@ pub mod basin;
 pub mod bench;
 pub mod bifurcation;
 pub mod caption;
+pub mod class;
 pub mod classify;
 pub mod config;
 pub mod cpu;

@@ -89,15 +89,10 @@ fn main() {
 /// The option error behind `e`, if that is what it is.
 fn option_error(e: &anyhow::Error) -> Option<&OptionError> {
     use rattle::error::Error;
-    use rattle::map::MapError;
     e.chain().find_map(|c| {
         c.downcast_ref::<OptionError>()
             .or(match c.downcast_ref::<Error>() {
-                Some(Error::Option(o) | Error::Map(MapError::Option(o))) => Some(o),
-                _ => None,
-            })
-            .or(match c.downcast_ref::<MapError>() {
-                Some(MapError::Option(o)) => Some(o),
+                Some(Error::Option(o)) => Some(o),
                 _ => None,
             })
     })

@@ -37,6 +37,11 @@ impl Observables {
         }
     }
 
+    /// The observables of a run.
+    pub fn of_run(r: &crate::method::RunResult) -> Self {
+        Observables::new(r.impact_speed, r.dissipation, r.stick_fraction)
+    }
+
     /// The observables' names (their JSON keys and CSV columns), in the struct's order.
     pub const NAMES: [&'static str; 5] = [
         "impact_speed_mean",

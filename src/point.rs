@@ -4,7 +4,7 @@
 pub mod laminar;
 pub mod plot;
 
-use crate::classify::Class;
+use crate::class::Class;
 use crate::config::{Config, Tangent};
 use crate::cycles::{Cycle, modulus, spectrum};
 use crate::decide::confirm;
@@ -116,7 +116,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         class: class.name(),
         period: class.period(),
         impacts_per_period: r.impacts_per_period(),
-        observables: r.observables(),
+        observables: crate::observables::Observables::of_run(&r),
         impact_speed_distribution: Distribution::of(
             "impact_speed",
             speeds.iter().map(|&v| Some(v)),

@@ -4,7 +4,7 @@
 mod common;
 
 use rattle::bifurcation;
-use rattle::classify::Class;
+use rattle::class::Class;
 use rattle::config::Config;
 use rattle::engine::Engine;
 use rattle::progress::Silent;

@@ -3,9 +3,8 @@
 //! an independent judge (long runs of the reference of `rattle::reference::dry`, examples/judge.rs;
 //! docs/classes.md) on three maps: R x lambda (Coulomb), a Stribeck map and eta x lambda.
 
-use rattle::classify::{
-    Birkhoff, CHAOS_MARGIN, Class, Evidence, Growth, Rule, TORUS_DIGITS, conclude,
-};
+use rattle::class::Class;
+use rattle::classify::{Birkhoff, CHAOS_MARGIN, Evidence, Growth, Rule, TORUS_DIGITS, conclude};
 use rattle::config::{Config, Precision};
 use rattle::decide::Summary;
 use rattle::engine::Engine;

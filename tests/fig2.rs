@@ -1,6 +1,7 @@
 //! The paper's Fig. 2 landmarks and grid-independence of the impact count.
 
-use rattle::classify::{Class, classify};
+use rattle::class::Class;
+use rattle::classify::classify;
 use rattle::config::Config;
 use rattle::method::Integrator;
 use std::path::Path;

@@ -4,7 +4,8 @@
 mod common;
 
 use common::{config, json, ok, rattle, scratch};
-use rattle::render::{ATTRACTOR_COLORS, CategoryMap, ClassKind, PERIOD_FAMILIES, category_map_png};
+use rattle::class::{Class, PERIOD_FAMILIES, Shown};
+use rattle::render::{ATTRACTOR_COLORS, CategoryMap, category_map_png, color};
 
 /// CIE L*a*b* (D65) of an sRGB colour, computed here independently of the palette code.
 fn lab(c: [u8; 3]) -> [f64; 3] {
@@ -44,12 +45,12 @@ fn delta_e(a: [u8; 3], b: [u8; 3]) -> f64 {
 #[test]
 fn class_palette_is_distinct() {
     // Every kind a class map can show: periods 1-64, longer periods and the other classes.
-    let kinds = ClassKind::all();
+    let kinds = Shown::all();
     assert_eq!(kinds.len(), 64 + 8);
     let mut worst_between = f64::INFINITY;
     for (i, a) in kinds.iter().enumerate() {
         for b in &kinds[i + 1..] {
-            let d = delta_e(a.color(), b.color());
+            let d = delta_e(color(*a), color(*b));
             let fam = a.family().filter(|f| Some(*f) == b.family());
             // Members of one family: lightness steps, smaller but clearly non-zero.
             let min = match fam {
@@ -60,8 +61,8 @@ fn class_palette_is_distinct() {
             assert!(
                 d >= min,
                 "{a:?} {:?} and {b:?} {:?}: delta-E {d:.1} < {min}",
-                a.color(),
-                b.color()
+                color(*a),
+                color(*b)
             );
             if fam.is_none() {
                 worst_between = worst_between.min(d);
@@ -82,7 +83,7 @@ fn class_palette_is_distinct() {
 fn attractor_palette_is_distinct() {
     // Attractor colours of a basin map, the failed cells' magenta and the "other" grey.
     let mut all = ATTRACTOR_COLORS.to_vec();
-    all.extend([ClassKind::Failed.color(), [190, 190, 190]]);
+    all.extend([color(Shown::Other(Class::Failed)), [190, 190, 190]]);
     for (i, a) in all.iter().enumerate() {
         for b in &all[i + 1..] {
             let d = delta_e(*a, *b);
@@ -95,11 +96,11 @@ fn attractor_palette_is_distinct() {
 /// colour of the map, so no colour goes unexplained, even when families share rows.
 #[test]
 fn class_legend_explains_every_colour() {
-    let kinds = ClassKind::all();
+    let kinds = Shown::all();
     let cats: Vec<(u16, String, [u8; 3])> = kinds
         .iter()
         .enumerate()
-        .map(|(i, k)| (i as u16, format!("{k:?}"), k.color()))
+        .map(|(i, k)| (i as u16, format!("{k:?}"), color(*k)))
         .collect();
     let cat_refs: Vec<(u16, &str, [u8; 3])> = cats
         .iter()
@@ -137,7 +138,7 @@ fn class_legend_explains_every_colour() {
     let img = image::open(&path).unwrap().to_rgb8();
     let legend_x0 = 1100 - 1100 * 3 / 11;
     for k in &kinds {
-        let c = k.color();
+        let c = color(*k);
         let found = (legend_x0..1100).any(|x| (0..800).any(|y| img.get_pixel(x, y).0 == c));
         assert!(found, "{k:?} {c:?} is in the map but not in the legend");
     }

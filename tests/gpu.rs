@@ -1,7 +1,8 @@
 //! GPU kernel against its CPU twin. These tests need an adapter (Mesa lavapipe in CI); with
 //! RATTLE_REQUIRE_GPU=1 (set by CI) a missing adapter fails them instead of skipping.
 
-use rattle::classify::{Class, classify};
+use rattle::class::Class;
+use rattle::classify::classify;
 use rattle::config::Precision;
 use rattle::decide::confirm;
 use rattle::engine::Engine;

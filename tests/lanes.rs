@@ -4,7 +4,7 @@
 //! in its batch. The same holds for Newton's method on the lanes (`method::run_flows`): every
 //! refined cycle is that of the scalar `cycles::refine`.
 
-use rattle::classify::Class;
+use rattle::class::Class;
 use rattle::cycles::{Cycle, Refine, refine};
 use rattle::decide::{Proposal, Trials, confirm, confirm_many};
 use rattle::method::{

@@ -1,7 +1,8 @@
 //! Largest Lyapunov exponent of a run by one tangent vector (CPU; the GPU kernel is compared
 //! in tests/gpu.rs).
 
-use rattle::classify::{Class, classify};
+use rattle::class::Class;
+use rattle::classify::classify;
 use rattle::cycles::{modulus, refine, spectrum};
 use rattle::decide::confirm;
 use rattle::method::{Integrator, PointState, Settings};

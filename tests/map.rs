@@ -1,6 +1,6 @@
 //! Maps: sharding and merging, failed cells, bad map configs.
 
-use rattle::classify::Class;
+use rattle::class::Class;
 use rattle::config::Config;
 use rattle::engine::Engine;
 use rattle::map::Fields;

@@ -6,7 +6,7 @@ mod common;
 use common::{json, ok, rattle, scratch};
 
 use rattle::adaptive::run_once;
-use rattle::classify::Class;
+use rattle::class::Class;
 use rattle::config::{Backend, Config, Precision};
 use rattle::engine::Engine;
 use rattle::model::Param;

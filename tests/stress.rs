@@ -12,7 +12,7 @@ fn located_keeps_class_and_impacts_naive_is_detected_wrong() {
     for s in stress_cases() {
         let (cr, ir, _) = point_outcome(&s.params, N_REF, ImpactMethod::Located, true, 300, 100);
         // Located: the default grid and a coarse one (chaotic cases only on the default).
-        let chaotic = !matches!(cr, rattle::classify::Class::Periodic(_));
+        let chaotic = !matches!(cr, rattle::class::Class::Periodic(_));
         let grids: &[u32] = if chaotic { &[256] } else { &[16, 64, 256] };
         for &n in grids {
             let (c, ipp, r) = point_outcome(&s.params, n, ImpactMethod::Located, true, 300, 100);

@@ -1,7 +1,7 @@
 //! `rattle accuracy`: what each second buys in accuracy (work-precision chart) and where cheap
 //! settings stop being trustworthy (failure fractions and stress cases).
 
-use crate::classify::Class;
+use crate::class::Class;
 use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
 use crate::error::OptionError;

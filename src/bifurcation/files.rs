@@ -2,7 +2,7 @@
 
 use super::{Bifurcation, Continuation, Direction, SweepPoint, plot_value};
 use crate::caption::{computed_with, top_classes};
-use crate::classify::Class;
+use crate::class::Class;
 use crate::config::{Config, FrictionLaw};
 use crate::error::{Error, Result};
 use crate::method::Diagnostics;
@@ -269,7 +269,7 @@ impl Serialize for Chain<'_> {
                 class: pt.class.name(),
                 diagnostics: pt.result.diag,
                 impacts_per_period: pt.impacts_per_period(),
-                observables: pt.result.observables(),
+                observables: Observables::of_run(&pt.result),
                 multipliers: pt
                     .cycle
                     .as_ref()

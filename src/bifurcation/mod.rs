@@ -2,7 +2,7 @@
 //! initial state or by continuation, classified and kept with its samples; the CSV, PNG and
 //! JSON files of a diagram, and the paper's four-panel figure.
 
-use crate::classify::Class;
+use crate::class::Class;
 use crate::config::Config;
 use crate::cycles::Cycle;
 use crate::decide::{Trials, confirm_all};

@@ -3,7 +3,8 @@
 //! [`Fields`] struct, its construction, merging, length check, NPY files and the JSON's layer
 //! list are generated from it; adding a layer is one line here (plus its computation).
 
-use crate::classify::{Class, Rule};
+use crate::class::Class;
+use crate::classify::Rule;
 use crate::decide::Summary;
 use crate::method::Diagnostics;
 use serde::{Deserialize, Serialize};
@@ -121,7 +122,7 @@ macro_rules! map_layers {
 }
 
 map_layers! {
-    /// The class code (n > 0 period-n, 0 aperiodic, -1 no_impact, -2 failed, -3 quasi_periodic, -4 chaotic, -5 unresolved).
+    /// The class code (n > 0 period-n; the others as the JSON's `class_codes` lists them, from `class::Class`).
     class: [i32; 1] = |c| [c.class.code()];
     /// The period of a periodic cell, 0 otherwise.
     period: [i32; 1] = |c| [c.class.period().map_or(0, |p| p as i32)];

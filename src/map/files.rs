@@ -1,13 +1,13 @@
 //! The files of a finished map: class and exponent images, one NPY per field, the JSON report.
 
-use super::{Fields, MapError};
-use crate::classify::Class;
+use super::Fields;
+use crate::class::Class;
+use crate::class::{PERIOD_FAMILIES, Shown};
 use crate::config::{Config, FrictionLaw};
 use crate::model::Param;
 use crate::output::{Staged, with_ext};
 use crate::render::{
-    CategoryMap, ClassKind, PERIOD_FAMILIES, ScalarMap, category_map_png, grouped, percent,
-    scalar_map_png,
+    CategoryMap, ScalarMap, category_map_png, color, grouped, percent, scalar_map_png,
 };
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -15,57 +15,14 @@ use std::path::{Path, PathBuf};
 
 /// Category code for the class map (periods keep their number).
 pub fn category(c: Class) -> u16 {
-    match c {
-        Class::Periodic(n) if n as usize <= crate::classify::MAX_PERIOD => n as u16,
-        Class::Periodic(_) => LONG_PERIOD,
-        Class::QuasiPeriodic => 100,
-        Class::Chaotic => 101,
-        Class::NoImpact => 102,
-        Class::Unresolved => 103,
-        Class::Failed => 104,
-        Class::Aperiodic => 105,
-    }
-}
-
-/// Category code of each kind a class map can show (periods keep their number).
-fn kind_code(k: ClassKind) -> u16 {
-    match k {
-        ClassKind::Period(n) => n as u16,
-        ClassKind::LongPeriod => LONG_PERIOD,
-        ClassKind::QuasiPeriodic => 100,
-        ClassKind::Chaotic => 101,
-        ClassKind::NoImpact => 102,
-        ClassKind::Unresolved => 103,
-        ClassKind::Failed => 104,
-        ClassKind::Aperiodic => 105,
-        ClassKind::Coexisting => COEXISTING,
-    }
-}
-
-/// Code of cells whose starts ended on different attractors (`--starts`).
-const COEXISTING: u16 = 106;
-/// Code of cells with a confirmed cycle longer than the detector's 64 periods.
-const LONG_PERIOD: u16 = 107;
-
-fn kind_label(k: ClassKind) -> String {
-    match k {
-        ClassKind::Period(n) => format!("period {n}"),
-        ClassKind::LongPeriod => "periods 65-128".into(),
-        ClassKind::QuasiPeriodic => "quasi-periodic".into(),
-        ClassKind::Chaotic => "chaotic".into(),
-        ClassKind::Aperiodic => "aperiodic (no exponent)".into(),
-        ClassKind::Unresolved => "unresolved".into(),
-        ClassKind::NoImpact => "no impact".into(),
-        ClassKind::Failed => "failed".into(),
-        ClassKind::Coexisting => "coexisting attractors".into(),
-    }
+    Shown::of(c, 1).code()
 }
 
 /// (code, label, colour) of every class, in legend order (period families first).
 fn categories() -> Vec<(u16, String, [u8; 3])> {
-    ClassKind::all()
+    Shown::all()
         .into_iter()
-        .map(|k| (kind_code(k), kind_label(k), k.color()))
+        .map(|k| (k.code(), k.label(), color(k)))
         .collect()
 }
 
@@ -191,7 +148,7 @@ struct MapJson<'a> {
     class_counts: BTreeMap<String, usize>,
     /// Cells per rule that decided them (docs/classes.md).
     rule_counts: BTreeMap<String, usize>,
-    class_codes: &'static str,
+    class_codes: String,
     axes: Axes,
     /// The NPY layers (`risk` besides, where `map.risk` is set).
     layers: Vec<super::fields::LayerInfo>,
@@ -408,7 +365,7 @@ pub fn write_outputs(
     cfg: &Config,
     fields: &Fields,
     report: &MapReport,
-) -> Result<Vec<PathBuf>, MapError> {
+) -> crate::Result<Vec<PathBuf>> {
     let m = &cfg.map;
     let (nx, ny) = (m.x_points as usize, m.y_points as usize);
     let mut st = Staged::new();
@@ -426,7 +383,7 @@ pub fn write_outputs(
         .classes()
         .into_iter()
         .zip(&fields.attractors)
-        .map(|(c, &a)| if a > 1 { COEXISTING } else { category(c) })
+        .map(|(c, &a)| Shown::of(c, a).code())
         .collect();
     let (xr, yr) = ((m.x_from, m.x_to), (m.y_from, m.y_to));
     let ordered = |r: (f64, f64)| (r.0.min(r.1), r.0.max(r.1));
@@ -465,7 +422,7 @@ pub fn write_outputs(
                   values: &[f64],
                   colorbar_label: &str,
                   center: Option<f64>|
-     -> Result<(), MapError> {
+     -> crate::Result<()> {
         let path = with_ext(&crate::output::with_suffix(prefix, name), "png");
         if !values.iter().any(|v| v.is_finite()) {
             log::warn!(
@@ -604,7 +561,10 @@ pub fn write_outputs(
             "npy",
         )),
     }
-    let coexisting = cells.iter().filter(|&&c| c == COEXISTING).count();
+    let coexisting = cells
+        .iter()
+        .filter(|&&c| c == Shown::Coexisting.code())
+        .count();
     let j = MapJson {
         caption: caption(
             cfg,
@@ -623,8 +583,7 @@ pub fn write_outputs(
         config: cfg,
         class_counts: fields.counts(),
         rule_counts: fields.rule_counts(),
-        class_codes: "n > 0 period-n, 0 aperiodic, -1 no_impact, -2 failed, -3 quasi_periodic, \
-                      -4 chaotic, -5 unresolved",
+        class_codes: Class::code_list(),
         axes: Axes {
             x: m.x,
             x_values: Config::map_axis(m.x_from, m.x_to, m.x_points),
@@ -652,7 +611,7 @@ pub fn write_compare(
     other: &Config,
     a: &[Class],
     b: &[Class],
-) -> Result<Vec<PathBuf>, MapError> {
+) -> crate::Result<Vec<PathBuf>> {
     let m = &cfg.map;
     let cells: Vec<u16> = a
         .iter()

@@ -17,7 +17,7 @@ pub use parts::{
     read_part, run, run_all_adapters, run_shared, work, write_part,
 };
 
-use crate::classify::Class;
+use crate::class::Class;
 use crate::config::Config;
 use crate::decide::Summary;
 use crate::engine::Engine;
@@ -25,27 +25,6 @@ use crate::engine::Timings;
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
 use std::ops::Range;
-
-#[derive(Debug, thiserror::Error)]
-pub enum MapError {
-    #[error("{0}")]
-    Engine(#[from] crate::engine::EngineError),
-    #[error("{0}")]
-    Output(#[from] crate::output::OutputError),
-    #[error("{0}")]
-    Render(#[from] crate::render::RenderError),
-    #[error("cannot read {path}: {message}")]
-    Read { path: String, message: String },
-    #[error("{0}")]
-    Merge(String),
-    /// Options that cannot work together or with this map.
-    #[error(transparent)]
-    Option(#[from] crate::error::OptionError),
-    #[error("JSON: {0}")]
-    Json(#[from] serde_json::Error),
-    #[error(transparent)]
-    Config(#[from] crate::config::ConfigError),
-}
 
 /// Number of cells of the configured map.
 pub fn cell_count(cfg: &Config) -> usize {
@@ -95,7 +74,7 @@ pub fn compute(
     range: Range<usize>,
     starts: usize,
     progress: &dyn Progress,
-) -> Result<(Vec<(Summary, u8)>, Timings), MapError> {
+) -> crate::Result<(Vec<(Summary, u8)>, Timings)> {
     compute_cells(engine, cfg, range, starts, progress)
 }
 
@@ -106,7 +85,7 @@ pub fn compute_cells(
     cells: impl IntoIterator<Item = usize>,
     starts: usize,
     progress: &dyn Progress,
-) -> Result<(Vec<(Summary, u8)>, Timings), MapError> {
+) -> crate::Result<(Vec<(Summary, u8)>, Timings)> {
     let spec = RunSpec::new(cfg).with_tangent(cfg.tangent(crate::config::Tangent::Largest));
     let k = starts.max(1);
     let cells = cell_values(cfg, cells);

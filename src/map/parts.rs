@@ -1,9 +1,10 @@
 //! Shards of a map: partial outputs, checkpoints that resume, one share per adapter, merging.
 
 use super::{
-    CompareReport, Fields, MapError, MapReport, MapTimings, RefineReport, cell_count,
-    compare_caption, compute, shard_range, write_compare, write_outputs,
+    CompareReport, Fields, MapReport, MapTimings, RefineReport, cell_count, compare_caption,
+    compute, shard_range, write_compare, write_outputs,
 };
+use crate::class::Class;
 use crate::config::Config;
 use crate::engine::Engine;
 use crate::engine::Timings;
@@ -136,11 +137,13 @@ impl Part {
             * self.config.run.horizon;
         for c in 0..len {
             let class = f.class[c];
-            let bad = if !(-5..=crate::classify::MAX_TRIAL_PERIOD as i32).contains(&class) {
+            let codes = Class::min_code()..=crate::classify::MAX_TRIAL_PERIOD as i32;
+            let bad = if !codes.contains(&class) {
                 Some(format!("class code {class}"))
             } else if f.cpu_rerun[c] > 1 {
                 Some(format!("cpu_rerun {}", f.cpu_rerun[c]))
-            } else if f.nonfinite[c] > 1 || (f.nonfinite[c] == 1) != (class == -2) {
+            } else if f.nonfinite[c] > 1 || (f.nonfinite[c] == 1) != (class == Class::Failed.code())
+            {
                 Some(format!("nonfinite {} with class {class}", f.nonfinite[c]))
             } else if f.period[c] != class.max(0) {
                 Some(format!("period {} with class {class}", f.period[c]))
@@ -185,7 +188,7 @@ pub fn compute_part(
     (i, n): (usize, usize),
     starts: usize,
     progress: &dyn Progress,
-) -> Result<Part, MapError> {
+) -> crate::Result<Part> {
     let range = shard_range(cell_count(cfg), i, n);
     let (cells, timings) = compute(engine, cfg, range.clone(), starts, progress)?;
     Ok(Part {
@@ -212,7 +215,7 @@ fn refined_part(
     chaotic: f64,
     starts: usize,
     progress: &dyn Progress,
-) -> Result<Part, MapError> {
+) -> crate::Result<Part> {
     let r = super::refine::compute_refined(engine, cfg, k, chaotic, starts, progress)?;
     let cells = cell_count(cfg);
     log::info!(
@@ -244,7 +247,7 @@ pub fn part_path(prefix: &Path, i: usize, n: usize) -> PathBuf {
 }
 
 /// Writes a part file (streamed: a large shard is not held as text).
-pub fn write_part(path: &Path, part: &Part) -> Result<(), MapError> {
+pub fn write_part(path: &Path, part: &Part) -> crate::Result<()> {
     let mut st = Staged::new();
     let io = |source| crate::output::OutputError::Io {
         path: path.display().to_string(),
@@ -263,8 +266,8 @@ pub fn write_part(path: &Path, part: &Part) -> Result<(), MapError> {
     Ok(())
 }
 
-pub fn read_part(path: &Path) -> Result<Part, MapError> {
-    let err = |message: String| MapError::Read {
+pub fn read_part(path: &Path) -> crate::Result<Part> {
+    let err = |message: String| crate::Error::PartRead {
         path: path.display().to_string(),
         message,
     };
@@ -288,14 +291,14 @@ pub fn read_part(path: &Path) -> Result<Part, MapError> {
 
 /// Joins the parts of one sharded map; they must come from one run (see
 /// [`Part::differs_from`]), hold possible values and cover every cell once.
-pub fn merge(mut parts: Vec<Part>) -> Result<(Config, Fields, Vec<Part>), MapError> {
+pub fn merge(mut parts: Vec<Part>) -> crate::Result<(Config, Fields, Vec<Part>)> {
     let first = parts
         .first()
-        .ok_or_else(|| MapError::Merge("no parts given".into()))?;
+        .ok_or_else(|| crate::Error::Merge("no parts given".into()))?;
     let n = first.shard.1;
     for p in &parts {
         p.check()
-            .map_err(|e| MapError::Merge(format!("{}: {e}", p.name())))?;
+            .map_err(|e| crate::Error::Merge(format!("{}: {e}", p.name())))?;
         if let Some(d) = p.differs_from(
             &first.version,
             &first.config,
@@ -303,7 +306,7 @@ pub fn merge(mut parts: Vec<Part>) -> Result<(Config, Fields, Vec<Part>), MapErr
             &first.backend,
             n,
         ) {
-            return Err(MapError::Merge(format!(
+            return Err(crate::Error::Merge(format!(
                 "{} is not part of the run of {}: it has {d}",
                 p.name(),
                 first.name()
@@ -316,7 +319,7 @@ pub fn merge(mut parts: Vec<Part>) -> Result<(Config, Fields, Vec<Part>), MapErr
     let mut fields = Fields::default();
     for p in &parts {
         if p.range.0 != at || p.fields.len() != p.range.1 - p.range.0 {
-            return Err(MapError::Merge(format!(
+            return Err(crate::Error::Merge(format!(
                 "cells {}..{} missing or duplicated (shard {}/{} covers {}..{})",
                 at, p.range.0, p.shard.0, n, p.range.0, p.range.1
             )));
@@ -325,7 +328,7 @@ pub fn merge(mut parts: Vec<Part>) -> Result<(Config, Fields, Vec<Part>), MapErr
         fields.append(p.fields.clone());
     }
     if at != cells {
-        return Err(MapError::Merge(format!("cells {at}..{cells} missing")));
+        return Err(crate::Error::Merge(format!("cells {at}..{cells} missing")));
     }
     let cfg = parts[0].config.clone();
     Ok((cfg, fields, parts))
@@ -350,9 +353,9 @@ pub struct MapOptions<'a> {
 }
 
 /// Parses `--shard I/N`.
-pub fn parse_shard(s: &str) -> Result<(usize, usize), MapError> {
+pub fn parse_shard(s: &str) -> crate::Result<(usize, usize)> {
     let bad = || {
-        MapError::from(OptionError::Range {
+        crate::Error::from(OptionError::Range {
             option: "shard",
             value: s.to_string(),
             allowed: "I/N with 0 <= I < N, e.g. 0/4".into(),
@@ -377,9 +380,9 @@ impl MapOptions<'_> {
 
     /// Refuses splits that cannot work (more shards than cells, --shard with --checkpoint)
     /// and runs that do not fit in memory, before anything is computed.
-    pub fn check(&self, cfg: &Config) -> Result<(), MapError> {
+    pub fn check(&self, cfg: &Config) -> crate::Result<()> {
         let cells = cell_count(cfg);
-        let bad = |e: OptionError| Err(MapError::from(e));
+        let bad = |e: OptionError| Err(crate::Error::from(e));
         let range = |option, value: String, allowed: String| {
             bad(OptionError::Range {
                 option,
@@ -532,7 +535,7 @@ pub fn run(
     out: &Path,
     o: &MapOptions,
     progress: &dyn Progress,
-) -> Result<MapSummary, MapError> {
+) -> crate::Result<MapSummary> {
     let t = std::time::Instant::now();
     let cells = cell_count(cfg);
     o.check(cfg)?;
@@ -655,7 +658,7 @@ pub fn run(
 
 /// A map split over every adapter of the machine: one contiguous share per adapter, computed
 /// concurrently, merged as shards are.
-pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> Result<MapSummary, MapError> {
+pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> crate::Result<MapSummary> {
     if o.shard.is_some() || o.checkpoint.is_some() || o.compare.is_some() || o.refine.is_some() {
         return Err(OptionError::Conflict {
             option: "adapters",
@@ -686,10 +689,10 @@ pub fn run_shared(
     cfg: &Config,
     out: &Path,
     starts: usize,
-) -> Result<MapSummary, MapError> {
+) -> crate::Result<MapSummary> {
     let n = engines.len();
     let t = std::time::Instant::now();
-    let parts: Vec<Result<Part, MapError>> = std::thread::scope(|s| {
+    let parts: Vec<crate::Result<Part>> = std::thread::scope(|s| {
         let handles: Vec<_> = engines
             .iter()
             .enumerate()
@@ -701,7 +704,7 @@ pub fn run_shared(
             .into_iter()
             .map(|h| {
                 h.join()
-                    .unwrap_or_else(|_| Err(MapError::Merge("adapter thread panicked".into())))
+                    .unwrap_or_else(|_| Err(crate::Error::Merge("adapter thread panicked".into())))
             })
             .collect()
     });
@@ -731,7 +734,7 @@ pub fn run_shared(
 }
 
 /// Merges part files into the files of a single run.
-pub fn merge_files(paths: &[PathBuf], out: &Path) -> Result<MapSummary, MapError> {
+pub fn merge_files(paths: &[PathBuf], out: &Path) -> crate::Result<MapSummary> {
     let parts = paths
         .iter()
         .map(|p| read_part(p))

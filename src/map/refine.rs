@@ -8,8 +8,8 @@
 //! that touches no corner of its block is missed. The agreement with the full computation is
 //! measured (docs/maps.md, "Early termination").
 
-use super::{MapError, compute_cells};
-use crate::classify::Class;
+use super::compute_cells;
+use crate::class::Class;
 use crate::config::Config;
 use crate::decide::Summary;
 use crate::engine::Engine;
@@ -69,7 +69,7 @@ pub fn compute_refined(
     chaotic: f64,
     starts: usize,
     progress: &dyn Progress,
-) -> Result<Refined, MapError> {
+) -> crate::Result<Refined> {
     let mut timings = Timings::default();
     let mut r = refine_grid(
         (cfg.map.x_points as usize, cfg.map.y_points as usize),
@@ -79,7 +79,7 @@ pub fn compute_refined(
         |todo| {
             let (s, t) = compute_cells(engine, cfg, todo.iter().copied(), starts, progress)?;
             timings.integration_s += t.integration_s;
-            Ok::<_, MapError>(s)
+            Ok::<_, crate::Error>(s)
         },
     )?;
     r.timings = timings;

@@ -167,18 +167,9 @@ pub struct RunResult {
 }
 
 impl RunResult {
-    /// The run's [`Observables`](crate::observables::Observables).
-    pub fn observables(&self) -> crate::observables::Observables {
-        crate::observables::Observables::new(
-            self.impact_speed,
-            self.dissipation,
-            self.stick_fraction,
-        )
-    }
-
     /// The strict period detector's class of the run (period, impacts, finiteness): by its
     /// samples, or where they were not kept by what the kernel's detector saw.
-    pub fn class(&self, period_tol: f64) -> crate::classify::Class {
+    pub fn class(&self, period_tol: f64) -> crate::class::Class {
         match self.detector_class() {
             Some(c) if self.samples.is_empty() => c,
             _ => crate::classify::classify(
@@ -191,7 +182,7 @@ impl RunResult {
     }
 
     /// The class the kernel's detector saw (GPU runs only), whether or not samples were kept.
-    pub fn detector_class(&self) -> Option<crate::classify::Class> {
+    pub fn detector_class(&self) -> Option<crate::class::Class> {
         self.detector.map(|(count, period)| {
             crate::classify::class_of(self.diag.nonfinite, count, self.sample_impacts, || period)
         })
@@ -211,7 +202,7 @@ impl RunResult {
     }
 
     /// What the classifier reads of this run, with `detected` the strict detector's class.
-    pub fn evidence(&self, detected: crate::classify::Class) -> crate::classify::Evidence<'_> {
+    pub fn evidence(&self, detected: crate::class::Class) -> crate::classify::Evidence<'_> {
         crate::classify::Evidence {
             detected,
             tail: &self.tail,

@@ -21,7 +21,7 @@ pub use density::{
 pub use lines::{LinePlot, Scale, Series, line_plot_png, line_plot_svg};
 pub use maps::{CategoryMap, ScalarMap, category_map_png, grouped, percent, scalar_map_png};
 pub use orbit::{PointFigure, point_figure_png, point_figure_svg};
-pub use palette::{ATTRACTOR_COLORS, ClassKind, MAX_PERIOD, PERIOD_FAMILIES, period_color};
+pub use palette::{ATTRACTOR_COLORS, color, period_color};
 pub use sensitivity::{
     Bar, Plane, SensitivityFigure, class_color, sensitivity_png, sensitivity_svg,
 };

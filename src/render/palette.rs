@@ -32,70 +32,11 @@ pub const ATTRACTOR_COLORS: [[u8; 3]; 12] = [
     [0x01, 0x45, 0x4d],
 ];
 
-/// Period families: (first, last), in legend order.
-pub const PERIOD_FAMILIES: [(u32, u32); 7] =
-    [(1, 1), (2, 2), (3, 3), (4, 4), (5, 8), (9, 16), (17, 64)];
+use crate::class::{MAX_PERIOD, Shown};
 
-/// Longest period the detector reports (and the palette colours).
-pub const MAX_PERIOD: u32 = 64;
-
-/// What a cell of a class map can show.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ClassKind {
-    Period(u32),
-    /// A confirmed cycle of period 65-128 (a candidate period beyond the detector's), one
-    /// colour for all.
-    LongPeriod,
-    QuasiPeriodic,
-    Chaotic,
-    Aperiodic,
-    Unresolved,
-    NoImpact,
-    Failed,
-    Coexisting,
-}
-
-impl ClassKind {
-    /// Every kind a class map can show, in legend order.
-    pub fn all() -> Vec<ClassKind> {
-        let mut v: Vec<ClassKind> = (1..=MAX_PERIOD).map(ClassKind::Period).collect();
-        v.extend([
-            ClassKind::LongPeriod,
-            ClassKind::QuasiPeriodic,
-            ClassKind::Chaotic,
-            ClassKind::Aperiodic,
-            ClassKind::Unresolved,
-            ClassKind::NoImpact,
-            ClassKind::Failed,
-            ClassKind::Coexisting,
-        ]);
-        v
-    }
-
-    /// The family of a period (`None` for the other kinds).
-    pub fn family(self) -> Option<(u32, u32)> {
-        match self {
-            ClassKind::Period(n) => PERIOD_FAMILIES
-                .iter()
-                .copied()
-                .find(|&(a, b)| (a..=b).contains(&n)),
-            _ => None,
-        }
-    }
-
-    pub fn color(self) -> [u8; 3] {
-        match self {
-            ClassKind::Period(n) => period_color(n),
-            ClassKind::LongPeriod => [0x00, 0x55, 0x55],
-            ClassKind::QuasiPeriodic => [0x99, 0xdd, 0x55],
-            ClassKind::Chaotic => [0x1a, 0x1a, 0x1a],
-            ClassKind::Aperiodic => [0x7a, 0x7a, 0x7a],
-            ClassKind::Unresolved => [0xff, 0xcc, 0xee],
-            ClassKind::NoImpact => [0xe8, 0xe8, 0xe8],
-            ClassKind::Failed => [0xff, 0x00, 0xff],
-            ClassKind::Coexisting => [0x33, 0xcc, 0xee],
-        }
-    }
+/// The colour of what a class-map cell shows.
+pub fn color(s: Shown) -> [u8; 3] {
+    s.rgb(period_color)
 }
 
 /// Colour of period `n` (1..=64; longer periods are not detected and get the 17-64 family's

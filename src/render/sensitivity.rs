@@ -3,10 +3,9 @@
 //! histograms of the largest exponent and of the mean impact speed.
 
 use super::{
-    ClassKind, FONT, RenderError, check_size, draw_err, ensure_font, extent, layout, pad,
-    render_png,
+    FONT, RenderError, check_size, draw_err, ensure_font, extent, layout, pad, render_png,
 };
-use crate::classify::Class;
+use crate::class::Class;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -48,17 +47,7 @@ pub struct SensitivityFigure {
 
 /// The colour of a class, as maps draw it.
 pub fn class_color(c: Class) -> RGBColor {
-    let k = match c {
-        Class::Periodic(n) if n as usize <= crate::classify::MAX_PERIOD => ClassKind::Period(n),
-        Class::Periodic(_) => ClassKind::LongPeriod,
-        Class::QuasiPeriodic => ClassKind::QuasiPeriodic,
-        Class::Chaotic => ClassKind::Chaotic,
-        Class::Aperiodic => ClassKind::Aperiodic,
-        Class::Unresolved => ClassKind::Unresolved,
-        Class::NoImpact => ClassKind::NoImpact,
-        Class::Failed => ClassKind::Failed,
-    };
-    let [r, g, b] = k.color();
+    let [r, g, b] = super::color(crate::class::Shown::of(c, 1));
     RGBColor(r, g, b)
 }
 

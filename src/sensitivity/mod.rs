@@ -14,7 +14,7 @@ pub mod stats;
 
 pub use output::{caption, write_outputs};
 
-use crate::classify::Class;
+use crate::class::Class;
 use crate::config::{Config, Tangent};
 use crate::decide::Summary;
 use crate::engine::{Engine, Timings};
