@@ -38,7 +38,7 @@ const WINDOW: u32 = 1000;
 const TOTAL: u32 = 10_000;
 
 /// The fixed-seed generator of the sample: the same on every machine.
-use rattle::sensitivity::stats::SplitMix as Mix;
+use rattle::stats::SplitMix as Mix;
 
 fn group(code: i32) -> Option<&'static str> {
     match code {

@@ -190,7 +190,7 @@ pub fn run(
             .zip(classes)
             .map(|((r, &i), class)| {
                 let v = matches!(class, Class::Periodic(_)).then(|| verdicts.next().unwrap());
-                decide(spec, &params(i), r, class, v)
+                decided_early(spec, &params(i), r, class, v)
             })
             .collect();
         let mut next = Vec::with_capacity(live.len());
@@ -258,7 +258,7 @@ fn floquet_exponent(modulus: f64, n: u32, p: &crate::model::Params<f64>) -> f64 
 
 /// The answer of a round's window when it is decided: a confirmed stable cycle (the result
 /// keeps its n section points and the impacts of n periods) or a repeating impact-free orbit.
-fn decide(
+fn decided_early(
     spec: &RunSpec,
     p: &crate::model::Params<f64>,
     r: &RunResult,

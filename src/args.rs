@@ -328,7 +328,7 @@ impl Common {
 
     pub fn load_map(&self, path: &Path) -> Result<Config> {
         let cfg = self.load_from(path)?;
-        cfg.validate_map()?;
+        cfg.check_map()?;
         self.refuse_varied(&[cfg.map.x], "map.x")?;
         self.refuse_varied(&[cfg.map.y], "map.y")?;
         for w in cfg.without_effect(&[cfg.map.x, cfg.map.y]) {
@@ -375,14 +375,14 @@ impl Common {
     /// With `[basin]` checked too.
     pub fn load_basin(&self) -> Result<Config> {
         let cfg = self.load_from(&self.config)?;
-        cfg.validate_basin()?;
+        cfg.check_basin()?;
         Ok(cfg)
     }
 
     /// With `[sweep]` checked too, for the commands that sweep.
     pub fn load_sweep(&self) -> Result<Config> {
         let cfg = self.load_from(&self.config)?;
-        cfg.validate_sweep()?;
+        cfg.check_sweep()?;
         self.refuse_varied(&[cfg.sweep.param], "sweep.param")?;
         for w in cfg.without_effect(&[cfg.sweep.param]) {
             log::warn!("{w}");

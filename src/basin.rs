@@ -472,7 +472,7 @@ pub fn caption(cfg: &Config, b: &Basin) -> String {
          \"mirror of Ak\": the image of Ak under the symmetry (y, t) -> (-y, t + P/2) of the \
          model (same multipliers). \
          Raster image, {WIDTH} x {HEIGHT} px ({dpi}).",
-        title = crate::map::model_title(cfg, &[]),
+        title = crate::caption::model_title(cfg, &[]),
         nx = g.x_values.len(),
         ny = g.y_values.len(),
         x = g.x.name(),

@@ -1,6 +1,6 @@
 //! Phrases shared by the captions of every figure's JSON (diagrams, maps, basins, points).
 
-use crate::config::Config;
+use crate::config::{Config, FrictionLaw};
 use std::collections::BTreeMap;
 
 /// How a run was integrated, for captions: method, steps per period, precision, backend.
@@ -37,4 +37,24 @@ pub fn top_classes(counts: &BTreeMap<String, usize>, k: usize) -> String {
         .map(|(name, n)| format!("{name} {:.1}%", 100.0 * **n as f64 / total.max(1) as f64))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// "Coulomb friction, eta=1.5, R=0.6, ...": the model's values except those named in `except`
+/// (the axes of a map).
+pub fn model_title(cfg: &Config, except: &[&str]) -> String {
+    let m = &cfg.model;
+    // The friction law's own parameters: lambda for Coulomb, fs, fk, l1, l2 for Stribeck.
+    let friction: &[(&str, f64)] = match m.friction {
+        FrictionLaw::Coulomb => &[("lambda", m.lambda)],
+        FrictionLaw::Stribeck => &[("fs", m.fs), ("fk", m.fk), ("l1", m.l1), ("l2", m.l2)],
+    };
+    let mut fixed = Vec::new();
+    let common = [("r", m.r), ("delta", m.delta), ("b1", m.b1), ("mu", m.mu)];
+    let head = [("eta", m.eta), ("R", m.restitution)];
+    for &(k, v) in head.iter().chain(friction).chain(&common) {
+        if !except.contains(&k) {
+            fixed.push(format!("{k}={v}"));
+        }
+    }
+    format!("{:?} friction, {}", m.friction, fixed.join(", "))
 }

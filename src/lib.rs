@@ -35,5 +35,7 @@ pub mod render;
 pub mod sensitivity;
 pub mod spec;
 pub mod stability;
+pub mod stats;
+pub mod validate;
 
 pub use error::{Error, Result};

@@ -170,7 +170,7 @@ fn run(cli: Cli) -> Result<()> {
                     .split(',')
                     .map(|v| v.trim().parse::<f64>().unwrap_or(f64::NAN))
                     .collect();
-                cfg.validate_map()?;
+                cfg.check_map()?;
             }
             check_prefix(&out, &["png", "json"])?;
             // The other config keeps its own eta; every other override applies.
@@ -319,7 +319,7 @@ fn run(cli: Cli) -> Result<()> {
             state_points,
         } => {
             let cfg = common.load_sweep()?;
-            say(rattle::bench::validate(&cfg, state_points as usize)?)?;
+            say(rattle::validate::validate(&cfg, state_points as usize)?)?;
             vec![]
         }
         Cmd::Bench {

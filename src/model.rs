@@ -101,7 +101,7 @@ macro_rules! define_params {
 
         impl Params<f64> {
             /// Checks every parameter; the error names the first one out of range.
-            pub fn validate(&self) -> Result<(), ParamError> {
+            pub fn check(&self) -> Result<(), ParamError> {
                 $(
                     let $v = self.$field;
                     if !($v.is_finite() && $ok) {

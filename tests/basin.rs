@@ -167,7 +167,7 @@ fn gpu_and_cpu_find_the_same_basins() {
     for precision in [Precision::F64, Precision::F32] {
         let mut cfg = Config::load(&config("basin.toml"), &sets).unwrap();
         cfg.method.precision = precision;
-        cfg.validate_basin().unwrap();
+        cfg.check_basin().unwrap();
         let run = |e: &Engine| -> Basin { compute(e, &cfg, &Silent).unwrap() };
         let (g, c) = (run(&gpu), run(&Engine::Cpu));
         assert_eq!(g.backend, "gpu");

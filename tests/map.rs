@@ -169,7 +169,7 @@ fn bad_map_configs_are_rejected_with_the_key() {
     ];
     for (text, key) in cases {
         let e = Config::from_toml(text, &[])
-            .and_then(|c| c.validate_map())
+            .and_then(|c| c.check_map())
             .unwrap_err()
             .to_string();
         assert!(e.contains(key), "{text}: `{e}` must name {key}");
@@ -297,11 +297,11 @@ fn every_shipped_config_loads() {
         let cfg = Config::load(&p, &[]).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         let text = std::fs::read_to_string(&p).unwrap();
         if text.contains("[map]") {
-            cfg.validate_map()
+            cfg.check_map()
                 .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         }
         if text.contains("[basin]") {
-            cfg.validate_basin()
+            cfg.check_basin()
                 .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         }
         n += 1;
@@ -424,14 +424,14 @@ fn map_titles_name_the_parameters_of_the_friction_law() {
         &[],
     )
     .unwrap();
-    let t = rattle::map::model_title(&s, &["R", "eta"]);
+    let t = rattle::caption::model_title(&s, &["R", "eta"]);
     assert!(
         t.contains("fs=0.25") && t.contains("fk=0.05") && t.contains("l2="),
         "{t}"
     );
     assert!(!t.contains("lambda"), "{t}");
     let c = Config::from_toml("[map]\nx = \"R\"\ny = \"eta\"\n", &[]).unwrap();
-    let t = rattle::map::model_title(&c, &["R", "eta"]);
+    let t = rattle::caption::model_title(&c, &["R", "eta"]);
     assert!(t.contains("lambda=0.02") && !t.contains("fs="), "{t}");
 }
 
@@ -469,7 +469,7 @@ fn refine_synthetic(
     truth: &dyn Fn(usize, usize) -> (rattle::decide::Summary, u8),
 ) -> (Vec<Class>, Vec<u8>, usize) {
     let mut seen = vec![false; nx * ny];
-    let r = rattle::map::refine::refine_grid((nx, ny), k, 0.01, chaotic, |todo| {
+    let r = rattle::map::coarse::coarse_grid((nx, ny), k, 0.01, chaotic, |todo| {
         assert!(todo.windows(2).all(|w| w[0] < w[1]), "ascending, each once");
         Ok::<_, ()>(
             todo.iter()

@@ -11,9 +11,9 @@ use rattle::config::{Backend, Config, Precision};
 use rattle::engine::Engine;
 use rattle::model::Param;
 use rattle::progress::Silent;
-use rattle::sensitivity::stats::{bootstrap, indices, risk, wilson};
 use rattle::sensitivity::{Options, Uncertain, draw};
 use rattle::spec::{Points, RunSpec};
+use rattle::stats::{bootstrap, indices, risk, wilson};
 use statrs::distribution::{ContinuousCDF, Normal};
 use std::f64::consts::PI;
 
@@ -173,7 +173,7 @@ fn risk_by_definition(c: &[i32], nx: usize, ny: usize, sx: f64, sy: f64) -> Vec<
 #[test]
 fn the_fast_risk_equals_its_definition_on_a_patchwork_of_classes() {
     let (nx, ny) = (37, 23);
-    let mut rng = rattle::sensitivity::stats::SplitMix(5);
+    let mut rng = rattle::stats::SplitMix(5);
     // Blocks of 3 x 2 cells of five classes, so that classes neighbour each other everywhere.
     let blocks: Vec<i32> = (0..13 * 12).map(|_| (rng.next_u64() % 5) as i32).collect();
     let c: Vec<i32> = (0..nx * ny)

@@ -91,7 +91,7 @@ pub fn paper_figure(
         };
         let cfg = cfg.and_then(|mut cfg| {
             adjust(&mut cfg);
-            cfg.validate().map(|()| cfg)
+            cfg.check().map(|()| cfg)
         });
         cfgs.push((name, cfg.map_err(|e| e.in_file(&file))?));
     }

@@ -153,7 +153,7 @@ impl Default for BasinConfig {
 impl Config {
     /// Checks the `[map]` section (only maps need it: the defaults name lambda, which a
     /// Stribeck bifurcation config does not have).
-    pub fn validate_map(&self) -> Result<(), ConfigError> {
+    pub fn check_map(&self) -> Result<(), ConfigError> {
         self.check_tangent("`map`")?;
         let m = &self.map;
         for (key, name) in [("map.x", m.x), ("map.y", m.y)] {
@@ -213,7 +213,7 @@ impl Config {
     pub fn check_value(&self, key: &str, name: Param, v: f64) -> Result<(), ConfigError> {
         let mut p = self.params();
         name.set(&mut p, v);
-        p.validate()
+        p.check()
             .map_err(|e| ConfigError::range(key, v, &format!("{} for `{name}`", e.range)))?;
         if name == Param::Clearance {
             self.check_clearance(key, v)?;
@@ -251,7 +251,7 @@ impl Config {
     /// Checks the `[basin]` section: two different coordinates, finite ranges of non-zero
     /// width (z0 within the clearance), a grid of at most [`MAX_BASIN_CELLS`] cells and a
     /// matching tolerance in (0, 0.1].
-    pub fn validate_basin(&self) -> Result<(), ConfigError> {
+    pub fn check_basin(&self) -> Result<(), ConfigError> {
         self.check_tangent("`basin`")?;
         let b = &self.basin;
         if b.x == b.y {

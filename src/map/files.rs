@@ -3,7 +3,7 @@
 use super::Fields;
 use crate::class::Class;
 use crate::class::{PERIOD_FAMILIES, Shown};
-use crate::config::{Config, FrictionLaw};
+use crate::config::Config;
 use crate::model::Param;
 use crate::output::{Staged, with_ext};
 use crate::render::{
@@ -39,27 +39,7 @@ pub fn title(cfg: &Config) -> String {
     if !cfg.map.title.is_empty() {
         return cfg.map.title.clone();
     }
-    model_title(cfg, &[cfg.map.x.name(), cfg.map.y.name()])
-}
-
-/// "Coulomb friction, eta=1.5, R=0.6, ...": the model's values except those named in `except`
-/// (the axes of a map).
-pub fn model_title(cfg: &Config, except: &[&str]) -> String {
-    let m = &cfg.model;
-    // The friction law's own parameters: lambda for Coulomb, fs, fk, l1, l2 for Stribeck.
-    let friction: &[(&str, f64)] = match m.friction {
-        FrictionLaw::Coulomb => &[("lambda", m.lambda)],
-        FrictionLaw::Stribeck => &[("fs", m.fs), ("fk", m.fk), ("l1", m.l1), ("l2", m.l2)],
-    };
-    let mut fixed = Vec::new();
-    let common = [("r", m.r), ("delta", m.delta), ("b1", m.b1), ("mu", m.mu)];
-    let head = [("eta", m.eta), ("R", m.restitution)];
-    for &(k, v) in head.iter().chain(friction).chain(&common) {
-        if !except.contains(&k) {
-            fixed.push(format!("{k}={v}"));
-        }
-    }
-    format!("{:?} friction, {}", m.friction, fixed.join(", "))
+    crate::caption::model_title(cfg, &[cfg.map.x.name(), cfg.map.y.name()])
 }
 
 /// The run-specific part of a map's JSON report.
@@ -90,12 +70,12 @@ pub struct MapReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub compare: Option<CompareReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub refine: Option<RefineReport>,
+    pub refine: Option<CoarseReport>,
 }
 
 /// How a coarse-to-fine map (`--refine`) was computed.
 #[derive(Clone, Debug, Serialize)]
-pub struct RefineReport {
+pub struct CoarseReport {
     /// Coarse spacing K (`--refine K`).
     pub spacing: usize,
     /// A chaotic corner counted as clear above this multiple of `run.lyapunov_tol`
@@ -500,7 +480,7 @@ pub fn write_outputs(
             (m.y_to - m.y_from).abs() / ny as f64,
         ];
         let codes: Vec<i32> = cells.iter().map(|&c| i32::from(c)).collect();
-        let r = crate::sensitivity::stats::risk(
+        let r = crate::stats::risk(
             &codes,
             nx,
             ny,

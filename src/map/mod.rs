@@ -2,20 +2,21 @@
 //! shards, checkpoints, adapters and merging ([`parts`]), and the final PNG / NPY / JSON files
 //! ([`output`]).
 
+pub mod coarse;
+mod command;
 mod fields;
 mod files;
 mod parts;
-pub mod refine;
 
+pub use command::{
+    MapOptions, MapSummary, merge_files, parse_shard, run, run_all_adapters, run_shared, work,
+};
 pub use fields::{Fields, Layer};
 pub use files::{
-    CompareReport, MapReport, MapTimings, RASTER, RefineReport, category, compare_caption,
-    model_title, title, write_compare, write_outputs,
+    CoarseReport, CompareReport, MapReport, MapTimings, RASTER, category, compare_caption, title,
+    write_compare, write_outputs,
 };
-pub use parts::{
-    MapOptions, MapSummary, Part, compute_part, merge, merge_files, parse_shard, part_path,
-    read_part, run, run_all_adapters, run_shared, work, write_part,
-};
+pub use parts::{Part, compute_part, merge, part_path, read_part, write_part};
 
 use crate::class::Class;
 use crate::config::Config;

@@ -91,7 +91,7 @@ pub struct DryReference {
 impl DryReference {
     /// The reference with `scan` points per forcing period (>= 64) and the Zeno speed `zeno`.
     pub fn new(p: &Params<f64>, scan: u32, zeno: f64) -> Result<Self, ReferenceError> {
-        p.validate()
+        p.check()
             .map_err(|e| ReferenceError(format!("parameters: {e}")))?;
         if scan < 64 {
             return Err(ReferenceError(format!("scan = {scan}, at least 64")));

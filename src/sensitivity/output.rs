@@ -207,7 +207,7 @@ fn figure(s: &Study) -> SensitivityFigure {
     }
     if s.classes.len() > BARS {
         let rest: usize = s.classes[BARS..].iter().map(|p| p.count).sum();
-        let (p, low, high) = super::stats::wilson(rest, 2 * s.samples);
+        let (p, low, high) = crate::stats::wilson(rest, 2 * s.samples);
         bars.push(Bar {
             name: format!("{} other classes", s.classes.len() - BARS),
             class: None,

@@ -1,4 +1,5 @@
-//! The estimators of a sensitivity study, apart from any dynamics: binomial intervals (Wilson),
+//! Estimators under uncertainty, apart from any dynamics (the sensitivity study and the risk
+//! map use them): binomial intervals (Wilson),
 //! Sobol indices from a Saltelli design (Saltelli 2010 first order, Jansen 1999 total) with
 //! bootstrap intervals, and the probability that a Gaussian perturbation of a class map lands on
 //! another class. Each is tested where its answer is known (tests/sensitivity.rs).

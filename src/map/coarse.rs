@@ -62,7 +62,7 @@ fn clear(s: &Summary, tol: f64, chaotic: f64) -> bool {
 
 /// Computes the map of `cfg` coarse-to-fine with coarse spacing `k` (>= 2); a chaotic corner
 /// is clear above `chaotic` x `run.lyapunov_tol` (`--refine-clear`).
-pub fn compute_refined(
+pub fn compute_coarse(
     engine: &Engine,
     cfg: &Config,
     k: usize,
@@ -71,7 +71,7 @@ pub fn compute_refined(
     progress: &dyn Progress,
 ) -> crate::Result<Refined> {
     let mut timings = Timings::default();
-    let mut r = refine_grid(
+    let mut r = coarse_grid(
         (cfg.map.x_points as usize, cfg.map.y_points as usize),
         k,
         cfg.run.lyapunov_tol,
@@ -89,7 +89,7 @@ pub fn compute_refined(
 /// The refinement of an `nx` x `ny` grid (row-major) with coarse spacing `k`, where `compute`
 /// integrates the listed cells (ascending, each once; its timings are the caller's). Kept apart
 /// from the engine so that the rule can be tested on classes with a known boundary.
-pub fn refine_grid<E>(
+pub fn coarse_grid<E>(
     (nx, ny): (usize, usize),
     k: usize,
     tol: f64,

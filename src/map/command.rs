@@ -1,0 +1,438 @@
+//! The map command: its options, the run (whole, sharded, checkpointed or shared among the
+//! adapters), the comparison, and the merge of parts into the files of a single run.
+
+use super::parts::{Part, coarse_part, compute_part, merge, part_path, read_part, write_part};
+use super::{
+    CoarseReport, CompareReport, Fields, MapReport, MapTimings, cell_count, compare_caption,
+    compute, shard_range, write_compare, write_outputs,
+};
+use crate::config::Config;
+use crate::engine::Engine;
+use crate::error::OptionError;
+use crate::progress::Progress;
+use std::path::{Path, PathBuf};
+
+/// How a map run is split and what it adds.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MapOptions<'a> {
+    /// Initial states per cell (`--starts`).
+    pub starts: usize,
+    /// Compute only share I of N and write its part file (`--shard I/N`).
+    pub shard: Option<(usize, usize)>,
+    /// Run as K shards kept on disk, resuming finished ones (`--checkpoint K`).
+    pub checkpoint: Option<usize>,
+    /// A second configuration on the same grid whose class changes are rendered.
+    pub compare: Option<&'a Config>,
+    /// Coarse-to-fine with this coarse spacing (`--refine K`, see [`super::refine`]).
+    pub refine: Option<usize>,
+    /// With `--refine`: a chaotic corner is clear above this multiple of `run.lyapunov_tol`
+    /// (`--refine-clear`; [`super::coarse::CLEAR_CHAOTIC`] when not given).
+    pub refine_clear: Option<f64>,
+}
+
+/// Parses `--shard I/N`.
+pub fn parse_shard(s: &str) -> crate::Result<(usize, usize)> {
+    let bad = || {
+        crate::Error::from(OptionError::Range {
+            option: "shard",
+            value: s.to_string(),
+            allowed: "I/N with 0 <= I < N, e.g. 0/4".into(),
+        })
+    };
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (i, n): (usize, usize) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+impl MapOptions<'_> {
+    /// The chaotic corners' threshold of `--refine`, in units of `run.lyapunov_tol`.
+    pub fn clear_chaotic(&self) -> f64 {
+        self.refine_clear.unwrap_or(super::coarse::CLEAR_CHAOTIC)
+    }
+
+    /// Refuses splits that cannot work (more shards than cells, --shard with --checkpoint)
+    /// and runs that do not fit in memory, before anything is computed.
+    pub fn check(&self, cfg: &Config) -> crate::Result<()> {
+        let cells = cell_count(cfg);
+        let bad = |e: OptionError| Err(crate::Error::from(e));
+        let range = |option, value: String, allowed: String| {
+            bad(OptionError::Range {
+                option,
+                value,
+                allowed,
+            })
+        };
+        if self.shard.is_some() && self.checkpoint.is_some() {
+            return bad(OptionError::Conflict {
+                option: "shard",
+                with: &["checkpoint"],
+                why: "a shard is one part",
+            });
+        }
+        if let Some(k) = self.refine {
+            if self.shard.is_some() || self.checkpoint.is_some() {
+                return bad(OptionError::Conflict {
+                    option: "refine",
+                    with: &["shard", "checkpoint"],
+                    why: "refinement works on the whole grid",
+                });
+            }
+            if !(2..=1024).contains(&k) {
+                return range(
+                    "refine",
+                    k.to_string(),
+                    "2 to 1024 (coarse spacing in cells)".into(),
+                );
+            }
+        }
+        if let Some(other) = self.compare {
+            // Both maps on one grid, checked before either is computed; a shard holds part of
+            // the grid, so there is nothing to compare it with.
+            if self.shard.is_some() || self.checkpoint.is_some() {
+                return bad(OptionError::Conflict {
+                    option: "compare",
+                    with: &["shard", "checkpoint"],
+                    why: "the comparison needs both whole maps",
+                });
+            }
+            if let Some(key) = cfg.map.grid_difference(&other.map) {
+                return bad(OptionError::Unsuitable {
+                    option: "compare",
+                    why: format!(
+                        "the other config must have the same grid; its `map.{key}` differs"
+                    ),
+                });
+            }
+        }
+        if let Some(c) = self.refine_clear {
+            if self.refine.is_none() {
+                return bad(OptionError::Needs {
+                    option: "refine-clear",
+                    needs: "refine",
+                });
+            }
+            if !(c.is_finite() && (1.0..=100.0).contains(&c)) {
+                return range(
+                    "refine-clear",
+                    c.to_string(),
+                    "1 to 100 (times run.lyapunov_tol)".into(),
+                );
+            }
+        }
+        if let Some((_, n)) = self.shard
+            && n > cells
+        {
+            return range(
+                "shard",
+                format!("I/{n}"),
+                format!("N up to the map's {cells} cells"),
+            );
+        }
+        if let Some(k) = self.checkpoint
+            && !(1..=cells).contains(&k)
+        {
+            return range(
+                "checkpoint",
+                k.to_string(),
+                format!("1 to the map's {cells} cells"),
+            );
+        }
+        let held = self
+            .shard
+            .map_or(cells, |(i, n)| shard_range(cells, i, n).len());
+        crate::memory::check_map(cfg, held, self.starts)?;
+        Ok(())
+    }
+}
+
+/// What a map run did.
+#[derive(Clone, Debug, Default)]
+pub struct MapSummary {
+    pub backend: String,
+    pub device: String,
+    /// Files written, in order.
+    pub files: Vec<PathBuf>,
+    /// Shards (I, N, part file) of a checkpointed run that were reused.
+    pub resumed: Vec<(usize, usize, PathBuf)>,
+    /// Cells whose class changed against `--compare`, and the cell count.
+    pub changed: Option<(usize, usize)>,
+    pub integration_s: f64,
+    pub counts: std::collections::BTreeMap<String, usize>,
+    pub wall_s: f64,
+}
+
+impl MapSummary {
+    /// Lines for the terminal: resumed shards, class changes, what ran where and how long.
+    pub fn report(&self, cfg: &Config) -> String {
+        let mut s = String::new();
+        for (i, n, p) in &self.resumed {
+            s += &format!("shard {i}/{n} already done: {}\n", p.display());
+        }
+        if let Some((changed, cells)) = self.changed {
+            s += &format!(
+                "class changed in {changed} of {cells} cells ({:.2}%)\n",
+                100.0 * changed as f64 / cells as f64
+            );
+        }
+        s + &format!(
+            "map: {} x {} cells on {} ({}, {}) in {:.2} s ({:.2} s integration); {:?}\n",
+            cfg.map.x_points,
+            cfg.map.y_points,
+            self.backend,
+            self.device,
+            cfg.method.precision.name(),
+            self.wall_s,
+            self.integration_s,
+            self.counts
+        )
+    }
+}
+
+/// Units of work `run` reports to its progress (see [`Engine::progress_per_point`]).
+pub fn work(engine: &Engine, cfg: &Config, o: &MapOptions) -> u64 {
+    let spec = crate::spec::RunSpec::new(cfg);
+    let cells = match o.shard {
+        Some((i, n)) => shard_range(cell_count(cfg), i, n).len(),
+        None => cell_count(cfg),
+    } as u64;
+    let per_point = engine.progress_per_point(&spec);
+    let compare = if o.compare.is_some() { cells } else { 0 };
+    (cells * o.starts.max(1) as u64 + compare) * per_point
+}
+
+/// Computes a map as configured by `o` and writes its files (or, with `o.shard`, its part).
+pub fn run(
+    engine: &Engine,
+    cfg: &Config,
+    out: &Path,
+    o: &MapOptions,
+    progress: &dyn Progress,
+) -> crate::Result<MapSummary> {
+    let t = std::time::Instant::now();
+    let cells = cell_count(cfg);
+    o.check(cfg)?;
+    let mut summary = MapSummary {
+        backend: engine.name().into(),
+        device: engine.device(),
+        ..MapSummary::default()
+    };
+    if let Some((i, n)) = o.shard {
+        let p = compute_part(engine, cfg, (i, n), o.starts, progress)?;
+        let path = part_path(out, i, n);
+        write_part(&path, &p)?;
+        summary.integration_s = p.timings.integration_s;
+        summary.counts = p.fields.counts();
+        summary.files.push(path);
+        summary.wall_s = t.elapsed().as_secs_f64();
+        return Ok(summary);
+    }
+    let n = o.checkpoint.unwrap_or(1).max(1);
+    let per_cell =
+        o.starts.max(1) as u64 * engine.progress_per_point(&crate::spec::RunSpec::new(cfg));
+    let mut parts = Vec::with_capacity(n);
+    for i in 0..n {
+        let path = part_path(out, i, n);
+        // Resume: a finished shard of the same run is reused; a part of another run (or an
+        // unreadable one) is recomputed and replaced.
+        let version = env!("CARGO_PKG_VERSION");
+        let starts = o.starts.max(1);
+        if n > 1
+            && let Ok(p) = read_part(&path)
+            && p.shard == (i, n)
+            && p.differs_from(version, cfg, starts, engine.name(), n)
+                .is_none()
+        {
+            progress.advance(p.fields.len() as u64 * per_cell);
+            summary.resumed.push((i, n, path));
+            parts.push(p);
+            continue;
+        }
+        let p = match o.refine {
+            Some(k) => coarse_part(engine, cfg, k, o.clear_chaotic(), o.starts, progress)?,
+            None => compute_part(engine, cfg, (i, n), o.starts, progress)?,
+        };
+        if n > 1 {
+            write_part(&path, &p)?;
+        }
+        parts.push(p);
+    }
+    let (cfg, fields, parts) = merge(parts)?;
+    let secs: f64 = parts.iter().map(|p| p.timings.integration_s).sum();
+    // Periods integrated (the first start of each cell), plus the exponent's second
+    // integration over the sampled periods of cells that ran to the end.
+    let full = cfg.run.transient_periods + cfg.run.sample_periods;
+    let periods: u64 = fields
+        .periods
+        .iter()
+        .map(|&p| {
+            u64::from(p)
+                + if p == full {
+                    u64::from(cfg.run.sample_periods)
+                } else {
+                    0
+                }
+        })
+        .sum();
+    let steps = periods as f64 * cfg.method.steps_per_period as f64;
+    let mut report = MapReport {
+        command: "map",
+        backend: Some(engine.name().into()),
+        device: Some(engine.device()),
+        precision: Some(cfg.method.precision.name().into()),
+        cells: Some(cells),
+        timings: MapTimings {
+            integration_s: Some(secs),
+            rk4_steps: Some(steps),
+            steps_per_s: Some(steps / secs),
+            ..MapTimings::default()
+        },
+        refine: o.refine.map(|k| CoarseReport {
+            spacing: k,
+            chaotic_clear: o.clear_chaotic(),
+            cells_integrated: fields.inferred.iter().filter(|&&v| v == 0).count(),
+            cells_inferred: fields.inferred.iter().filter(|&&v| v == 1).count(),
+        }),
+        ..MapReport::default()
+    };
+    if let Some(other) = o.compare {
+        // The grids were checked by `o.check` before computing.
+        let (s, _) = compute(engine, other, 0..cells, 1, progress)?;
+        let other_fields = Fields::from_cells(&s);
+        let (a, b) = (fields.classes(), other_fields.classes());
+        let changed = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+        report.compare = Some(CompareReport {
+            caption: compare_caption(&cfg, other, &a, &b),
+            other_config: other.clone(),
+            cells_changed: changed,
+            fraction_changed: changed as f64 / cells as f64,
+            other_class_counts: other_fields.counts(),
+        });
+        let mut p = out.as_os_str().to_owned();
+        p.push("-compare");
+        summary
+            .files
+            .extend(write_compare(Path::new(&p), &cfg, other, &a, &b)?);
+        summary.changed = Some((changed, cells));
+    }
+    summary
+        .files
+        .extend(write_outputs(out, &cfg, &fields, &report)?);
+    if n > 1 {
+        for i in 0..n {
+            let _ = std::fs::remove_file(part_path(out, i, n));
+        }
+    }
+    summary.integration_s = secs;
+    summary.counts = fields.counts();
+    summary.wall_s = t.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// A map split over every adapter of the machine: one contiguous share per adapter, computed
+/// concurrently, merged as shards are.
+pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> crate::Result<MapSummary> {
+    if o.shard.is_some() || o.checkpoint.is_some() || o.compare.is_some() || o.refine.is_some() {
+        return Err(OptionError::Conflict {
+            option: "adapters",
+            with: &["shard", "checkpoint", "compare", "refine"],
+            why: "all adapters share the one whole map",
+        }
+        .into());
+    }
+    if cfg.method.backend == crate::config::Backend::Cpu {
+        return Err(OptionError::Unsuitable {
+            option: "adapters",
+            why: "`all` splits the cells over the machine's GPU adapters and cannot run with \
+                  method.backend = \"cpu\" (use the gpu backend, or one adapter for the CPU)"
+                .into(),
+        }
+        .into());
+    }
+    o.check(cfg)?;
+    let starts = o.starts;
+    let engines = Engine::all()?;
+    run_shared(&engines, cfg, out, starts)
+}
+
+/// A map split into one contiguous share per engine, computed concurrently, merged as shards
+/// are; the result equals a single engine's map.
+pub fn run_shared(
+    engines: &[Engine],
+    cfg: &Config,
+    out: &Path,
+    starts: usize,
+) -> crate::Result<MapSummary> {
+    let n = engines.len();
+    let t = std::time::Instant::now();
+    let parts: Vec<crate::Result<Part>> = std::thread::scope(|s| {
+        let handles: Vec<_> = engines
+            .iter()
+            .enumerate()
+            .map(|(i, engine)| {
+                s.spawn(move || compute_part(engine, cfg, (i, n), starts, &crate::progress::Silent))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(crate::Error::Merge("adapter thread panicked".into())))
+            })
+            .collect()
+    });
+    let parts = parts.into_iter().collect::<Result<Vec<_>, _>>()?;
+    let devices: Vec<String> = parts.iter().map(|p| p.device.clone()).collect();
+    let (cfg, fields, _) = merge(parts)?;
+    let report = MapReport {
+        command: "map",
+        backend: Some("gpu".into()),
+        devices: Some(devices),
+        cells: Some(cell_count(&cfg)),
+        timings: MapTimings {
+            wall_s: Some(t.elapsed().as_secs_f64()),
+            ..MapTimings::default()
+        },
+        ..MapReport::default()
+    };
+    Ok(MapSummary {
+        backend: "gpu".into(),
+        device: format!("{n} engines"),
+        files: write_outputs(out, &cfg, &fields, &report)?,
+        integration_s: t.elapsed().as_secs_f64(),
+        counts: fields.counts(),
+        wall_s: t.elapsed().as_secs_f64(),
+        ..MapSummary::default()
+    })
+}
+
+/// Merges part files into the files of a single run.
+pub fn merge_files(paths: &[PathBuf], out: &Path) -> crate::Result<MapSummary> {
+    let parts = paths
+        .iter()
+        .map(|p| read_part(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let (cfg, fields, parts) = merge(parts)?;
+    let report = MapReport {
+        command: "map (merged)",
+        version: Some(parts[0].version.clone()),
+        merged_by: Some(env!("CARGO_PKG_VERSION")),
+        shards: Some(parts.len()),
+        devices: Some(parts.iter().map(|p| p.device.clone()).collect()),
+        timings: MapTimings {
+            integration_s_sum: Some(parts.iter().map(|p| p.timings.integration_s).sum()),
+            ..MapTimings::default()
+        },
+        ..MapReport::default()
+    };
+    Ok(MapSummary {
+        files: write_outputs(out, &cfg, &fields, &report)?,
+        counts: fields.counts(),
+        ..MapSummary::default()
+    })
+}
