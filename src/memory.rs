@@ -38,7 +38,7 @@ fn gib(b: f64) -> String {
 /// Bytes a bifurcation diagram holds per point and chain: its samples (f64 states, the
 /// backend's staging copy and the plotted values) and the per-point result with the evidence
 /// of its class, its observables, verdict and report. Measured (peak resident memory, CPU,
-/// 100,000 against 400,000 points, tests/reliability.rs checks it): 2,162 B per point with 2
+/// 100,000 against 400,000 points, tests/memory.rs checks it): 2,162 B per point with 2
 /// samples.
 pub fn bifurcation_bytes_per_point(samples: u32) -> u64 {
     samples as u64 * (32 + 32 + 16) + 2560
@@ -48,7 +48,7 @@ pub fn bifurcation_bytes_per_point(samples: u32) -> u64 {
 /// with the evidence and observables, state, pooled exponent, diagnostics, parameters); the
 /// merged fields (twice while merging), classes, colours and exponents for the images.
 /// Measured (peak resident memory, CPU, 512 x 512 against 1024 x 1024 cells, checked by
-/// tests/reliability.rs): 724 B per cell with one start, 1,433 with two.
+/// tests/memory.rs): 724 B per cell with one start, 1,433 with two.
 pub fn map_bytes_per_cell(starts: usize) -> u64 {
     starts as u64 * 896 + 256
 }

@@ -126,3 +126,106 @@ pub fn run_point(
         .unwrap();
     rs.pop().expect("one point, one result")
 }
+
+// Helpers of the command-line reliability tests (tests/reliability.rs, parts.rs, memory.rs,
+// outputs.rs).
+
+/// 1 x 3 cells at eta = 1.33, R = 0.59: the middle cell has two attractors (see tests/map.rs).
+pub const COEXIST: &str = "[model]\neta = 1.33\n[method]\nsteps_per_period = 64\n[run]\n\
+    transient_periods = 300\nsample_periods = 50\n[map]\nx = \"R\"\nx_from = 0.58\n\
+    x_to = 0.60\nx_points = 1\ny = \"lambda\"\ny_from = 0.085\ny_to = 0.115\ny_points = 3\n";
+
+pub fn setup(name: &str) -> (Scratch, PathBuf) {
+    let d = scratch(name);
+    let cfg = d.join("c.toml");
+    std::fs::write(&cfg, COEXIST).unwrap();
+    (d, cfg)
+}
+
+pub fn map(cfg: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    rattle()
+        .args(["map", "--backend", "cpu", "--precision", "f64", "--config"])
+        .arg(cfg)
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+pub fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Runs `cmd`, which must be refused before computing: exit 2 with every key in the message.
+pub fn refused(cmd: &mut std::process::Command, keys: &[&str]) {
+    let out = cmd.output().unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{cmd:?}: {err}");
+    assert!(keys.iter().all(|k| err.contains(k)), "{cmd:?}: {err}");
+}
+
+pub fn bifurcation(out: &Path, points: u32) -> std::process::Command {
+    let mut c = rattle();
+    c.args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(config("fig2.toml"))
+        .args(["--set", &format!("sweep.points={points}")])
+        .args([
+            "--set",
+            "run.transient_periods=5",
+            "--set",
+            "run.sample_periods=4",
+        ])
+        .args(["--set", "method.steps_per_period=16"])
+        .arg("--out")
+        .arg(out);
+    c
+}
+
+pub fn point(args: &[&str]) -> std::process::Output {
+    rattle()
+        .args(["point", "--backend", "cpu", "--config"])
+        .arg(config("fig2.toml"))
+        .args([
+            "--set",
+            "run.transient_periods=10",
+            "--set",
+            "run.sample_periods=5",
+        ])
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// A map of 4 x 4 cells over 2 + 2 periods: cheap enough to run where only the checks matter.
+pub const CHEAP_MAP: [&str; 8] = [
+    "--set",
+    "map.x_points=4",
+    "--set",
+    "map.y_points=4",
+    "--set",
+    "run.transient_periods=2",
+    "--set",
+    "run.sample_periods=2",
+];
+
+/// Runs `cmd` and kills it if it has not ended within `secs`; the output, or None if killed.
+pub fn within(cmd: &mut std::process::Command, secs: f64) -> Option<std::process::Output> {
+    use std::process::Stdio;
+    let mut child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t = std::time::Instant::now();
+    while t.elapsed().as_secs_f64() < secs {
+        if child.try_wait().unwrap().is_some() {
+            return Some(child.wait_with_output().unwrap());
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    None
+}
