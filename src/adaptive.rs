@@ -1,25 +1,28 @@
-//! Early termination: a point leaves the run as soon as its answer is decided, instead of
-//! integrating every transient and sampled period.
+//! Early termination and the adaptive horizon: a point leaves the run as soon as its answer is
+//! decided, and an undecided one gets more time, written once ([`drive`]) for every caller.
 //!
-//! The run proceeds in rounds on any backend. Round k integrates the live points for
-//! `50 * 2^k` more transient periods and a window of [`WINDOW`] sampled periods from where the
-//! previous round left them; a point whose window shows a period that Newton's method confirms
-//! as a stable cycle ([`crate::decide::confirm`]) is decided and keeps its cycle's n section
-//! points (the picture of a cycle needs no more), and a point without impacts whose window
-//! repeats is decided `no_impact`. Rounds stop while there is still room for the configured
-//! sampling window; the undecided points then finish with the remaining transient and the
-//! full sampling (with the exponent when the spec asks for it), so they end on the same
-//! periods as a brute-force run. A continued point restarts in the mode its state implies
-//! (slip by the sign of v, the at-rest rule at v = 0), which can differ from the mode it was
-//! in at the rare section that falls inside a stick or lock: the agreement with brute force is
-//! measured, not assumed.
+//! The run proceeds in stages on any backend ([`Stage`]). Early round k integrates the live
+//! points for `50 * 2^k` more transient periods and a window of [`WINDOW`] sampled periods from
+//! where the previous round left them; a point whose window shows a period that Newton's method
+//! confirms as a stable cycle ([`crate::decide::confirm`]) is decided (with its cycle's exact
+//! exponent), and so is a point whose window repeats without impacts (`no_impact`). Rounds stop
+//! while there is still room for the configured sampling window; the undecided points then
+//! finish with the remaining transient and the full sampling (with the exponent when the spec
+//! asks for it), so they end on the same periods as a brute-force run, and a point still
+//! undecided gets the windows of the adaptive horizon ([`extensions`]). A continued point
+//! resumes in the mode it stopped in, so its path is that of one uninterrupted run.
+//!
+//! What differs between callers is only what a point keeps and how a stage's points are run
+//! and decided ([`Keep`]): sweeps and `point` keep samples ([`run`], [`run_samples`]: a cycle
+//! decided early keeps its n section points), maps and sensitivity studies keep summaries
+//! decided block by block ([`run_summaries`]).
 
 use crate::class::Class;
-use crate::classify::{Pool, detect_period};
+use crate::classify::Pool;
 use crate::decide::{Proposal, Summary, Trials, Verdict, confirm_many};
 use crate::engine::{Engine, EngineError, Timings};
 use crate::method::{Diagnostics, RunResult};
-use crate::model::Mode;
+use crate::model::{Mode, Params};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
 use std::time::Instant;
@@ -122,182 +125,10 @@ impl Live {
     }
 }
 
-/// The verdicts on runs `rs` of the points `live` (samples kept), every candidate tried.
-fn decide_all(spec: &RunSpec, points: &Points, rs: &[RunResult], live: &[usize]) -> Vec<Verdict> {
-    let proposals: Vec<Proposal> = rs
-        .iter()
-        .zip(live)
-        .map(|(r, &i)| Proposal {
-            params: points.params(&spec.params, i),
-            run: r,
-            class: r.class(spec.period_tol),
-            trials: Trials::All,
-            skip: [0; 2],
-        })
-        .collect();
-    confirm_many(&spec.settings, &proposals)
-}
-
-/// Runs `points` with early termination, keeping samples (bifurcation diagrams).
-pub fn run(
-    engine: &Engine,
-    spec: &RunSpec,
-    points: &Points,
-    progress: &dyn Progress,
-) -> Result<Adaptive, EngineError> {
-    let n = points.len();
-    let mut y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
-    let mut modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
-    let mut live: Vec<usize> = (0..n).collect();
-    let mut diag = vec![Diagnostics::default(); n];
-    let mut done: Vec<Option<(RunResult, Verdict)>> = vec![None; n];
-    let mut periods = vec![0u32; n];
-    let mut timings = Timings::default();
-    let mut newton_s = 0.0;
-    let mut elapsed = 0u32;
-    let params = |i: usize| points.params(&spec.params, i);
-    for (t, w) in rounds(spec.transient) {
-        if live.is_empty() {
-            break;
-        }
-        let round = round_spec(spec, t, w);
-        let lv = Live::new(points, &live, &y, &modes);
-        let sub = lv.points(points);
-        let (rs, tm) = engine.run(&round, &sub, progress)?;
-        timings.integration_s += tm.integration_s;
-        elapsed += t + w;
-        // The proposed periods of the window, confirmed all at once.
-        let classes: Vec<Class> = rs.iter().map(|r| r.class(spec.period_tol)).collect();
-        let proposals: Vec<Proposal> = rs
-            .iter()
-            .zip(&live)
-            .zip(&classes)
-            .filter(|(_, class)| matches!(class, Class::Periodic(_)))
-            .map(|((r, &i), &class)| Proposal {
-                params: params(i),
-                run: r,
-                class,
-                trials: Trials::Detected,
-                skip: [0; 2],
-            })
-            .collect();
-        let tn = Instant::now();
-        let mut verdicts = confirm_many(&spec.settings, &proposals).into_iter();
-        newton_s += tn.elapsed().as_secs_f64();
-        let decided: Vec<Option<(RunResult, Verdict)>> = rs
-            .iter()
-            .zip(&live)
-            .zip(classes)
-            .map(|((r, &i), class)| {
-                let v = matches!(class, Class::Periodic(_)).then(|| verdicts.next().unwrap());
-                decided_early(spec, &params(i), r, class, v)
-            })
-            .collect();
-        let mut next = Vec::with_capacity(live.len());
-        for ((r, &i), d) in rs.iter().zip(&live).zip(decided) {
-            add(&mut diag[i], &r.diag);
-            match d {
-                Some((mut r, v)) => {
-                    r.diag = diag[i];
-                    periods[i] = elapsed;
-                    done[i] = Some((r, v));
-                }
-                None => {
-                    y[i] = r.final_y;
-                    modes[i] = Some(r.final_mode);
-                    next.push(i);
-                }
-            }
-        }
-        live = next;
-    }
-    if !live.is_empty() {
-        let last = final_spec(spec, elapsed);
-        let lv = Live::new(points, &live, &y, &modes);
-        let sub = lv.points(points);
-        let (rs, tm) = engine.run(&last, &sub, progress)?;
-        timings.integration_s += tm.integration_s;
-        let tn = Instant::now();
-        let verdicts = decide_all(spec, points, &rs, &live);
-        newton_s += tn.elapsed().as_secs_f64();
-        for ((mut r, v), &i) in rs.into_iter().zip(verdicts).zip(&live) {
-            add(&mut diag[i], &r.diag);
-            r.diag = diag[i];
-            periods[i] = elapsed + last.transient + last.samples;
-            done[i] = Some((r, v));
-        }
-    }
-    let (mut results, mut verdicts): (Vec<RunResult>, Vec<Verdict>) = done
-        .into_iter()
-        .map(|d| d.expect("every point decided or finished"))
-        .unzip();
-    let tm = extend(
-        engine,
-        spec,
-        points,
-        &mut results,
-        &mut verdicts,
-        &mut periods,
-        progress,
-    )?;
-    timings.integration_s += tm.integration_s;
-    Ok(Adaptive {
-        results,
-        verdicts,
-        periods,
-        timings,
-        newton_s,
-    })
-}
-
 /// The largest Lyapunov exponent of a stable cycle of `n` forcing periods, exactly:
 /// ln |mu_1| / (n P). A point decided early carries it instead of a finite-time estimate.
 fn floquet_exponent(modulus: f64, n: u32, p: &crate::model::Params<f64>) -> f64 {
     modulus.ln() * p.eta / (2.0 * std::f64::consts::PI * f64::from(n.max(1)))
-}
-
-/// The answer of a round's window when it is decided: a confirmed stable cycle (the result
-/// keeps its n section points and the impacts of n periods) or a repeating impact-free orbit.
-fn decided_early(
-    spec: &RunSpec,
-    p: &crate::model::Params<f64>,
-    r: &RunResult,
-    proposal: Class,
-    verdict: Option<Verdict>,
-) -> Option<(RunResult, Verdict)> {
-    match proposal {
-        Class::Periodic(_) => {
-            let v = verdict.expect("a proposed period has its verdict");
-            let Class::Periodic(n) = v.class else {
-                return None;
-            };
-            let w = r.samples.len();
-            let n = n as usize;
-            if n > w {
-                return None;
-            }
-            let ipp = r.sample_impacts as f64 / w as f64;
-            let keep = RunResult {
-                samples: r.samples[w - n..].to_vec(),
-                sample_impacts: (ipp * n as f64).round() as u64,
-                lyapunov: v.cycle.as_ref().map_or(f64::NAN, |c| {
-                    floquet_exponent(c.leading_modulus(), c.period, p)
-                }),
-                ..r.clone()
-            };
-            Some((keep, v))
-        }
-        Class::NoImpact if detect_period(&r.samples, spec.period_tol).is_some() => Some((
-            r.clone(),
-            Verdict {
-                class: Class::NoImpact,
-                cycle: None,
-                rule: crate::classify::Rule::NoImpact,
-                tried: Vec::new(),
-            },
-        )),
-        _ => None,
-    }
 }
 
 /// Runs `points` once for the configured periods, without early termination or extra windows,
@@ -345,10 +176,11 @@ pub fn extensions(spec: &RunSpec) -> Vec<u32> {
     out
 }
 
-/// One stage of [`run_summaries`].
-#[derive(Clone, Copy)]
-enum Stage {
-    /// An early round (transient, window): only confirmed cycles leave.
+/// One stage of the driver ([`drive`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// An early round (transient, window): only decided cycles and repeating impact-free
+    /// orbits leave.
     Early(u32, u32),
     /// The rest of the transient and the configured sampling: every decided point leaves.
     Final,
@@ -356,29 +188,9 @@ enum Stage {
     Extra(u32),
 }
 
-/// [`run`] for maps: no samples are kept, and the summaries of each block the engine runs
-/// ([`crate::decide::summaries`]) say which points leave. With `early` the points run the early
-/// rounds first; every point then runs the configured stretch, and a point still undecided
-/// gets the windows of [`extensions`], and is `unresolved` only after the last of them.
-pub fn run_summaries(
-    engine: &Engine,
-    spec: &RunSpec,
-    points: &Points,
-    early: bool,
-    progress: &dyn Progress,
-) -> Result<(Vec<Summary>, Timings), EngineError> {
-    let n = points.len();
-    let mut y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
-    let mut modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
-    let mut live: Vec<usize> = (0..n).collect();
-    let mut diag = vec![Diagnostics::default(); n];
-    let mut done: Vec<Option<Summary>> = vec![None; n];
-    let mut timings = Timings::default();
-    let mut elapsed = 0u32;
-    let params = |i: usize| points.params(&spec.params, i);
-    let mut pools = vec![Pool::default(); n];
-    // The candidate periods each live point tried in vain in its last window.
-    let mut skip = vec![[0u32; 2]; n];
+/// The stages of a run: the early rounds (with `early`), the final stretch, the windows of the
+/// adaptive horizon.
+fn stages(spec: &RunSpec, early: bool) -> Vec<Stage> {
     let mut stages: Vec<Stage> = if early {
         rounds(spec.transient)
             .into_iter()
@@ -389,77 +201,136 @@ pub fn run_summaries(
     };
     stages.push(Stage::Final);
     stages.extend(extensions(spec).into_iter().map(Stage::Extra));
-    let last_stage = stages.len() - 1;
+    stages
+}
+
+/// How the points of `stage` run, `elapsed` periods into the run.
+fn stage_spec(spec: &RunSpec, stage: Stage, elapsed: u32) -> RunSpec {
+    match stage {
+        Stage::Early(t, w) => round_spec(spec, t, w),
+        Stage::Final => final_spec(spec, elapsed),
+        Stage::Extra(w) => RunSpec {
+            transient: 0,
+            samples: w,
+            ..spec.clone()
+        },
+    }
+}
+
+/// What a caller keeps of its points, and how the points of a stage are run and decided: the
+/// one thing that differs between the callers of [`drive`] (samples for sweeps and `point`,
+/// summaries for maps and studies).
+pub trait Keep {
+    /// A point's answer after a stage.
+    type Point;
+    /// Integrates the live points `sub` for `round` (stage `stage`) and decides each; `pools`
+    /// (their exponents so far) and `skip` (periods tried in vain) are per live point.
+    #[allow(clippy::too_many_arguments)]
+    fn stage(
+        &mut self,
+        engine: &Engine,
+        round: &RunSpec,
+        sub: &Points,
+        stage: Stage,
+        pools: &mut [Pool],
+        skip: &[[u32; 2]],
+        progress: &dyn Progress,
+    ) -> Result<(Vec<Self::Point>, Timings), EngineError>;
+    /// Whether the point leaves the run after `stage`.
+    fn decided(&self, p: &Self::Point, stage: Stage) -> bool;
+    /// Where an undecided point continues from, and the periods it tried in vain.
+    fn state(&self, p: &Self::Point) -> ([f64; 4], Mode, [u32; 2]);
+    fn diag(&self, p: &Self::Point) -> Diagnostics;
+    /// Makes `p` the point's answer: its diagnostics over the whole run, the periods
+    /// integrated, and for a cycle decided in an early round the exponent of the cycle.
+    fn finish(
+        &self,
+        p: &mut Self::Point,
+        diag: Diagnostics,
+        periods: u32,
+        stage: Stage,
+        params: &Params<f64>,
+    );
+}
+
+/// What [`drive`] returns: each point's answer, the periods it was integrated for, the
+/// timings.
+pub type Driven<P> = (Vec<P>, Vec<u32>, Timings);
+
+/// The one adaptive driver: runs `points` stage by stage ([`Stage`]), each stage on the points
+/// still live, continuing from where the stage before left them; a point leaves once `keep`
+/// says it is decided, or after the last stage. Returns each point's answer and the periods it
+/// was integrated for.
+pub fn drive<K: Keep>(
+    engine: &Engine,
+    spec: &RunSpec,
+    points: &Points,
+    early: bool,
+    keep: &mut K,
+    progress: &dyn Progress,
+) -> Result<Driven<K::Point>, EngineError> {
+    let n = points.len();
+    let mut y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
+    let mut modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
+    let mut live: Vec<usize> = (0..n).collect();
+    let mut diag = vec![Diagnostics::default(); n];
+    let mut done: Vec<Option<K::Point>> = (0..n).map(|_| None).collect();
+    let mut periods = vec![0u32; n];
+    let mut timings = Timings::default();
+    let mut elapsed = 0u32;
+    let mut pools = vec![Pool::default(); n];
+    // The candidate periods each live point tried in vain in its last window.
+    let mut skip = vec![[0u32; 2]; n];
+    let stages = stages(spec, early);
+    let last = stages.len() - 1;
     for (k, stage) in stages.into_iter().enumerate() {
         if live.is_empty() {
             break;
         }
-        let round = match stage {
-            Stage::Early(t, w) => round_spec(spec, t, w),
-            Stage::Final => final_spec(spec, elapsed),
-            Stage::Extra(w) => RunSpec {
-                transient: 0,
-                samples: w,
-                ..spec.clone()
-            },
-        };
+        let round = stage_spec(spec, stage, elapsed);
         let lv = Live::new(points, &live, &y, &modes);
         let sub = lv.points(points);
         let mut live_pools: Vec<Pool> = live.iter().map(|&i| pools[i]).collect();
         let live_skip: Vec<[u32; 2]> = live.iter().map(|&i| skip[i]).collect();
-        let mut ss = Vec::with_capacity(live.len());
-        let t0 = std::time::Instant::now();
-        let mut decide_s = 0.0;
-        let tm = engine.run_lean(&round, &sub, progress, &mut |start, mut rs| {
-            let td = std::time::Instant::now();
-            let end = start + rs.len();
-            ss.extend(crate::decide::summaries(
-                &round,
-                &sub.slice(start, end),
-                &mut rs,
-                &mut live_pools[start..end],
-                &live_skip[start..end],
-                match stage {
-                    Stage::Early(..) => Trials::Candidates,
-                    _ => Trials::All,
-                },
-            ));
-            decide_s += td.elapsed().as_secs_f64();
-        })?;
+        let t0 = Instant::now();
+        let (ps, tm) = keep.stage(
+            engine,
+            &round,
+            &sub,
+            stage,
+            &mut live_pools,
+            &live_skip,
+            progress,
+        )?;
         for (&i, p) in live.iter().zip(live_pools) {
             pools[i] = p;
         }
         timings.integration_s += tm.integration_s;
         log::debug!(
-            "stage {k}: {} points, {} + {} periods, {:.2} s ({:.2} s integration, {:.2} s deciding)",
+            "stage {k}: {} points, {} + {} periods, {:.2} s ({:.2} s integration)",
             live.len(),
             round.transient,
             round.samples,
             t0.elapsed().as_secs_f64(),
             tm.integration_s,
-            decide_s
         );
         elapsed += round.transient + round.samples;
         let mut next = Vec::with_capacity(live.len());
-        for (mut s, &i) in ss.into_iter().zip(&live) {
-            add(&mut diag[i], &s.diag);
-            let leaves = match stage {
-                Stage::Early(..) => matches!(s.class, Class::Periodic(_)),
-                _ => k == last_stage || s.rule != crate::classify::Rule::Undecided,
-            };
-            if leaves {
-                if let Stage::Early(..) = stage {
-                    let n = s.class.period().unwrap_or(1);
-                    s.lyapunov = floquet_exponent(s.multiplier, n, &params(i));
-                    s.lyapunov_se = 0.0;
-                }
-                s.diag = diag[i];
-                s.periods = elapsed;
-                done[i] = Some(s);
+        for (mut p, &i) in ps.into_iter().zip(&live) {
+            add(&mut diag[i], &keep.diag(&p));
+            if k == last || keep.decided(&p, stage) {
+                keep.finish(
+                    &mut p,
+                    diag[i],
+                    elapsed,
+                    stage,
+                    &points.params(&spec.params, i),
+                );
+                periods[i] = elapsed;
+                done[i] = Some(p);
             } else {
-                y[i] = s.final_y;
-                modes[i] = Some(s.final_mode);
-                skip[i] = s.tried;
+                let (at, mode, tried) = keep.state(&p);
+                (y[i], modes[i], skip[i]) = (at, Some(mode), tried);
                 next.push(i);
             }
         }
@@ -469,57 +340,286 @@ pub fn run_summaries(
         .into_iter()
         .map(|d| d.expect("every point decided or finished"))
         .collect();
-    Ok((out, timings))
+    Ok((out, periods, timings))
 }
 
-/// Gives the undecided points of a finished run that kept its samples (`results[i]` with its
-/// `verdicts[i]`, after `periods[i]` periods) the windows of [`extensions`], as
-/// [`run_summaries`] does for maps: each window continues from where the point stopped and
-/// replaces its samples and evidence; the point leaves once decided.
-pub fn extend(
+/// [`Keep`] of the runs that keep their samples (sweeps, `point`): each point's result and
+/// verdict; a cycle decided in an early round keeps its n section points.
+struct Samples {
+    /// The run's settings (an early round's, without the exponent, are not Newton's).
+    settings: crate::method::Settings,
+    newton_s: f64,
+}
+
+/// A point of [`Samples`]: its result, and its verdict once decided.
+type Sampled = (RunResult, Option<Verdict>);
+
+impl Keep for Samples {
+    type Point = Sampled;
+
+    fn stage(
+        &mut self,
+        engine: &Engine,
+        round: &RunSpec,
+        sub: &Points,
+        stage: Stage,
+        pools: &mut [Pool],
+        _skip: &[[u32; 2]],
+        progress: &dyn Progress,
+    ) -> Result<(Vec<Sampled>, Timings), EngineError> {
+        let (mut rs, tm) = engine.run(round, sub, progress)?;
+        let tn = Instant::now();
+        let classes: Vec<Class> = rs.iter().map(|r| r.class(round.period_tol)).collect();
+        let out = match stage {
+            Stage::Early(..) => {
+                // The strict detector's period, confirmed all at once.
+                let proposals: Vec<Proposal> = rs
+                    .iter()
+                    .zip(&classes)
+                    .enumerate()
+                    .filter(|(_, (_, c))| matches!(c, Class::Periodic(_)))
+                    .map(|(i, (r, &class))| Proposal {
+                        params: sub.params(&round.params, i),
+                        run: r,
+                        class,
+                        trials: Trials::Detected,
+                        skip: [0; 2],
+                    })
+                    .collect();
+                let mut verdicts = confirm_many(&self.settings, &proposals).into_iter();
+                rs.into_iter()
+                    .zip(classes)
+                    .enumerate()
+                    .map(|(i, (r, class))| {
+                        let v =
+                            matches!(class, Class::Periodic(_)).then(|| verdicts.next().unwrap());
+                        early_answer(round, &sub.params(&round.params, i), r, class, v)
+                    })
+                    .collect()
+            }
+            _ => {
+                for (r, p) in rs.iter_mut().zip(pools) {
+                    match stage {
+                        // The configured run's own exponent stands; the windows after it pool
+                        // with it.
+                        Stage::Final => {
+                            p.add(r.lyapunov, r.lyapunov_se);
+                        }
+                        _ => r.pool(p),
+                    }
+                }
+                let proposals: Vec<Proposal> = rs
+                    .iter()
+                    .zip(&classes)
+                    .enumerate()
+                    .map(|(i, (r, &class))| Proposal {
+                        params: sub.params(&round.params, i),
+                        run: r,
+                        class,
+                        trials: Trials::All,
+                        skip: [0; 2],
+                    })
+                    .collect();
+                let verdicts = confirm_many(&self.settings, &proposals);
+                rs.into_iter()
+                    .zip(verdicts)
+                    .map(|(r, v)| (r, Some(v)))
+                    .collect()
+            }
+        };
+        self.newton_s += tn.elapsed().as_secs_f64();
+        Ok((out, tm))
+    }
+
+    fn decided(&self, p: &Sampled, stage: Stage) -> bool {
+        match (&p.1, stage) {
+            (None, _) => false,
+            (Some(_), Stage::Early(..)) => true,
+            (Some(v), _) => v.rule != crate::classify::Rule::Undecided,
+        }
+    }
+
+    fn state(&self, p: &Sampled) -> ([f64; 4], Mode, [u32; 2]) {
+        (p.0.final_y, p.0.final_mode, [0; 2])
+    }
+
+    fn diag(&self, p: &Sampled) -> Diagnostics {
+        p.0.diag
+    }
+
+    fn finish(
+        &self,
+        p: &mut Sampled,
+        diag: Diagnostics,
+        _periods: u32,
+        _stage: Stage,
+        _params: &Params<f64>,
+    ) {
+        p.0.diag = diag;
+    }
+}
+
+/// The answer of an early round's window: a confirmed stable cycle (the result keeps its n
+/// section points, the impacts of n periods and the cycle's exact exponent) or a repeating
+/// impact-free orbit; otherwise the point runs on (no verdict).
+fn early_answer(
+    spec: &RunSpec,
+    p: &Params<f64>,
+    r: RunResult,
+    proposal: Class,
+    verdict: Option<Verdict>,
+) -> Sampled {
+    match (proposal, verdict) {
+        (Class::Periodic(_), Some(v)) => {
+            let Class::Periodic(n) = v.class else {
+                return (r, None);
+            };
+            let w = r.samples.len();
+            let n = n as usize;
+            if n > w {
+                return (r, None);
+            }
+            let ipp = r.sample_impacts as f64 / w as f64;
+            let keep = RunResult {
+                samples: r.samples[w - n..].to_vec(),
+                sample_impacts: (ipp * n as f64).round() as u64,
+                lyapunov: v.cycle.as_ref().map_or(f64::NAN, |c| {
+                    floquet_exponent(c.leading_modulus(), c.period, p)
+                }),
+                ..r
+            };
+            (keep, Some(v))
+        }
+        (Class::NoImpact, _) if r.repeats_without_impacts(spec.period_tol) => (
+            r,
+            Some(Verdict {
+                class: Class::NoImpact,
+                cycle: None,
+                rule: crate::classify::Rule::NoImpact,
+                tried: Vec::new(),
+            }),
+        ),
+        _ => (r, None),
+    }
+}
+
+/// Runs `points` with early termination and the adaptive horizon, keeping samples (sweeps).
+pub fn run(
     engine: &Engine,
     spec: &RunSpec,
     points: &Points,
-    results: &mut [RunResult],
-    verdicts: &mut [Verdict],
-    periods: &mut [u32],
     progress: &dyn Progress,
-) -> Result<Timings, EngineError> {
-    let mut timings = Timings::default();
-    let mut pools = vec![Pool::default(); results.len()];
-    for (r, p) in results.iter().zip(&mut pools) {
-        p.add(r.lyapunov, r.lyapunov_se);
+) -> Result<Adaptive, EngineError> {
+    run_samples(engine, spec, points, true, progress)
+}
+
+/// [`run`] with the early rounds only where `early` is set (`point` runs the configured
+/// stretch, then the adaptive horizon).
+pub fn run_samples(
+    engine: &Engine,
+    spec: &RunSpec,
+    points: &Points,
+    early: bool,
+    progress: &dyn Progress,
+) -> Result<Adaptive, EngineError> {
+    let mut keep = Samples {
+        settings: spec.settings,
+        newton_s: 0.0,
+    };
+    let (done, periods, timings) = drive(engine, spec, points, early, &mut keep, progress)?;
+    let (results, verdicts) = done
+        .into_iter()
+        .map(|(r, v)| (r, v.expect("a finished point has its verdict")))
+        .unzip();
+    Ok(Adaptive {
+        results,
+        verdicts,
+        periods,
+        timings,
+        newton_s: keep.newton_s,
+    })
+}
+
+/// [`Keep`] of the runs that keep no samples (maps, studies): each point's [`Summary`],
+/// decided block by block as the engine finishes them ([`crate::decide::summaries`]).
+struct Summaries;
+
+impl Keep for Summaries {
+    type Point = Summary;
+
+    fn stage(
+        &mut self,
+        engine: &Engine,
+        round: &RunSpec,
+        sub: &Points,
+        stage: Stage,
+        pools: &mut [Pool],
+        skip: &[[u32; 2]],
+        progress: &dyn Progress,
+    ) -> Result<(Vec<Summary>, Timings), EngineError> {
+        let mut ss = Vec::with_capacity(sub.len());
+        let tm = engine.run_lean(round, sub, progress, &mut |start, mut rs| {
+            let end = start + rs.len();
+            ss.extend(crate::decide::summaries(
+                round,
+                &sub.slice(start, end),
+                &mut rs,
+                &mut pools[start..end],
+                &skip[start..end],
+                match stage {
+                    Stage::Early(..) => Trials::Candidates,
+                    _ => Trials::All,
+                },
+            ));
+        })?;
+        Ok((ss, tm))
     }
-    for w in extensions(spec) {
-        let live: Vec<usize> = (0..results.len())
-            .filter(|&i| verdicts[i].rule == crate::classify::Rule::Undecided)
-            .collect();
-        if live.is_empty() {
-            break;
-        }
-        let y: Vec<[f64; 4]> = results.iter().map(|r| r.final_y).collect();
-        let modes: Vec<Option<Mode>> = results.iter().map(|r| Some(r.final_mode)).collect();
-        let lv = Live::new(points, &live, &y, &modes);
-        let sub = lv.points(points);
-        let window = RunSpec {
-            transient: 0,
-            samples: w,
-            ..spec.clone()
-        };
-        let (mut rs, tm) = engine.run(&window, &sub, progress)?;
-        timings.integration_s += tm.integration_s;
-        for (r, &i) in rs.iter_mut().zip(&live) {
-            r.pool(&mut pools[i]);
-        }
-        let vs = decide_all(spec, points, &rs, &live);
-        for ((mut r, v), &i) in rs.into_iter().zip(vs).zip(&live) {
-            let mut d = results[i].diag;
-            add(&mut d, &r.diag);
-            r.diag = d;
-            results[i] = r;
-            verdicts[i] = v;
-            periods[i] += w;
+
+    fn decided(&self, s: &Summary, stage: Stage) -> bool {
+        match stage {
+            Stage::Early(..) => {
+                matches!(s.class, Class::Periodic(_)) || (s.class == Class::NoImpact && s.repeats)
+            }
+            _ => s.rule != crate::classify::Rule::Undecided,
         }
     }
-    Ok(timings)
+
+    fn state(&self, s: &Summary) -> ([f64; 4], Mode, [u32; 2]) {
+        (s.final_y, s.final_mode, s.tried)
+    }
+
+    fn diag(&self, s: &Summary) -> Diagnostics {
+        s.diag
+    }
+
+    fn finish(
+        &self,
+        s: &mut Summary,
+        diag: Diagnostics,
+        periods: u32,
+        stage: Stage,
+        params: &Params<f64>,
+    ) {
+        if let (Stage::Early(..), Some(n)) = (stage, s.class.period()) {
+            s.lyapunov = floquet_exponent(s.multiplier, n, params);
+            s.lyapunov_se = 0.0;
+        }
+        s.diag = diag;
+        s.periods = periods;
+    }
+}
+
+/// [`run`] for maps and studies: no samples are kept, and the summaries of each block the
+/// engine runs say which points leave. With `early` the points run the early rounds first;
+/// every point then runs the configured stretch, and a point still undecided gets the windows
+/// of [`extensions`], and is `unresolved` only after the last of them.
+pub fn run_summaries(
+    engine: &Engine,
+    spec: &RunSpec,
+    points: &Points,
+    early: bool,
+    progress: &dyn Progress,
+) -> Result<(Vec<Summary>, Timings), EngineError> {
+    let (out, _, timings) = drive(engine, spec, points, early, &mut Summaries, progress)?;
+    Ok((out, timings))
 }

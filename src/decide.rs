@@ -200,6 +200,8 @@ pub struct Summary {
     pub dissipation: [f64; 2],
     /// Fraction of the sampled time the masses moved together.
     pub stick_fraction: f64,
+    /// The window repeats without impacts ([`RunResult::repeats_without_impacts`]).
+    pub repeats: bool,
 }
 
 impl Summary {
@@ -270,6 +272,7 @@ impl Summary {
             impact_speed: r.impact_speed,
             dissipation: r.dissipation,
             stick_fraction: r.stick_fraction,
+            repeats: r.repeats_without_impacts(spec.period_tol),
         }
     }
 }

@@ -7,10 +7,9 @@ pub mod plot;
 use crate::class::Class;
 use crate::config::{Config, Tangent};
 use crate::cycles::{Cycle, modulus, spectrum};
-use crate::decide::confirm;
 use crate::engine::Engine;
 use crate::error::Result;
-use crate::method::{Diagnostics, Integrator, PointState, RunResult};
+use crate::method::{Diagnostics, Integrator, PointState};
 use crate::model::{Mode, Params};
 use crate::observables::{Distribution, Observables, impact_speeds};
 use crate::progress::Progress;
@@ -71,27 +70,9 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     let tangent = cfg.tangent(Tangent::Spectrum);
     let spec = RunSpec::new(cfg).with_tangent(tangent);
     let t = Instant::now();
-    let (mut rs, _) = engine.run(&spec, &Points::single(), progress)?;
-    let r: RunResult = rs.pop().expect("one point, one result");
-    let verdict = confirm(
-        &spec.params,
-        &spec.settings,
-        &r,
-        r.class(cfg.run.period_tol),
-    );
-    // An undecided point gets the adaptive horizon, as a map cell does.
-    let (mut results, mut verdicts, mut periods) = ([r], [verdict], [spec.periods()]);
-    crate::adaptive::extend(
-        engine,
-        &spec,
-        &Points::single(),
-        &mut results,
-        &mut verdicts,
-        &mut periods,
-        progress,
-    )?;
-    let [r] = results;
-    let [verdict] = verdicts;
+    // The configured run, then the adaptive horizon where it is undecided, as a map cell.
+    let a = crate::adaptive::run_samples(engine, &spec, &Points::single(), false, progress)?;
+    let (r, verdict) = (a.results[0].clone(), a.verdicts[0].clone());
     let class: Class = verdict.class;
     // The CPU f64 runs from the run's end: every impact's speed, and the spectrum.
     let it = Integrator::<f64>::new(&spec.params, &spec.settings);
@@ -127,7 +108,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         torus_digits: r.torus,
         rule: verdict.rule,
         tried_periods: verdict.tried.clone(),
-        periods: periods[0],
+        periods: a.periods[0],
         lyapunov_spectrum,
         multipliers: verdict
             .cycle

@@ -192,3 +192,27 @@ fn capped_points_end_bit_for_bit_as_brute_force_on_the_gpu() {
     };
     capped_points_end_bit_for_bit_as_brute_force(&engine, "f32");
 }
+
+#[test]
+fn impact_free_cells_of_a_map_leave_early_as_sweep_points_do() {
+    // The one adaptive driver decides a window that repeats without impacts at once for every
+    // caller (maps too, where only sweeps did before): same class as brute force, fewer
+    // periods. A clearance of 10 keeps m2 off the stops.
+    let text = "[model]\neta = 1.26\nr = 10.0\n[method]\nsteps_per_period = 64\n[run]\n\
+        transient_periods = 300\nsample_periods = 60\n[map]\nx = \"R\"\nx_from = 0.5\n\
+        x_to = 0.7\nx_points = 3\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 2\n";
+    let run = |es: bool| {
+        let cfg = Config::from_toml(text, &[format!("run.early_stop={es}")]).unwrap();
+        let cells = rattle::map::cell_count(&cfg);
+        rattle::map::compute(&Engine::Cpu, &cfg, 0..cells, 1, &Silent)
+            .unwrap()
+            .0
+    };
+    let (b, e) = (run(false), run(true));
+    for (x, y) in b.iter().zip(&e) {
+        assert_eq!(x.0.class, Class::NoImpact, "{:?}", x.0);
+        assert_eq!(y.0.class, Class::NoImpact, "{:?}", y.0);
+        assert_eq!(x.0.periods, 360);
+        assert!(y.0.periods < 360, "{:?}", y.0);
+    }
+}

@@ -455,6 +455,7 @@ fn cell(class: Class, lyapunov: f64, multiplier: f64) -> (rattle::decide::Summar
             impact_speed: [f64::NAN; 2],
             dissipation: [0.0; 2],
             stick_fraction: 0.0,
+            repeats: false,
         },
         1,
     )

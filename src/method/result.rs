@@ -167,6 +167,17 @@ pub struct RunResult {
 }
 
 impl RunResult {
+    /// Whether the window repeats without impacts (decided `no_impact` at once in an early
+    /// round): by the samples, or where they were not kept by the kernel's detector.
+    pub fn repeats_without_impacts(&self, period_tol: f64) -> bool {
+        self.sample_impacts == 0
+            && !self.diag.nonfinite
+            && match self.detector {
+                Some((_, period)) => period.is_some(),
+                None => crate::classify::detect_period(&self.samples, period_tol).is_some(),
+            }
+    }
+
     /// The strict period detector's class of the run (period, impacts, finiteness): by its
     /// samples, or where they were not kept by what the kernel's detector saw.
     pub fn class(&self, period_tol: f64) -> crate::class::Class {
