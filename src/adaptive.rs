@@ -217,25 +217,30 @@ fn stage_spec(spec: &RunSpec, stage: Stage, elapsed: u32) -> RunSpec {
     }
 }
 
+/// The live points of one stage, as [`Keep::stage`] runs them.
+pub struct StageRun<'a> {
+    pub engine: &'a Engine,
+    /// How they run: the stage's transient and sampled periods.
+    pub round: &'a RunSpec,
+    /// The live points, at the states and modes where the stage before left them.
+    pub sub: &'a Points<'a>,
+    pub stage: Stage,
+    /// The periods each tried in vain in its last window.
+    pub skip: &'a [[u32; 2]],
+    pub progress: &'a dyn Progress,
+}
+
+/// What [`Keep::stage`] returns: each live point's answer, and the stage's timings.
+pub type StageResult<P> = Result<(Vec<P>, Timings), EngineError>;
+
 /// What a caller keeps of its points, and how the points of a stage are run and decided: the
 /// one thing that differs between the callers of [`drive`] (samples for sweeps and `point`,
 /// summaries for maps and studies).
 pub trait Keep {
     /// A point's answer after a stage.
     type Point;
-    /// Integrates the live points `sub` for `round` (stage `stage`) and decides each; `pools`
-    /// (their exponents so far) and `skip` (periods tried in vain) are per live point.
-    #[allow(clippy::too_many_arguments)]
-    fn stage(
-        &mut self,
-        engine: &Engine,
-        round: &RunSpec,
-        sub: &Points,
-        stage: Stage,
-        pools: &mut [Pool],
-        skip: &[[u32; 2]],
-        progress: &dyn Progress,
-    ) -> Result<(Vec<Self::Point>, Timings), EngineError>;
+    /// Integrates the live points of `s` and decides each; `pools` holds their exponents so far.
+    fn stage(&mut self, s: &StageRun, pools: &mut [Pool]) -> StageResult<Self::Point>;
     /// Whether the point leaves the run after `stage`.
     fn decided(&self, p: &Self::Point, stage: Stage) -> bool;
     /// Where an undecided point continues from, and the periods it tried in vain.
@@ -293,15 +298,15 @@ pub fn drive<K: Keep>(
         let mut live_pools: Vec<Pool> = live.iter().map(|&i| pools[i]).collect();
         let live_skip: Vec<[u32; 2]> = live.iter().map(|&i| skip[i]).collect();
         let t0 = Instant::now();
-        let (ps, tm) = keep.stage(
+        let run = StageRun {
             engine,
-            &round,
-            &sub,
+            round: &round,
+            sub: &sub,
             stage,
-            &mut live_pools,
-            &live_skip,
+            skip: &live_skip,
             progress,
-        )?;
+        };
+        let (ps, tm) = keep.stage(&run, &mut live_pools)?;
         for (&i, p) in live.iter().zip(live_pools) {
             pools[i] = p;
         }
@@ -357,20 +362,12 @@ type Sampled = (RunResult, Option<Verdict>);
 impl Keep for Samples {
     type Point = Sampled;
 
-    fn stage(
-        &mut self,
-        engine: &Engine,
-        round: &RunSpec,
-        sub: &Points,
-        stage: Stage,
-        pools: &mut [Pool],
-        _skip: &[[u32; 2]],
-        progress: &dyn Progress,
-    ) -> Result<(Vec<Sampled>, Timings), EngineError> {
-        let (mut rs, tm) = engine.run(round, sub, progress)?;
+    fn stage(&mut self, s: &StageRun, pools: &mut [Pool]) -> StageResult<Sampled> {
+        let (round, sub) = (s.round, s.sub);
+        let (mut rs, tm) = s.engine.run(round, sub, s.progress)?;
         let tn = Instant::now();
         let classes: Vec<Class> = rs.iter().map(|r| r.class(round.period_tol)).collect();
-        let out = match stage {
+        let out = match s.stage {
             Stage::Early(..) => {
                 // The strict detector's period, confirmed all at once.
                 let proposals: Vec<Proposal> = rs
@@ -399,7 +396,7 @@ impl Keep for Samples {
             }
             _ => {
                 for (r, p) in rs.iter_mut().zip(pools) {
-                    match stage {
+                    match s.stage {
                         // The configured run's own exponent stands; the windows after it pool
                         // with it.
                         Stage::Final => {
@@ -547,31 +544,25 @@ struct Summaries;
 impl Keep for Summaries {
     type Point = Summary;
 
-    fn stage(
-        &mut self,
-        engine: &Engine,
-        round: &RunSpec,
-        sub: &Points,
-        stage: Stage,
-        pools: &mut [Pool],
-        skip: &[[u32; 2]],
-        progress: &dyn Progress,
-    ) -> Result<(Vec<Summary>, Timings), EngineError> {
+    fn stage(&mut self, s: &StageRun, pools: &mut [Pool]) -> StageResult<Summary> {
+        let (round, sub) = (s.round, s.sub);
         let mut ss = Vec::with_capacity(sub.len());
-        let tm = engine.run_lean(round, sub, progress, &mut |start, mut rs| {
-            let end = start + rs.len();
-            ss.extend(crate::decide::summaries(
-                round,
-                &sub.slice(start, end),
-                &mut rs,
-                &mut pools[start..end],
-                &skip[start..end],
-                match stage {
-                    Stage::Early(..) => Trials::Candidates,
-                    _ => Trials::All,
-                },
-            ));
-        })?;
+        let tm = s
+            .engine
+            .run_lean(round, sub, s.progress, &mut |start, mut rs| {
+                let end = start + rs.len();
+                ss.extend(crate::decide::summaries(
+                    round,
+                    &sub.slice(start, end),
+                    &mut rs,
+                    &mut pools[start..end],
+                    &s.skip[start..end],
+                    match s.stage {
+                        Stage::Early(..) => Trials::Candidates,
+                        _ => Trials::All,
+                    },
+                ));
+            })?;
         Ok((ss, tm))
     }
 
