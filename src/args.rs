@@ -38,23 +38,7 @@ pub struct Cli {
 #[derive(Subcommand)]
 pub enum Cmd {
     /// Integrate one parameter point and classify its motion.
-    Point {
-        #[command(flatten)]
-        common: Common,
-        /// Print one JSON object instead of text.
-        #[arg(long, conflicts_with = "plot")]
-        json: bool,
-        /// Draw the point instead (CPU, f64): time series, phase portrait, section and laminar
-        /// phases in PREFIX.png and PREFIX.svg, the data and caption in PREFIX.json.
-        #[arg(long, value_name = "PREFIX")]
-        plot: Option<PathBuf>,
-        /// With --plot: the last forcing periods shown in the time series and phase portrait.
-        #[arg(long, default_value_t = rattle::point::plot::DEFAULT_PERIODS, requires = "plot")]
-        periods: u32,
-        /// With --plot: return tolerance of the laminar phases, relative to max(1, attractor size).
-        #[arg(long, default_value_t = rattle::point::plot::DEFAULT_LAMINAR_TOL, requires = "plot")]
-        laminar_tol: f64,
-    },
+    Point(PointArgs),
     /// Sweep one parameter and draw the bifurcation diagram (PNG, CSV, JSON).
     Bifurcation {
         #[command(flatten)]
@@ -67,45 +51,7 @@ pub enum Cmd {
         continuation: Option<Continuation>,
     },
     /// A 2-D map of attractor classes and Lyapunov exponents over two parameters.
-    Map {
-        #[command(flatten)]
-        common: Common,
-        /// Output prefix: PREFIX.png, PREFIX-lyapunov.png, PREFIX-*.npy, PREFIX.json.
-        #[arg(long, default_value = "map")]
-        out: PathBuf,
-        /// Standard deviations SX,SY (the axes' units) of the risk map: PREFIX-risk.png and
-        /// .npy, the probability that a Gaussian perturbation lands on another class (sets
-        /// map.risk).
-        #[arg(long, value_name = "SX,SY", allow_hyphen_values = true)]
-        risk: Option<String>,
-        /// Compute only the contiguous share I of N (0-based) and write PREFIX.part-I-of-N.json.
-        #[arg(long, value_name = "I/N", value_parser = map::parse_shard, allow_hyphen_values = true)]
-        shard: Option<(usize, usize)>,
-        /// Run in K shards, keeping each finished one on disk: an interrupted run started again
-        /// with the same arguments resumes from the completed shards.
-        #[arg(long, value_name = "K", allow_negative_numbers = true)]
-        checkpoint: Option<usize>,
-        /// Also compute the map of OTHER.toml (same grid) and render where the class differs.
-        #[arg(long, value_name = "OTHER.toml")]
-        compare: Option<PathBuf>,
-        /// `all`: split the cells over every adapter of the machine, computed concurrently.
-        #[arg(long, value_enum, default_value_t = Adapters::One)]
-        adapters: Adapters,
-        /// K initial states per cell; cells whose starts end on different attractors are
-        /// marked "coexisting attractors".
-        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64),
-              allow_negative_numbers = true)]
-        starts: u32,
-        /// Coarse-to-fine: compute every K-th cell, refine only blocks whose corners differ in
-        /// class, fill uniform blocks (flagged in PREFIX-inferred.npy).
-        #[arg(long, value_name = "K", allow_negative_numbers = true)]
-        refine: Option<usize>,
-        /// With --refine: a chaotic corner lets its block be filled only where its exponent
-        /// exceeds X times run.lyapunov_tol (default 3; lower is faster and misses more
-        /// quasi-periodic specks inside chaotic bands).
-        #[arg(long, value_name = "X")]
-        refine_clear: Option<f64>,
-    },
+    Map(MapArgs),
     /// Basins of attraction at one parameter point: a grid of initial states, one colour per
     /// attractor (identified by its Newton-refined cycle).
     Basin {
@@ -118,23 +64,7 @@ pub enum Cmd {
     /// How likely each kind of motion is when parameters are known only within their
     /// measurement error: class probabilities, distances to the nearest class change, Sobol
     /// indices (see docs/sensitivity.md).
-    Sensitivity {
-        #[command(flatten)]
-        common: Common,
-        /// An uncertain parameter: NAME=MEAN+-SD (normal, truncated at its bounds) or
-        /// NAME=LO..HI (uniform); repeat for up to three (replaces sensitivity.uncertain).
-        #[arg(long, value_name = "NAME=MEAN+-SD")]
-        uncertain: Vec<String>,
-        /// Draws per matrix of the Saltelli design, 16 to 65536 (overrides sensitivity.samples).
-        #[arg(long, allow_negative_numbers = true)]
-        samples: Option<u32>,
-        /// Seed of the Sobol sequence's scrambling (overrides sensitivity.seed).
-        #[arg(long, allow_negative_numbers = true)]
-        seed: Option<u32>,
-        /// Output prefix: PREFIX.json, PREFIX.csv, PREFIX.png, PREFIX.svg.
-        #[arg(long, default_value = "sensitivity")]
-        out: PathBuf,
-    },
+    Sensitivity(SensitivityArgs),
     /// Merge the partial outputs of a sharded map into the files a single run writes.
     Merge {
         /// PREFIX.part-I-of-N.json files.
@@ -144,26 +74,7 @@ pub enum Cmd {
         out: PathBuf,
     },
     /// Figures for reports: `paper` renders Figs. 2, 3, 4a and 4b side by side.
-    Figure {
-        /// Which figure.
-        #[arg(value_enum)]
-        which: Figure,
-        /// Directory with fig2.toml, fig3.toml, fig4a.toml, fig4b.toml (default: the built-in
-        /// copies of configs/).
-        #[arg(long)]
-        configs: Option<PathBuf>,
-        /// Parameter points per panel (overrides sweep.points), 2 to 10000000 (a diagram over
-        /// eta needs two values at least).
-        #[arg(long, value_parser = clap::value_parser!(u32).range(2..=10_000_000))]
-        points: Option<u32>,
-        /// The PNG file (its name must end in .png).
-        #[arg(long, default_value = "paper.png")]
-        out: PathBuf,
-        #[arg(long, value_parser = choice(&Backend::ALL, Backend::name))]
-        backend: Option<Backend>,
-        #[arg(long, value_parser = choice(&Precision::ALL, Precision::name))]
-        precision: Option<Precision>,
-    },
+    Figure(FigureArgs),
     /// Work-precision chart and failure fractions of every method, precision and backend.
     Accuracy {
         #[command(flatten)]
@@ -193,27 +104,136 @@ pub enum Cmd {
         state_points: u64,
     },
     /// Measure RK4 steps/s of every backend and precision in one run.
-    Bench {
-        #[command(flatten)]
-        common: Common,
-        /// Parameter points (eta spread over the config's sweep range).
-        #[arg(long, default_value_t = 2000)]
-        points: usize,
-        /// Forcing periods per point.
-        #[arg(long, default_value_t = 100)]
-        periods: u32,
-        /// Print the table as JSON too.
-        #[arg(long)]
-        json: bool,
-        /// The kernel ladder instead: the GPU kernel compiled piece by piece, steps/s each.
-        #[arg(long)]
-        ladder: bool,
-        /// Also time each backend and precision with the Lyapunov exponent estimated over the
-        /// second half of the periods (the first half then is the transient), and print its
-        /// extra cost; with --ladder, every rung with the exponent.
-        #[arg(long)]
-        lyapunov: bool,
-    },
+    Bench(BenchArgs),
+}
+
+/// The arguments of `rattle map`.
+#[derive(Args)]
+pub struct MapArgs {
+    #[command(flatten)]
+    pub common: Common,
+    /// Output prefix: PREFIX.png, PREFIX-lyapunov.png, PREFIX-*.npy, PREFIX.json.
+    #[arg(long, default_value = "map")]
+    pub out: PathBuf,
+    /// Standard deviations SX,SY (the axes' units) of the risk map: PREFIX-risk.png and
+    /// .npy, the probability that a Gaussian perturbation lands on another class (sets
+    /// map.risk).
+    #[arg(long, value_name = "SX,SY", allow_hyphen_values = true)]
+    pub risk: Option<String>,
+    /// Compute only the contiguous share I of N (0-based) and write PREFIX.part-I-of-N.json.
+    #[arg(long, value_name = "I/N", value_parser = map::parse_shard, allow_hyphen_values = true)]
+    pub shard: Option<(usize, usize)>,
+    /// Run in K shards, keeping each finished one on disk: an interrupted run started again
+    /// with the same arguments resumes from the completed shards.
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    pub checkpoint: Option<usize>,
+    /// Also compute the map of OTHER.toml (same grid) and render where the class differs.
+    #[arg(long, value_name = "OTHER.toml")]
+    pub compare: Option<PathBuf>,
+    /// `all`: split the cells over every adapter of the machine, computed concurrently.
+    #[arg(long, value_enum, default_value_t = Adapters::One)]
+    pub adapters: Adapters,
+    /// K initial states per cell; cells whose starts end on different attractors are
+    /// marked "coexisting attractors".
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64),
+          allow_negative_numbers = true)]
+    pub starts: u32,
+    /// Coarse-to-fine: compute every K-th cell, refine only blocks whose corners differ in
+    /// class, fill uniform blocks (flagged in PREFIX-inferred.npy).
+    #[arg(long, value_name = "K", allow_negative_numbers = true)]
+    pub refine: Option<usize>,
+    /// With --refine: a chaotic corner lets its block be filled only where its exponent
+    /// exceeds X times run.lyapunov_tol (default 3; lower is faster and misses more
+    /// quasi-periodic specks inside chaotic bands).
+    #[arg(long, value_name = "X")]
+    pub refine_clear: Option<f64>,
+}
+
+/// The arguments of `rattle sensitivity`.
+#[derive(Args)]
+pub struct SensitivityArgs {
+    #[command(flatten)]
+    pub common: Common,
+    /// An uncertain parameter: NAME=MEAN+-SD (normal, truncated at its bounds) or
+    /// NAME=LO..HI (uniform); repeat for up to three (replaces sensitivity.uncertain).
+    #[arg(long, value_name = "NAME=MEAN+-SD")]
+    pub uncertain: Vec<String>,
+    /// Draws per matrix of the Saltelli design, 16 to 65536 (overrides sensitivity.samples).
+    #[arg(long, allow_negative_numbers = true)]
+    pub samples: Option<u32>,
+    /// Seed of the Sobol sequence's scrambling (overrides sensitivity.seed).
+    #[arg(long, allow_negative_numbers = true)]
+    pub seed: Option<u32>,
+    /// Output prefix: PREFIX.json, PREFIX.csv, PREFIX.png, PREFIX.svg.
+    #[arg(long, default_value = "sensitivity")]
+    pub out: PathBuf,
+}
+
+/// The arguments of `rattle figure`.
+#[derive(Args)]
+pub struct FigureArgs {
+    /// Which figure.
+    #[arg(value_enum)]
+    pub which: Figure,
+    /// Directory with fig2.toml, fig3.toml, fig4a.toml, fig4b.toml (default: the built-in
+    /// copies of configs/).
+    #[arg(long)]
+    pub configs: Option<PathBuf>,
+    /// Parameter points per panel (overrides sweep.points), 2 to 10000000 (a diagram over
+    /// eta needs two values at least).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=10_000_000))]
+    pub points: Option<u32>,
+    /// The PNG file (its name must end in .png).
+    #[arg(long, default_value = "paper.png")]
+    pub out: PathBuf,
+    #[arg(long, value_parser = choice(&Backend::ALL, Backend::name))]
+    pub backend: Option<Backend>,
+    #[arg(long, value_parser = choice(&Precision::ALL, Precision::name))]
+    pub precision: Option<Precision>,
+}
+
+/// The arguments of `rattle bench`.
+#[derive(Args)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub common: Common,
+    /// Parameter points (eta spread over the config's sweep range).
+    #[arg(long, default_value_t = 2000)]
+    pub points: usize,
+    /// Forcing periods per point.
+    #[arg(long, default_value_t = 100)]
+    pub periods: u32,
+    /// Print the table as JSON too.
+    #[arg(long)]
+    pub json: bool,
+    /// The kernel ladder instead: the GPU kernel compiled piece by piece, steps/s each.
+    #[arg(long)]
+    pub ladder: bool,
+    /// Also time each backend and precision with the Lyapunov exponent estimated over the
+    /// second half of the periods (the first half then is the transient), and print its
+    /// extra cost; with --ladder, every rung with the exponent.
+    #[arg(long)]
+    pub lyapunov: bool,
+}
+
+/// The arguments of `rattle point`.
+#[derive(Args)]
+pub struct PointArgs {
+    #[command(flatten)]
+    pub common: Common,
+    /// Print one JSON object instead of text.
+    #[arg(long, conflicts_with = "plot")]
+    pub json: bool,
+    /// Draw the point instead (CPU, f64): time series, phase portrait, section and laminar
+    /// phases in PREFIX.png and PREFIX.svg, the data and caption in PREFIX.json.
+    #[arg(long, value_name = "PREFIX")]
+    pub plot: Option<PathBuf>,
+    /// With --plot: the last forcing periods shown in the time series and phase portrait.
+    #[arg(long, default_value_t = rattle::point::plot::DEFAULT_PERIODS, requires = "plot")]
+    pub periods: u32,
+    /// With --plot: return tolerance of the laminar phases, relative to max(1, attractor size).
+    #[arg(long, default_value_t = rattle::point::plot::DEFAULT_LAMINAR_TOL, requires = "plot")]
+    pub laminar_tol: f64,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]

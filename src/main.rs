@@ -18,7 +18,9 @@ use std::time::Instant;
 
 mod args;
 
-use args::{Adapters, Cli, Cmd, Common, Figure};
+use args::{
+    Adapters, BenchArgs, Cli, Cmd, Common, Figure, FigureArgs, MapArgs, PointArgs, SensitivityArgs,
+};
 
 /// Progress bar on stderr, hidden when stdout is not a terminal (pipes, CI, tests).
 fn progress_bar(len: u64, what: &str) -> ProgressBar {
@@ -110,33 +112,7 @@ fn say(text: impl std::fmt::Display) -> Result<()> {
 /// Runs a command; returns the files it wrote, printed one per line.
 fn run(cli: Cli) -> Result<()> {
     let files = match cli.cmd {
-        Cmd::Point {
-            common,
-            json,
-            plot: None,
-            ..
-        } => point(&common.load_from(&common.config)?, json)?,
-        Cmd::Point {
-            common,
-            plot: Some(out),
-            periods,
-            laminar_tol,
-            ..
-        } => {
-            use rattle::point::plot::{PlotOptions, compute, write_outputs};
-            let cfg = common.load_plot()?;
-            check_prefix(&out, &["png", "svg", "json"])?;
-            let o = PlotOptions {
-                periods,
-                laminar_tol,
-            };
-            o.check(&cfg)?;
-            let pb = progress_bar(1, "point");
-            let p = compute(&cfg, &o, &|n| pb.inc(n))?;
-            pb.finish_and_clear();
-            eprint!("{}", p.summary());
-            write_outputs(&out, &p)?
-        }
+        Cmd::Point(a) => point_command(a)?,
         Cmd::Bifurcation {
             common,
             out,
@@ -152,48 +128,7 @@ fn run(cli: Cli) -> Result<()> {
             eprint!("{}", b.summary());
             bifurcation::write_outputs(&out, &b)?
         }
-        Cmd::Map {
-            common,
-            out,
-            shard,
-            checkpoint,
-            compare,
-            starts,
-            adapters,
-            refine,
-            refine_clear,
-            risk,
-        } => {
-            let mut cfg = common.load_map(&common.config)?;
-            if let Some(r) = risk {
-                cfg.map.risk = r
-                    .split(',')
-                    .map(|v| v.trim().parse::<f64>().unwrap_or(f64::NAN))
-                    .collect();
-                cfg.check_map()?;
-            }
-            check_prefix(&out, &["png", "json"])?;
-            // The other config keeps its own eta; every other override applies.
-            let c = Common {
-                eta: None,
-                ..common.clone()
-            };
-            let other = compare
-                .map(|p| {
-                    c.load_map(&p)
-                        .with_context(|| format!("--compare {}", p.display()))
-                })
-                .transpose()?;
-            let opts = MapOptions {
-                starts: starts as usize,
-                shard,
-                checkpoint,
-                compare: other.as_ref(),
-                refine,
-                refine_clear,
-            };
-            map_cmd(&cfg, &out, &opts, adapters)?
-        }
+        Cmd::Map(a) => map_command(a)?,
         Cmd::Basin { common, out } => {
             let cfg = common.load_basin()?;
             check_prefix(&out, &["png", "npy", "json"])?;
@@ -204,90 +139,12 @@ fn run(cli: Cli) -> Result<()> {
             eprint!("{}", b.summary());
             rattle::basin::write_outputs(&out, &cfg, &b)?
         }
-        Cmd::Sensitivity {
-            common,
-            uncertain,
-            samples,
-            seed,
-            out,
-        } => {
-            let cfg = common.load_from(&common.config)?;
-            let s = &cfg.sensitivity;
-            let given = if uncertain.is_empty() {
-                &s.uncertain
-            } else {
-                &uncertain
-            };
-            let o = rattle::sensitivity::Options {
-                uncertain: given
-                    .iter()
-                    .map(|u| rattle::sensitivity::Uncertain::parse(u))
-                    .collect::<Result<_, _>>()?,
-                samples: samples.unwrap_or(s.samples) as usize,
-                seed: seed.unwrap_or(s.seed),
-            };
-            o.check()?;
-            cfg.check_tangent("`sensitivity`")?;
-            o.check_values(&cfg)?;
-            let params: Vec<rattle::model::Param> = o.uncertain.iter().map(|u| u.param).collect();
-            common.refuse_varied(&params, "--uncertain")?;
-            rattle::sensitivity::check_memory(&o)?;
-            check_prefix(&out, &["json", "csv", "png", "svg"])?;
-            let engine = Engine::open(cfg.method.backend)?;
-            let spec = RunSpec::new(&cfg);
-            let work = rattle::sensitivity::points(&o) as u64 * engine.progress_per_point(&spec);
-            let pb = progress_bar(work, "sensitivity");
-            let t0 = std::time::Instant::now();
-            let study = rattle::sensitivity::run(&engine, &cfg, &o, &|n| pb.inc(n))?;
-            pb.finish_and_clear();
-            eprintln!(
-                "sensitivity: {} points on {} ({}, {}) in {:.2} s ({:.2} s integration)",
-                study.runs,
-                engine.name(),
-                engine.device(),
-                cfg.method.precision.name(),
-                t0.elapsed().as_secs_f64(),
-                study.timings.integration_s
-            );
-            eprintln!("{}", rattle::sensitivity::caption(&study));
-            rattle::sensitivity::write_outputs(&out, &cfg, &study, engine.name(), &engine.device())?
-        }
+        Cmd::Sensitivity(a) => sensitivity_command(a)?,
         Cmd::Merge { parts, out } => {
             check_prefix(&out, &["png", "json"])?;
             map::merge_files(&parts, &out)?.files
         }
-        Cmd::Figure {
-            which: Figure::Paper,
-            configs,
-            points,
-            out,
-            backend,
-            precision,
-        } => {
-            if out
-                .extension()
-                .is_none_or(|e| !e.eq_ignore_ascii_case("png"))
-            {
-                anyhow::bail!(
-                    "--out {}: the figure is a PNG image; name a file ending in .png",
-                    out.display()
-                );
-            }
-            check_prefix(&out, &[])?;
-            let pb = progress_bar(4 * points.unwrap_or(2000) as u64, "figure");
-            let files = bifurcation::paper_figure(
-                configs.as_deref(),
-                &|c: &mut Config| {
-                    c.sweep.points = points.unwrap_or(c.sweep.points);
-                    c.method.backend = backend.unwrap_or(c.method.backend);
-                    c.method.precision = precision.unwrap_or(c.method.precision);
-                },
-                &out,
-                &|n| pb.inc(n),
-            )?;
-            pb.finish_and_clear();
-            files
-        }
+        Cmd::Figure(a) => figure_command(a)?,
         Cmd::Accuracy {
             common,
             out,
@@ -322,28 +179,8 @@ fn run(cli: Cli) -> Result<()> {
             say(rattle::validate::validate(&cfg, state_points as usize)?)?;
             vec![]
         }
-        Cmd::Bench {
-            common,
-            points,
-            periods,
-            json,
-            ladder,
-            lyapunov,
-        } => {
-            let cfg = common.load_sweep()?;
-            let output = match (ladder, json) {
-                (true, _) => bench::BenchOutput::Ladder,
-                (false, true) => bench::BenchOutput::TableAndJson,
-                (false, false) => bench::BenchOutput::Table,
-            };
-            let o = bench::BenchOptions {
-                points,
-                periods,
-                backends: common.backends(),
-                lyapunov,
-                output,
-            };
-            say(bench::report(&cfg, &o)?)?;
+        Cmd::Bench(a) => {
+            say(bench_command(a)?)?;
             vec![]
         }
     };
@@ -351,6 +188,160 @@ fn run(cli: Cli) -> Result<()> {
         say(format_args!("{}\n", f.display()))?;
     }
     Ok(())
+}
+
+/// `rattle point`: the text or JSON of one point, or with `--plot` its figure.
+fn point_command(a: PointArgs) -> Result<Vec<PathBuf>> {
+    let Some(out) = a.plot else {
+        return point(&a.common.load_from(&a.common.config)?, a.json);
+    };
+    use rattle::point::plot::{PlotOptions, compute, write_outputs};
+    let cfg = a.common.load_plot()?;
+    check_prefix(&out, &["png", "svg", "json"])?;
+    let o = PlotOptions {
+        periods: a.periods,
+        laminar_tol: a.laminar_tol,
+    };
+    o.check(&cfg)?;
+    let pb = progress_bar(1, "point");
+    let p = compute(&cfg, &o, &|n| pb.inc(n))?;
+    pb.finish_and_clear();
+    eprint!("{}", p.summary());
+    Ok(write_outputs(&out, &p)?)
+}
+
+/// `rattle map`: the config with `--risk`, the compared config, the options, then the map.
+fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
+    let common = &a.common;
+    let mut cfg = common.load_map(&common.config)?;
+    if let Some(r) = &a.risk {
+        cfg.map.risk = r
+            .split(',')
+            .map(|v| v.trim().parse::<f64>().unwrap_or(f64::NAN))
+            .collect();
+        cfg.check_map()?;
+    }
+    check_prefix(&a.out, &["png", "json"])?;
+    // The other config keeps its own eta; every other override applies.
+    let c = Common {
+        eta: None,
+        ..common.clone()
+    };
+    let other = a
+        .compare
+        .as_ref()
+        .map(|p| {
+            c.load_map(p)
+                .with_context(|| format!("--compare {}", p.display()))
+        })
+        .transpose()?;
+    let opts = MapOptions {
+        starts: a.starts as usize,
+        shard: a.shard,
+        checkpoint: a.checkpoint,
+        compare: other.as_ref(),
+        refine: a.refine,
+        refine_clear: a.refine_clear,
+    };
+    map_cmd(&cfg, &a.out, &opts, a.adapters)
+}
+
+/// `rattle sensitivity`: the uncertain parameters checked before computing, then the study.
+fn sensitivity_command(a: SensitivityArgs) -> Result<Vec<PathBuf>> {
+    let common = &a.common;
+    let cfg = common.load_from(&common.config)?;
+    let s = &cfg.sensitivity;
+    let given = if a.uncertain.is_empty() {
+        &s.uncertain
+    } else {
+        &a.uncertain
+    };
+    let o = rattle::sensitivity::Options {
+        uncertain: given
+            .iter()
+            .map(|u| rattle::sensitivity::Uncertain::parse(u))
+            .collect::<Result<_, _>>()?,
+        samples: a.samples.unwrap_or(s.samples) as usize,
+        seed: a.seed.unwrap_or(s.seed),
+    };
+    o.check()?;
+    cfg.check_tangent("`sensitivity`")?;
+    o.check_values(&cfg)?;
+    let params: Vec<rattle::model::Param> = o.uncertain.iter().map(|u| u.param).collect();
+    common.refuse_varied(&params, "--uncertain")?;
+    rattle::sensitivity::check_memory(&o)?;
+    check_prefix(&a.out, &["json", "csv", "png", "svg"])?;
+    let engine = Engine::open(cfg.method.backend)?;
+    let spec = RunSpec::new(&cfg);
+    let work = rattle::sensitivity::points(&o) as u64 * engine.progress_per_point(&spec);
+    let pb = progress_bar(work, "sensitivity");
+    let t0 = std::time::Instant::now();
+    let study = rattle::sensitivity::run(&engine, &cfg, &o, &|n| pb.inc(n))?;
+    pb.finish_and_clear();
+    eprintln!(
+        "sensitivity: {} points on {} ({}, {}) in {:.2} s ({:.2} s integration)",
+        study.runs,
+        engine.name(),
+        engine.device(),
+        cfg.method.precision.name(),
+        t0.elapsed().as_secs_f64(),
+        study.timings.integration_s
+    );
+    eprintln!("{}", rattle::sensitivity::caption(&study));
+    Ok(rattle::sensitivity::write_outputs(
+        &a.out,
+        &cfg,
+        &study,
+        engine.name(),
+        &engine.device(),
+    )?)
+}
+
+/// `rattle figure paper`: the four panels as one PNG.
+fn figure_command(a: FigureArgs) -> Result<Vec<PathBuf>> {
+    let Figure::Paper = a.which;
+    let out = &a.out;
+    if out
+        .extension()
+        .is_none_or(|e| !e.eq_ignore_ascii_case("png"))
+    {
+        anyhow::bail!(
+            "--out {}: the figure is a PNG image; name a file ending in .png",
+            out.display()
+        );
+    }
+    check_prefix(out, &[])?;
+    let pb = progress_bar(4 * a.points.unwrap_or(2000) as u64, "figure");
+    let files = bifurcation::paper_figure(
+        a.configs.as_deref(),
+        &|c: &mut Config| {
+            c.sweep.points = a.points.unwrap_or(c.sweep.points);
+            c.method.backend = a.backend.unwrap_or(c.method.backend);
+            c.method.precision = a.precision.unwrap_or(c.method.precision);
+        },
+        out,
+        &|n| pb.inc(n),
+    )?;
+    pb.finish_and_clear();
+    Ok(files)
+}
+
+/// `rattle bench`: the table (and JSON) of every backend and precision, or the ladder.
+fn bench_command(a: BenchArgs) -> Result<String> {
+    let cfg = a.common.load_sweep()?;
+    let output = match (a.ladder, a.json) {
+        (true, _) => bench::BenchOutput::Ladder,
+        (false, true) => bench::BenchOutput::TableAndJson,
+        (false, false) => bench::BenchOutput::Table,
+    };
+    let o = bench::BenchOptions {
+        points: a.points,
+        periods: a.periods,
+        backends: a.common.backends(),
+        lyapunov: a.lyapunov,
+        output,
+    };
+    Ok(bench::report(&cfg, &o)?)
 }
 
 fn point(cfg: &Config, as_json: bool) -> Result<Vec<PathBuf>> {

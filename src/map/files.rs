@@ -338,73 +338,68 @@ fn model_diff(cfg: &Config, other: &Config) -> Vec<String> {
         .collect()
 }
 
-/// Writes PREFIX.png (classes), PREFIX-lyapunov.png, PREFIX-multiplier.png (stability margin
-/// of the periodic cells), one PREFIX-FIELD.npy per field and PREFIX.json; all or nothing.
-pub fn write_outputs(
-    prefix: &Path,
-    cfg: &Config,
-    fields: &Fields,
-    report: &MapReport,
-) -> crate::Result<Vec<PathBuf>> {
-    let m = &cfg.map;
-    let (nx, ny) = (m.x_points as usize, m.y_points as usize);
-    let mut st = Staged::new();
-    let t = title(cfg);
-    let (xl, yl) = (m.x.label(), m.y.label());
-    let cats = categories();
-    let cat_refs: Vec<(u16, &str, [u8; 3])> = cats
-        .iter()
-        .map(|(c, l, rgb)| (*c, l.as_str(), *rgb))
-        .collect();
-    let fams = families();
-    let fam_refs: Vec<(&str, u16, u16)> =
-        fams.iter().map(|(l, a, b)| (l.as_str(), *a, *b)).collect();
-    let cells: Vec<u16> = fields
-        .classes()
-        .into_iter()
-        .zip(&fields.attractors)
-        .map(|(c, &a)| Shown::of(c, a).code())
-        .collect();
-    let (xr, yr) = ((m.x_from, m.x_to), (m.y_from, m.y_to));
-    let ordered = |r: (f64, f64)| (r.0.min(r.1), r.0.max(r.1));
-    let note = report.refine.as_ref().map(|r| {
-        format!(
-            "cells inferred from block corners\n(coarse spacing {}): {} ({})",
-            r.spacing,
-            percent(r.cells_inferred, nx * ny),
-            grouped(r.cells_inferred)
-        )
-    });
-    category_map_png(
-        &st.path(&with_ext(prefix, "png")),
-        &CategoryMap {
-            title: &t,
-            x_label: &xl,
-            y_label: &yl,
-            x_range: ordered(xr),
-            y_range: ordered(yr),
-            nx,
-            ny,
-            cells: &cells,
-            categories: &cat_refs,
-            families: &fam_refs,
-            member_label: &|c| c.to_string(),
-            note: note.as_deref(),
-            width: 1100,
-            height: 800,
-        },
-    )?;
-    // One scalar image per field: drawn when some cell has a value; otherwise an image of an
-    // earlier run must not stay beside this data.
-    let scalar = |st: &mut Staged,
-                  name: &str,
-                  title: String,
-                  values: &[f64],
-                  colorbar_label: &str,
-                  center: Option<f64>|
-     -> crate::Result<()> {
-        let path = with_ext(&crate::output::with_suffix(prefix, name), "png");
-        if !values.iter().any(|v| v.is_finite()) {
+/// The images of a map's set, all over the grid of `cfg`.
+struct Images<'a> {
+    prefix: &'a Path,
+    cfg: &'a Config,
+}
+
+impl Images<'_> {
+    fn ranges(&self) -> ((f64, f64), (f64, f64)) {
+        let m = &self.cfg.map;
+        let ordered = |a: f64, b: f64| (a.min(b), a.max(b));
+        (ordered(m.x_from, m.x_to), ordered(m.y_from, m.y_to))
+    }
+
+    /// The class map, PREFIX.png (`cells`: category codes).
+    fn classes(&self, st: &mut Staged, cells: &[u16], report: &MapReport) -> crate::Result<()> {
+        let m = &self.cfg.map;
+        let (nx, ny) = (m.x_points as usize, m.y_points as usize);
+        let cats = categories();
+        let cat_refs: Vec<(u16, &str, [u8; 3])> = cats
+            .iter()
+            .map(|(c, l, rgb)| (*c, l.as_str(), *rgb))
+            .collect();
+        let fams = families();
+        let fam_refs: Vec<(&str, u16, u16)> =
+            fams.iter().map(|(l, a, b)| (l.as_str(), *a, *b)).collect();
+        let note = report.refine.as_ref().map(|r| {
+            format!(
+                "cells inferred from block corners\n(coarse spacing {}): {} ({})",
+                r.spacing,
+                percent(r.cells_inferred, nx * ny),
+                grouped(r.cells_inferred)
+            )
+        });
+        let (xr, yr) = self.ranges();
+        category_map_png(
+            &st.path(&with_ext(self.prefix, "png")),
+            &CategoryMap {
+                title: &title(self.cfg),
+                x_label: &m.x.label(),
+                y_label: &m.y.label(),
+                x_range: xr,
+                y_range: yr,
+                nx,
+                ny,
+                cells,
+                categories: &cat_refs,
+                families: &fam_refs,
+                member_label: &|c| c.to_string(),
+                note: note.as_deref(),
+                width: 1100,
+                height: 800,
+            },
+        )?;
+        Ok(())
+    }
+
+    /// One scalar image, PREFIX-NAME.png: drawn when some cell has a value; otherwise an image
+    /// of an earlier run must not stay beside this data.
+    fn scalar(&self, st: &mut Staged, name: &str, s: &Scalar) -> crate::Result<()> {
+        let m = &self.cfg.map;
+        let path = with_ext(&crate::output::with_suffix(self.prefix, name), "png");
+        if !s.values.iter().any(|v| v.is_finite()) {
             log::warn!(
                 "no cell has a value of {name}; {} is not drawn",
                 path.display()
@@ -412,117 +407,126 @@ pub fn write_outputs(
             st.remove_stale(&path);
             return Ok(());
         }
+        let (xr, yr) = self.ranges();
         scalar_map_png(
             &st.path(&path),
             &ScalarMap {
-                title: &title,
-                x_label: &xl,
-                y_label: &yl,
-                x_range: ordered(xr),
-                y_range: ordered(yr),
-                nx,
-                ny,
-                values,
-                colorbar_label,
-                center,
+                title: &s.title,
+                x_label: &m.x.label(),
+                y_label: &m.y.label(),
+                x_range: xr,
+                y_range: yr,
+                nx: m.x_points as usize,
+                ny: m.y_points as usize,
+                values: s.values,
+                colorbar_label: s.colorbar_label,
+                center: s.center,
                 width: 1100,
                 height: 800,
             },
         )?;
         Ok(())
-    };
-    let lyap: Vec<f64> = fields
-        .lyapunov
-        .iter()
-        .map(|v| v.unwrap_or(f64::NAN))
-        .collect();
-    let lyap_raw = &lyap;
-    // Colour limits at the 99th percentile of |exponent|, so that a few outliers (cells whose
-    // estimate has not converged) do not wash out the map.
+    }
+}
+
+/// What a scalar image shows.
+struct Scalar<'a> {
+    title: String,
+    values: &'a [f64],
+    colorbar_label: &'a str,
+    center: Option<f64>,
+}
+
+/// The exponent's colour limit: the 99th percentile of |exponent|, so that a few outliers
+/// (cells whose estimate has not converged) do not wash out the map.
+fn exponent_limit(lyap: &[f64]) -> f64 {
     let mut mag: Vec<f64> = lyap
         .iter()
         .filter(|v| v.is_finite())
         .map(|v| v.abs())
         .collect();
     mag.sort_by(f64::total_cmp);
-    let lim = mag
-        .get(mag.len().saturating_sub(1) * 99 / 100)
-        .map_or(1e-6, |v| v.max(1e-6));
-    let shown: Vec<f64> = lyap.iter().map(|v| v.clamp(-lim, lim)).collect();
-    scalar(
-        &mut st,
-        "lyapunov",
-        format!("largest Lyapunov exponent over {} and {}", m.x, m.y),
-        &shown,
-        "exponent per unit time (clipped at 99th percentile)",
-        Some(0.0),
-    )?;
-    let mult: Vec<f64> = fields
-        .multiplier
+    mag.get(mag.len().saturating_sub(1) * 99 / 100)
+        .map_or(1e-6, |v| v.max(1e-6))
+}
+
+/// The risk map where `map.risk` is set: the class image (`cells`) convolved with the Gaussian
+/// of map.risk, and the axes along which sigma is below the grid spacing.
+fn risk_of(cfg: &Config, cells: &[u16]) -> Option<(Vec<f64>, Vec<&'static str>)> {
+    let m = &cfg.map;
+    if m.risk.len() != 2 {
+        return None;
+    }
+    let (nx, ny) = (m.x_points as usize, m.y_points as usize);
+    let spacing = [
+        (m.x_to - m.x_from).abs() / nx as f64,
+        (m.y_to - m.y_from).abs() / ny as f64,
+    ];
+    let codes: Vec<i32> = cells.iter().map(|&c| i32::from(c)).collect();
+    let r = crate::stats::risk(
+        &codes,
+        nx,
+        ny,
+        m.risk[0] / spacing[0],
+        m.risk[1] / spacing[1],
+    );
+    let coarse: Vec<&str> = [m.x, m.y]
         .iter()
-        .map(|v| v.unwrap_or(f64::NAN))
+        .zip(m.risk.iter().zip(spacing))
+        .filter(|(_, (s, d))| **s < *d)
+        .map(|(p, _)| p.name())
         .collect();
-    scalar(
-        &mut st,
-        "multiplier",
-        format!(
-            "stability margin: largest Floquet multiplier modulus over {} and {}",
-            m.x, m.y
-        ),
-        &mult,
-        "|mu_1| of the stable cycle (1: loss of stability; grey: not periodic)",
-        None,
-    )?;
-    // The risk map: the class image convolved with the Gaussian of map.risk.
-    let risk = (m.risk.len() == 2).then(|| {
-        let spacing = [
-            (m.x_to - m.x_from).abs() / nx as f64,
-            (m.y_to - m.y_from).abs() / ny as f64,
-        ];
-        let codes: Vec<i32> = cells.iter().map(|&c| i32::from(c)).collect();
-        let r = crate::stats::risk(
-            &codes,
-            nx,
-            ny,
-            m.risk[0] / spacing[0],
-            m.risk[1] / spacing[1],
+    Some((r, coarse))
+}
+
+/// The risk image, PREFIX-risk.png, with a warning where sigma is below the grid spacing; an
+/// older one is removed where the map has no risk.
+fn risk_image(
+    st: &mut Staged,
+    images: &Images,
+    risk: Option<&(Vec<f64>, Vec<&str>)>,
+) -> crate::Result<()> {
+    let m = &images.cfg.map;
+    let Some((r, coarse)) = risk else {
+        st.remove_stale(&with_ext(
+            &crate::output::with_suffix(images.prefix, "risk"),
+            "png",
+        ));
+        return Ok(());
+    };
+    let warn = if coarse.is_empty() {
+        String::new()
+    } else {
+        log::warn!(
+            "map.risk: sigma below the grid spacing along {}: the risk there is that of \
+             the neighbouring cells only, not resolved",
+            coarse.join(" and ")
         );
-        let coarse: Vec<&str> = [m.x, m.y]
-            .iter()
-            .zip(m.risk.iter().zip(spacing))
-            .filter(|(_, (s, d))| **s < *d)
-            .map(|(p, _)| p.name())
-            .collect();
-        (r, coarse)
-    });
-    if let Some((r, coarse)) = &risk {
-        let warn = if coarse.is_empty() {
-            String::new()
-        } else {
-            log::warn!(
-                "map.risk: sigma below the grid spacing along {}: the risk there is that of \
-                 the neighbouring cells only, not resolved",
-                coarse.join(" and ")
-            );
-            format!(" [sigma < grid spacing along {}]", coarse.join(", "))
-        };
-        scalar(
-            &mut st,
-            "risk",
-            format!(
+        format!(" [sigma < grid spacing along {}]", coarse.join(", "))
+    };
+    images.scalar(
+        st,
+        "risk",
+        &Scalar {
+            title: format!(
                 "risk: P(other class) for sigma_{} = {}, sigma_{} = {}{warn}",
                 m.x, m.risk[0], m.y, m.risk[1]
             ),
-            r,
-            "probability that a Gaussian perturbation lands on another class",
-            None,
-        )?;
-    } else {
-        st.remove_stale(&with_ext(
-            &crate::output::with_suffix(prefix, "risk"),
-            "png",
-        ));
-    }
+            values: r,
+            colorbar_label: "probability that a Gaussian perturbation lands on another class",
+            center: None,
+        },
+    )
+}
+
+/// The NPY files: every layer of `fields`, and the risk where there is one.
+fn write_npys(
+    st: &mut Staged,
+    prefix: &Path,
+    fields: &Fields,
+    risk: Option<&[f64]>,
+    (ny, nx): (usize, usize),
+) -> crate::Result<()> {
     let npy = |st: &mut Staged, name: &str, write: &dyn Fn(&Path) -> std::io::Result<()>| {
         let path = with_ext(&crate::output::with_suffix(prefix, name), "npy");
         let tmp = st.path(&path);
@@ -531,9 +535,9 @@ pub fn write_outputs(
             source,
         })
     };
-    fields.each_npy((ny, nx), &mut |name, write| npy(&mut st, name, write))?;
-    match &risk {
-        Some((r, _)) => npy(&mut st, "risk", &|p| {
+    fields.each_npy((ny, nx), &mut |name, write| npy(st, name, write))?;
+    match risk {
+        Some(r) => npy(st, "risk", &|p| {
             crate::output::save_npy(p, &[ny as u64, nx as u64], r)
         })?,
         None => st.remove_stale(&with_ext(
@@ -541,6 +545,65 @@ pub fn write_outputs(
             "npy",
         )),
     }
+    Ok(())
+}
+
+/// Writes a map's set: the class image, the exponent, multiplier and risk images, one NPY per
+/// layer, the JSON.
+pub fn write_outputs(
+    prefix: &Path,
+    cfg: &Config,
+    fields: &Fields,
+    report: &MapReport,
+) -> crate::Result<Vec<PathBuf>> {
+    let m = &cfg.map;
+    let mut st = Staged::new();
+    let images = Images { prefix, cfg };
+    let cells: Vec<u16> = fields
+        .classes()
+        .into_iter()
+        .zip(&fields.attractors)
+        .map(|(c, &a)| Shown::of(c, a).code())
+        .collect();
+    images.classes(&mut st, &cells, report)?;
+    let nan = |v: &[Option<f64>]| -> Vec<f64> { v.iter().map(|x| x.unwrap_or(f64::NAN)).collect() };
+    let lyap = nan(&fields.lyapunov);
+    let lim = exponent_limit(&lyap);
+    let shown: Vec<f64> = lyap.iter().map(|v| v.clamp(-lim, lim)).collect();
+    images.scalar(
+        &mut st,
+        "lyapunov",
+        &Scalar {
+            title: format!("largest Lyapunov exponent over {} and {}", m.x, m.y),
+            values: &shown,
+            colorbar_label: "exponent per unit time (clipped at 99th percentile)",
+            center: Some(0.0),
+        },
+    )?;
+    let mult = nan(&fields.multiplier);
+    images.scalar(
+        &mut st,
+        "multiplier",
+        &Scalar {
+            title: format!(
+                "stability margin: largest Floquet multiplier modulus over {} and {}",
+                m.x, m.y
+            ),
+            values: &mult,
+            colorbar_label: "|mu_1| of the stable cycle (1: loss of stability; grey: not periodic)",
+            center: None,
+        },
+    )?;
+    let risk = risk_of(cfg, &cells);
+    risk_image(&mut st, &images, risk.as_ref())?;
+    let grid = (m.y_points as usize, m.x_points as usize);
+    write_npys(
+        &mut st,
+        prefix,
+        fields,
+        risk.as_ref().map(|r| &r.0[..]),
+        grid,
+    )?;
     let coexisting = cells
         .iter()
         .filter(|&&c| c == Shown::Coexisting.code())
@@ -553,7 +616,7 @@ pub fn write_outputs(
             &fields.rule_counts(),
             coexisting,
         ),
-        caption_lyapunov: lyapunov_caption(cfg, lyap_raw, lim),
+        caption_lyapunov: lyapunov_caption(cfg, &lyap, lim),
         caption_multiplier: multiplier_caption(cfg, &mult),
         report,
         version: report
