@@ -393,7 +393,8 @@ impl Rule {
         Rule::Undecided,
         Rule::ExponentLost,
     ];
-    /// Compact code for arrays (the position in [`Rule::ALL`]; 255 for an inferred cell).
+    /// Compact code for arrays: the position in [`Rule::ALL`] (an inferred cell keeps its
+    /// corners' rule).
     pub fn code(self) -> u8 {
         Rule::ALL.iter().position(|&r| r == self).unwrap_or(0) as u8
     }

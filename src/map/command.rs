@@ -233,52 +233,10 @@ pub fn run(
         return Ok(summary);
     }
     let n = o.checkpoint.unwrap_or(1).max(1);
-    let per_cell =
-        o.starts.max(1) as u64 * engine.progress_per_point(&crate::spec::RunSpec::new(cfg));
-    let mut parts = Vec::with_capacity(n);
-    for i in 0..n {
-        let path = part_path(out, i, n);
-        // Resume: a finished shard of the same run is reused; a part of another run (or an
-        // unreadable one) is recomputed and replaced.
-        let version = env!("CARGO_PKG_VERSION");
-        let starts = o.starts.max(1);
-        if n > 1
-            && let Ok(p) = read_part(&path)
-            && p.shard == (i, n)
-            && p.differs_from(version, cfg, starts, engine.name(), n)
-                .is_none()
-        {
-            progress.advance(p.fields.len() as u64 * per_cell);
-            summary.resumed.push((i, n, path));
-            parts.push(p);
-            continue;
-        }
-        let p = match o.refine {
-            Some(k) => coarse_part(engine, cfg, k, o.clear_chaotic(), o.starts, progress)?,
-            None => compute_part(engine, cfg, (i, n), o.starts, progress)?,
-        };
-        if n > 1 {
-            write_part(&path, &p)?;
-        }
-        parts.push(p);
-    }
+    let parts = checkpointed_parts(engine, cfg, out, o, &mut summary, progress)?;
     let (cfg, fields, parts) = merge(parts)?;
     let secs: f64 = parts.iter().map(|p| p.timings.integration_s).sum();
-    // Periods integrated (the first start of each cell), plus the exponent's second
-    // integration over the sampled periods of cells that ran to the end.
-    let full = cfg.run.transient_periods + cfg.run.sample_periods;
-    let periods: u64 = fields
-        .periods
-        .iter()
-        .map(|&p| {
-            u64::from(p)
-                + if p == full {
-                    u64::from(cfg.run.sample_periods)
-                } else {
-                    0
-                }
-        })
-        .sum();
+    let periods = periods_integrated(&cfg, &fields);
     let steps = periods as f64 * cfg.method.steps_per_period as f64;
     let mut report = MapReport {
         command: "map",
@@ -332,6 +290,67 @@ pub fn run(
     summary.counts = fields.counts();
     summary.wall_s = t.elapsed().as_secs_f64();
     Ok(summary)
+}
+
+/// The parts of a whole map: one, or with `--checkpoint K` K shards, each reused where a
+/// finished part of the same run is on disk (resumed), computed and kept otherwise.
+fn checkpointed_parts(
+    engine: &Engine,
+    cfg: &Config,
+    out: &Path,
+    o: &MapOptions,
+    summary: &mut MapSummary,
+    progress: &dyn Progress,
+) -> crate::Result<Vec<Part>> {
+    let n = o.checkpoint.unwrap_or(1).max(1);
+    let per_cell =
+        o.starts.max(1) as u64 * engine.progress_per_point(&crate::spec::RunSpec::new(cfg));
+    let mut parts = Vec::with_capacity(n);
+    for i in 0..n {
+        let path = part_path(out, i, n);
+        // Resume: a finished shard of the same run is reused; a part of another run (or an
+        // unreadable one) is recomputed and replaced.
+        let version = env!("CARGO_PKG_VERSION");
+        let starts = o.starts.max(1);
+        if n > 1
+            && let Ok(p) = read_part(&path)
+            && p.shard == (i, n)
+            && p.differs_from(version, cfg, starts, engine.name(), n)
+                .is_none()
+        {
+            progress.advance(p.fields.len() as u64 * per_cell);
+            summary.resumed.push((i, n, path));
+            parts.push(p);
+            continue;
+        }
+        let p = match o.refine {
+            Some(k) => coarse_part(engine, cfg, k, o.clear_chaotic(), o.starts, progress)?,
+            None => compute_part(engine, cfg, (i, n), o.starts, progress)?,
+        };
+        if n > 1 {
+            write_part(&path, &p)?;
+        }
+        parts.push(p);
+    }
+    Ok(parts)
+}
+
+/// Periods integrated (the first start of each cell), plus the exponent's second integration
+/// over the sampled periods of cells that ran to the end.
+fn periods_integrated(cfg: &Config, fields: &Fields) -> u64 {
+    let full = cfg.run.transient_periods + cfg.run.sample_periods;
+    fields
+        .periods
+        .iter()
+        .map(|&p| {
+            u64::from(p)
+                + if p == full {
+                    u64::from(cfg.run.sample_periods)
+                } else {
+                    0
+                }
+        })
+        .sum()
 }
 
 /// A map split over every adapter of the machine: one contiguous share per adapter, computed

@@ -192,7 +192,7 @@ impl Fields {
             let name = Rule::ALL
                 .iter()
                 .find(|x| x.code() == r)
-                .map_or("inferred".to_string(), |x| x.name().to_string());
+                .map_or(format!("unknown rule {r}"), |x| x.name().to_string());
             *m.entry(name).or_default() += 1;
         }
         m

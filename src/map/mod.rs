@@ -1,6 +1,7 @@
-//! 2-D maps over two parameters: the grid and its computation on any backend (this file),
-//! shards, checkpoints, adapters and merging ([`parts`]), and the final PNG / NPY / JSON files
-//! ([`output`]).
+//! 2-D maps over two parameters: the grid and its computation on any backend (this file), the
+//! layers ([`fields`]), the command with its shards, checkpoints, adapters and merge
+//! ([`command`], [`parts`]), coarse-to-fine ([`coarse`]) and the final PNG / NPY / JSON files
+//! ([`files`]).
 
 pub mod coarse;
 mod command;

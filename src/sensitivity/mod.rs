@@ -314,25 +314,7 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
     for w in &warnings {
         log::warn!("{w}");
     }
-    // The design: the nominal point, then A, B and AB_j, N rows each.
-    let a: Vec<Vec<f64>> = (0..n).map(|i| draw(u, i, 0, o.seed)).collect();
-    let b: Vec<Vec<f64>> = (0..n).map(|i| draw(u, i, d, o.seed)).collect();
-    let mut values = nominal.clone();
-    let mut sets: Vec<(String, usize)> = vec![("nominal".into(), 0)];
-    for (name, m) in [("A", &a), ("B", &b)] {
-        for (i, row) in m.iter().enumerate() {
-            values.extend(row);
-            sets.push((name.into(), i));
-        }
-    }
-    for j in 0..d {
-        for i in 0..n {
-            let mut row = a[i].clone();
-            row[j] = b[i][j];
-            values.extend(&row);
-            sets.push((format!("AB{j}"), i));
-        }
-    }
+    let (values, sets) = saltelli_design(u, n, o.seed);
     let (sum, mut timings) = decide_points(engine, cfg, &vary, &values, progress)?;
     let nominal_class = sum[0].class;
     let draws: Vec<Sample> = sets
@@ -384,80 +366,18 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
     }
     convergence.push(same(n));
 
-    // Sobol indices of the exponent (rows finite everywhere) and of the class indicator.
-    let pick = |set: usize, f: &dyn Fn(&Sample) -> f64| -> Vec<f64> {
-        draws[set * n..(set + 1) * n].iter().map(f).collect()
-    };
-    let lyap = |s: &Sample| s.lyapunov;
-    let ind = |s: &Sample| f64::from(u8::from(s.same_as_nominal));
-    let (fa, fb) = (pick(0, &lyap), pick(1, &lyap));
-    let fab: Vec<Vec<f64>> = (0..d).map(|j| pick(2 + j, &lyap)).collect();
-    let rows: Vec<usize> = (0..n)
-        .filter(|&i| fa[i].is_finite() && fb[i].is_finite() && fab.iter().all(|f| f[i].is_finite()))
-        .collect();
-    let keep = |v: &[f64]| rows.iter().map(|&i| v[i]).collect::<Vec<f64>>();
-    let (ga, gb) = (pick(0, &ind), pick(1, &ind));
     let changes = 2 * n - same_as_nominal.count;
-    let apportion = changes == 0 || changes >= MIN_CHANGES;
-    let sobol: Vec<Sobol> = (0..d)
-        .map(|j| {
-            let (ea, eb, eab) = (keep(&fa), keep(&fb), keep(&fab[j]));
-            let all: Vec<usize> = (0..ea.len()).collect();
-            let gab = pick(2 + j, &ind);
-            let every: Vec<usize> = (0..n).collect();
-            Sobol {
-                param: vary[j],
-                exponent: stats::indices(&ea, &eb, &eab, &all),
-                exponent_interval: stats::bootstrap(&ea, &eb, &eab, RESAMPLES, u64::from(o.seed)),
-                same_class: apportion.then(|| stats::indices(&ga, &gb, &gab, &every)),
-                same_class_interval: apportion
-                    .then(|| stats::bootstrap(&ga, &gb, &gab, RESAMPLES, u64::from(o.seed))),
-            }
-        })
-        .collect();
+    let (sobol, exponent_rows) = sobol_indices(&draws, &vary, n, changes, o.seed);
 
     // The nearest class change along each parameter: a scan, then sectioning of its bracket.
     let (distances, t, scan_runs) = nearest_changes(engine, cfg, u, nominal_class, progress)?;
     timings.add(&t);
     let mut runs = values.len() / d + scan_runs;
-    // The class map of the plane of the two parameters with the largest total index of
-    // "same class as nominal" (first the one with the larger; of the exponent where the class
-    // indices are 0 or not estimated).
     let plane = if d >= 2 {
-        let mut order: Vec<usize> = (0..d).collect();
-        order.sort_by(|&i, &j| {
-            let t = |k: usize| {
-                let s: &Sobol = &sobol[k];
-                match s.same_class {
-                    Some(c) if changes > 0 => c.total,
-                    _ => s.exponent.total,
-                }
-            };
-            t(j).total_cmp(&t(i)).then(i.cmp(&j))
-        });
-        let (x, y) = (order[0], order[1]);
-        let (xr, yr) = (plane_range(&u[x]), plane_range(&u[y]));
-        let c = PLANE_CELLS;
-        let mut values = Vec::with_capacity(c * c * d);
-        for iy in 0..c {
-            for ix in 0..c {
-                let mut r = nominal.clone();
-                r[x] = xr.0 + (xr.1 - xr.0) * (ix as f64 + 0.5) / c as f64;
-                r[y] = yr.0 + (yr.1 - yr.0) * (iy as f64 + 0.5) / c as f64;
-                values.extend(r);
-            }
-        }
-        let (s, t) = decide_points(engine, cfg, &vary, &values, progress)?;
+        let (p, t) = plane_map(engine, cfg, u, &nominal, &sobol, changes, progress)?;
         timings.add(&t);
-        runs += c * c;
-        Some(PlaneMap {
-            x,
-            y,
-            x_range: xr,
-            y_range: yr,
-            cells: c,
-            classes: s.iter().map(|x| x.class).collect(),
-        })
+        runs += PLANE_CELLS * PLANE_CELLS;
+        Some(p)
     } else {
         None
     };
@@ -474,13 +394,130 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
         same_as_nominal,
         convergence,
         distances,
-        exponent_rows: rows.len(),
+        exponent_rows,
         sobol,
         draws,
         plane,
         timings,
         warnings,
     })
+}
+
+/// The Saltelli design: the nominal point, then the rows of A, B and each AB_j (A with column
+/// j from B), `n` rows each; the values row-major, and each row's (set, row).
+fn saltelli_design(u: &[Uncertain], n: usize, seed: u32) -> (Vec<f64>, Vec<(String, usize)>) {
+    let d = u.len();
+    let a: Vec<Vec<f64>> = (0..n).map(|i| draw(u, i, 0, seed)).collect();
+    let b: Vec<Vec<f64>> = (0..n).map(|i| draw(u, i, d, seed)).collect();
+    let mut values: Vec<f64> = u.iter().map(Uncertain::nominal).collect();
+    let mut sets: Vec<(String, usize)> = vec![("nominal".into(), 0)];
+    for (name, m) in [("A", &a), ("B", &b)] {
+        for (i, row) in m.iter().enumerate() {
+            values.extend(row);
+            sets.push((name.into(), i));
+        }
+    }
+    for j in 0..d {
+        for i in 0..n {
+            let mut row = a[i].clone();
+            row[j] = b[i][j];
+            values.extend(&row);
+            sets.push((format!("AB{j}"), i));
+        }
+    }
+    (values, sets)
+}
+
+/// Sobol indices per parameter of the exponent (over the rows finite in A, B and every AB, whose
+/// number is returned too) and of "same class as nominal" (where `changes`, the draws of A and
+/// B of another class, are none or enough to apportion).
+fn sobol_indices(
+    draws: &[Sample],
+    vary: &[Param],
+    n: usize,
+    changes: usize,
+    seed: u32,
+) -> (Vec<Sobol>, usize) {
+    let d = vary.len();
+    let pick = |set: usize, f: &dyn Fn(&Sample) -> f64| -> Vec<f64> {
+        draws[set * n..(set + 1) * n].iter().map(f).collect()
+    };
+    let lyap = |s: &Sample| s.lyapunov;
+    let ind = |s: &Sample| f64::from(u8::from(s.same_as_nominal));
+    let (fa, fb) = (pick(0, &lyap), pick(1, &lyap));
+    let fab: Vec<Vec<f64>> = (0..d).map(|j| pick(2 + j, &lyap)).collect();
+    let rows: Vec<usize> = (0..n)
+        .filter(|&i| fa[i].is_finite() && fb[i].is_finite() && fab.iter().all(|f| f[i].is_finite()))
+        .collect();
+    let keep = |v: &[f64]| rows.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+    let (ga, gb) = (pick(0, &ind), pick(1, &ind));
+    let apportion = changes == 0 || changes >= MIN_CHANGES;
+    let sobol = (0..d)
+        .map(|j| {
+            let (ea, eb, eab) = (keep(&fa), keep(&fb), keep(&fab[j]));
+            let all: Vec<usize> = (0..ea.len()).collect();
+            let gab = pick(2 + j, &ind);
+            let every: Vec<usize> = (0..n).collect();
+            Sobol {
+                param: vary[j],
+                exponent: stats::indices(&ea, &eb, &eab, &all),
+                exponent_interval: stats::bootstrap(&ea, &eb, &eab, RESAMPLES, u64::from(seed)),
+                same_class: apportion.then(|| stats::indices(&ga, &gb, &gab, &every)),
+                same_class_interval: apportion
+                    .then(|| stats::bootstrap(&ga, &gb, &gab, RESAMPLES, u64::from(seed))),
+            }
+        })
+        .collect();
+    (sobol, rows.len())
+}
+
+/// The class map of the plane of the two parameters with the largest total index of "same
+/// class as nominal" (first the one with the larger; of the exponent where the class indices
+/// are 0 or not estimated), the others at their nominal values.
+fn plane_map(
+    engine: &Engine,
+    cfg: &Config,
+    u: &[Uncertain],
+    nominal: &[f64],
+    sobol: &[Sobol],
+    changes: usize,
+    progress: &dyn Progress,
+) -> Result<(PlaneMap, Timings)> {
+    let d = u.len();
+    let vary: Vec<Param> = u.iter().map(|x| x.param).collect();
+    let mut order: Vec<usize> = (0..d).collect();
+    order.sort_by(|&i, &j| {
+        let t = |k: usize| {
+            let s: &Sobol = &sobol[k];
+            match s.same_class {
+                Some(c) if changes > 0 => c.total,
+                _ => s.exponent.total,
+            }
+        };
+        t(j).total_cmp(&t(i)).then(i.cmp(&j))
+    });
+    let (x, y) = (order[0], order[1]);
+    let (xr, yr) = (plane_range(&u[x]), plane_range(&u[y]));
+    let c = PLANE_CELLS;
+    let mut values = Vec::with_capacity(c * c * d);
+    for iy in 0..c {
+        for ix in 0..c {
+            let mut r = nominal.to_vec();
+            r[x] = xr.0 + (xr.1 - xr.0) * (ix as f64 + 0.5) / c as f64;
+            r[y] = yr.0 + (yr.1 - yr.0) * (iy as f64 + 0.5) / c as f64;
+            values.extend(r);
+        }
+    }
+    let (s, t) = decide_points(engine, cfg, &vary, &values, progress)?;
+    let plane = PlaneMap {
+        x,
+        y,
+        x_range: xr,
+        y_range: yr,
+        cells: c,
+        classes: s.iter().map(|x| x.class).collect(),
+    };
+    Ok((plane, t))
 }
 
 /// The scan and sectioning of [`run`]: points along each parameter from the nominal (the other
