@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests: the binary, scratch directories, NPY files.
 #![allow(dead_code)] // each test binary uses a subset
 
+pub mod kernel;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
