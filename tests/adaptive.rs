@@ -100,11 +100,9 @@ fn early_stop_keeps_the_classes_of_the_brute_force_diagram_on_the_gpu() {
 
 #[test]
 fn early_stop_map_agrees_with_the_brute_force_map() {
-    let text = "[model]\neta = 1.26\n[method]\nsteps_per_period = 64\n[run]\n\
-        transient_periods = 300\nsample_periods = 60\n[map]\nx = \"R\"\nx_from = 0.5\n\
-        x_to = 0.7\nx_points = 12\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 10\n";
+    let text = common::points::rl_map(64, 300, 60, 12, 10);
     let run = |es: bool| {
-        let cfg = Config::from_toml(text, &[format!("run.early_stop={es}")]).unwrap();
+        let cfg = Config::from_toml(&text, &[format!("run.early_stop={es}")]).unwrap();
         let cells = rattle::map::cell_count(&cfg);
         rattle::map::compute(&Engine::Cpu, &cfg, 0..cells, 1, &Silent)
             .unwrap()
@@ -132,7 +130,8 @@ fn early_stop_map_agrees_with_the_brute_force_map() {
             assert!(y.0.multiplier < 1.0);
             // It carries the exact Floquet exponent of its cycle.
             let n = y.0.class.period().unwrap() as f64;
-            let exact = y.0.multiplier.ln() * 1.26 / (2.0 * std::f64::consts::PI * n);
+            let exact = y.0.multiplier.ln() * common::points::CHAOTIC_ETA
+                / (2.0 * std::f64::consts::PI * n);
             assert!((y.0.lyapunov - exact).abs() < 1e-12 && exact < 0.0);
         }
     }
@@ -198,11 +197,9 @@ fn impact_free_cells_of_a_map_leave_early_as_sweep_points_do() {
     // The one adaptive driver decides a window that repeats without impacts at once for every
     // caller (maps too, where only sweeps did before): same class as brute force, fewer
     // periods. A clearance of 10 keeps m2 off the stops.
-    let text = "[model]\neta = 1.26\nr = 10.0\n[method]\nsteps_per_period = 64\n[run]\n\
-        transient_periods = 300\nsample_periods = 60\n[map]\nx = \"R\"\nx_from = 0.5\n\
-        x_to = 0.7\nx_points = 3\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 2\n";
+    let text = common::points::rl_map(64, 300, 60, 3, 2).replace("[method]", "r = 10.0\n[method]");
     let run = |es: bool| {
-        let cfg = Config::from_toml(text, &[format!("run.early_stop={es}")]).unwrap();
+        let cfg = Config::from_toml(&text, &[format!("run.early_stop={es}")]).unwrap();
         let cells = rattle::map::cell_count(&cfg);
         rattle::map::compute(&Engine::Cpu, &cfg, 0..cells, 1, &Silent)
             .unwrap()

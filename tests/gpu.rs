@@ -258,10 +258,8 @@ fn small_map_classes_agree_with_cpu() {
     if gpu().is_none() {
         return;
     }
-    let text = "[model]\neta = 1.26\n[method]\nsteps_per_period = 128\n[run]\n\
-        transient_periods = 300\nsample_periods = 100\n[map]\nx = \"R\"\nx_from = 0.5\n\
-        x_to = 0.7\nx_points = 12\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 12\n";
-    let mut cfg = rattle::config::Config::from_toml(text, &[]).unwrap();
+    let text = common::points::rl_map(128, 300, 100, 12, 12);
+    let mut cfg = rattle::config::Config::from_toml(&text, &[]).unwrap();
     let cells = rattle::map::cell_count(&cfg);
     for prec in [
         rattle::config::Precision::F32,
@@ -347,9 +345,12 @@ fn map_over_all_adapters_equals_the_single_adapter_map() {
     let engines: Vec<Engine> = (0..2)
         .map(|_| Engine::Gpu(Box::new(Gpu::new().unwrap())))
         .collect();
-    let text = "[model]\neta = 1.26\n[method]\nsteps_per_period = 128\n[run]\n\
-        transient_periods = 30\nsample_periods = 10\n[map]\nx_points = 7\ny_points = 5\n";
-    let cfg = rattle::config::Config::from_toml(text, &[]).unwrap();
+    let text = format!(
+        "[model]\neta = {}\n[method]\nsteps_per_period = 128\n[run]\n\
+         transient_periods = 30\nsample_periods = 10\n[map]\nx_points = 7\ny_points = 5\n",
+        common::points::CHAOTIC_ETA
+    );
+    let cfg = rattle::config::Config::from_toml(&text, &[]).unwrap();
     let d = common::scratch("adapters");
     let shared = rattle::map::run_shared(&engines, &cfg, &d.join("shared"), 1).unwrap();
     assert_eq!(shared.device, "2 engines");

@@ -217,7 +217,7 @@ fn tangent_exponent_where_an_impact_falls_near_the_section() {
         let spec = RunSpec {
             params: Params {
                 restitution: r,
-                ..Params::paper(1.26)
+                ..Params::paper(common::points::CHAOTIC_ETA)
             },
             ..eta_spec(s, 300, 100, f64)
         };

@@ -9,6 +9,8 @@ use rattle::method::{Integrator, PointState, Settings};
 use rattle::model::Params;
 use rattle::real::Real;
 
+mod common;
+
 fn settings() -> Settings {
     Settings {
         lyapunov: true,
@@ -138,7 +140,7 @@ fn map_point<F: Real>(r: f64, lambda: f64) -> (f64, f64) {
         restitution: r,
         fs: lambda,
         fk: lambda,
-        ..Params::paper(1.26)
+        ..Params::paper(common::points::CHAOTIC_ETA)
     };
     let s = Settings {
         steps_per_period: 128,

@@ -12,15 +12,16 @@ use std::path::{Path, PathBuf};
 mod common;
 use common::{json, npy, ok, rattle, scratch};
 
-const SMALL: &str = "[model]\neta = 1.26\n[method]\nsteps_per_period = 64\n[run]\n\
-    transient_periods = 40\nsample_periods = 20\n[map]\nx = \"R\"\nx_from = 0.5\nx_to = 0.7\n\
-    x_points = 9\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 7\n";
+/// A 9 x 7 R x lambda map over 40 + 20 periods.
+fn small() -> String {
+    common::points::rl_map(64, 40, 20, 9, 7)
+}
 
 #[test]
 fn sharded_and_merged_map_equals_the_single_run() {
     let d = scratch("shard");
     let cfg = d.join("small.toml");
-    std::fs::write(&cfg, SMALL).unwrap();
+    std::fs::write(&cfg, small()).unwrap();
     let map = |extra: &[&str], out: &Path| {
         let mut c = rattle();
         c.args(["map", "--backend", "cpu", "--precision", "f64", "--config"])
@@ -106,7 +107,7 @@ fn multipliers_only_on_cycles(s: &[rattle::decide::Summary]) -> bool {
 fn failed_cells_are_never_a_valid_class() {
     // Three cells, the middle one with a non-finite parameter: it fails alone, its diagnostics
     // and exponent say so, and its neighbours are exactly what they are when run on their own.
-    let cfg = Config::from_toml(SMALL, &[]).unwrap();
+    let cfg = Config::from_toml(&small(), &[]).unwrap();
     let spec = RunSpec::new(&cfg).with_lyapunov();
     let vary = [Param::R, Param::Lambda];
     let run = |values: &[f64]| {
@@ -311,9 +312,7 @@ fn every_shipped_config_loads() {
 
 #[test]
 fn refined_map_agrees_with_the_full_map_and_flags_inferred_cells() {
-    let text = "[model]\neta = 1.26\n[method]\nsteps_per_period = 64\n[run]\n\
-        transient_periods = 200\nsample_periods = 60\n[map]\nx = \"R\"\nx_from = 0.5\n\
-        x_to = 0.7\nx_points = 33\ny = \"lambda\"\ny_from = 0.05\ny_to = 0.1\ny_points = 33\n";
+    let text = common::points::rl_map(64, 200, 60, 33, 33).replace("y_from = 0.0", "y_from = 0.05");
     let d = scratch("refine");
     let cfg = d.join("r.toml");
     std::fs::write(&cfg, text).unwrap();

@@ -3,6 +3,7 @@
 
 mod common;
 
+use common::points::{CHAOTIC_ETA, PERIOD_1_ETA};
 use common::{config, json, ok, rattle, scratch};
 use rattle::config::Config;
 use rattle::method::Integrator;
@@ -158,14 +159,14 @@ fn check_episodes(j: &Value) -> Vec<u64> {
 #[test]
 fn periodic_point() {
     let dir = scratch("plot-periodic");
-    let j = plot(&dir, "1.5", &[], 6);
+    let j = plot(&dir, &PERIOD_1_ETA.to_string(), &[], 6);
     check_png(&dir.join("p.png"));
     let svg = std::fs::read_to_string(dir.join("p.svg")).unwrap();
     assert!(svg.contains("<svg") && svg.contains("(a) z and v"));
     assert_eq!(j["class"], "period-1");
     assert_eq!(j["precision"], "f64");
     assert_eq!(j["config"]["method"]["backend"], "cpu");
-    check_events(&j, 1.5, &[], 6);
+    check_events(&j, PERIOD_1_ETA, &[], 6);
     // Two impacts per period, one at each stop.
     assert_eq!(j["shown"]["impacts_pos"], 6);
     assert_eq!(j["shown"]["impacts_neg"], 6);
@@ -209,11 +210,12 @@ fn periodic_point() {
 fn chaotic_point_has_a_distribution_of_episodes() {
     let dir = scratch("plot-chaotic");
     let set = ["run.sample_periods=1000"];
-    let j = plot(&dir, "1.26", &set, 8);
+    let eta = CHAOTIC_ETA.to_string();
+    let j = plot(&dir, &eta, &set, 8);
     check_png(&dir.join("p.png"));
     assert_eq!(j["class"], "chaotic");
     assert!(j["cycle_points"].as_array().unwrap().is_empty());
-    check_events(&j, 1.26, &set, 8);
+    check_events(&j, CHAOTIC_ETA, &set, 8);
     let lengths = check_episodes(&j);
     assert!(lengths.len() >= 5, "{lengths:?}");
     let (lo, hi) = (lengths.iter().min().unwrap(), lengths.iter().max().unwrap());
@@ -226,7 +228,7 @@ fn chaotic_point_has_a_distribution_of_episodes() {
         .arg(config("fig2.toml"))
         .args([
             "--eta",
-            "1.26",
+            &eta,
             "--backend",
             "cpu",
             "--precision",
@@ -297,7 +299,12 @@ fn bad_plot_options_fail_cleanly_without_output() {
 #[test]
 fn plot_takes_what_f64_holds_under_an_f32_config() {
     let dir = scratch("plot-f64-state");
-    let j = plot(&dir, "1.5", &["initial.y=[1e-40,0,1e-40,0]"], 4);
+    let j = plot(
+        &dir,
+        &PERIOD_1_ETA.to_string(),
+        &["initial.y=[1e-40,0,1e-40,0]"],
+        4,
+    );
     assert_eq!(j["precision"], "f64", "{j}");
     assert_eq!(j["backend"], "cpu", "{j}");
     // The plain point still refuses it in f32: the refusal is right where f32 integrates.

@@ -2,6 +2,7 @@
 #![allow(dead_code)] // each test binary uses a subset
 
 pub mod kernel;
+pub mod points;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
