@@ -63,6 +63,20 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
     }
     let cpu = Engine::Cpu;
     let mut out = String::new();
+    state_table(&mut out, &gpu, &cpu, cfg, state_points)?;
+    class_table(&mut out, &gpu, &cpu, cfg)?;
+    Ok(out)
+}
+
+/// The state differences after 1, 10 and 100 periods from the same start (`state_points`
+/// points over the sweep), GPU against CPU in each pair of precisions.
+fn state_table(
+    out: &mut String,
+    gpu: &Engine,
+    cpu: &Engine,
+    cfg: &Config,
+    state_points: usize,
+) -> Result<()> {
     let c = cfg;
     let values = cfg.sweep_values_n(state_points as u32);
     // Chaotic motion (also the chaotic transients that precede periodic attractors) amplifies
@@ -70,7 +84,7 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
     // the CPU f64 reference reaches after the configured transient, and takes the maximum over
     // the points whose reference attractor is periodic.
     let reference = run(
-        &cpu,
+        cpu,
         c,
         Precision::F64,
         cfg.run.transient_periods,
@@ -113,10 +127,10 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
         for periods in [1u32, 10, 100] {
             let a = Some(on_attractor.as_slice());
             let cell = match (
-                run(&gpu, c, pg, periods - 1, 1, &values, None),
-                run(&cpu, c, pc, periods - 1, 1, &values, None),
-                run(&gpu, c, pg, periods - 1, 1, &values, a),
-                run(&cpu, c, pc, periods - 1, 1, &values, a),
+                run(gpu, c, pg, periods - 1, 1, &values, None),
+                run(cpu, c, pc, periods - 1, 1, &values, None),
+                run(gpu, c, pg, periods - 1, 1, &values, a),
+                run(cpu, c, pc, periods - 1, 1, &values, a),
             ) {
                 (Ok(g), Ok(h), Ok(ga), Ok(ha)) => format!(
                     "{:>21}",
@@ -140,6 +154,12 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
     for e in errors {
         let _ = writeln!(out, "  n/a: {e}");
     }
+    Ok(())
+}
+
+/// The classes over the whole sweep: the CPU f64 reference, the GPU in f32 and f64, the CPU
+/// in f32, with their agreement and diagnostics.
+fn class_table(out: &mut String, gpu: &Engine, cpu: &Engine, cfg: &Config) -> Result<()> {
     let values = cfg.sweep_values();
     let _ = writeln!(
         out,
@@ -149,7 +169,7 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
         cfg.run.sample_periods
     );
     let reference = run(
-        &cpu,
+        cpu,
         cfg,
         Precision::F64,
         cfg.run.transient_periods,
@@ -198,10 +218,10 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
             rs.iter().filter(|r| r.diag.nonfinite).count()
         );
     };
-    row(&mut out, "cpu f64 ref", &reference);
+    row(out, "cpu f64 ref", &reference);
     for prec in [Precision::F32, Precision::F64] {
         match run(
-            &gpu,
+            gpu,
             cfg,
             prec,
             cfg.run.transient_periods,
@@ -209,14 +229,14 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
             &values,
             None,
         ) {
-            Ok(rs) => row(&mut out, &format!("gpu {}", prec.name()), &rs),
+            Ok(rs) => row(out, &format!("gpu {}", prec.name()), &rs),
             Err(e) => {
                 let _ = writeln!(out, "gpu {}: not run ({e})", prec.name());
             }
         }
     }
     let cpu32 = run(
-        &cpu,
+        cpu,
         cfg,
         Precision::F32,
         cfg.run.transient_periods,
@@ -224,6 +244,6 @@ pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
         &values,
         None,
     )?;
-    row(&mut out, "cpu f32", &cpu32);
-    Ok(out)
+    row(out, "cpu f32", &cpu32);
+    Ok(())
 }

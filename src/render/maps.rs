@@ -125,8 +125,6 @@ pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderErro
     for &code in map.cells {
         counts[index(code).unwrap_or(map.categories.len())] += 1;
     }
-    let total = map.cells.len();
-    let rgb = |c: [u8; 3]| RGBColor(c[0], c[1], c[2]);
     render_png(path, map.width, map.height, |root| {
         root.fill(&WHITE).map_err(draw_err)?;
         let l = layout(map.width, map.height);
@@ -140,80 +138,113 @@ pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderErro
         let ranges = (map.x_range, map.y_range);
         let dims = (map.nx, map.ny);
         let yr = draw_grid_map(&left, map.title, labels, ranges, dims, &l, color)?;
+        let legend = Legend {
+            map,
+            counts: &counts,
+            present: (0..map.categories.len())
+                .filter(|&k| counts[k] > 0)
+                .collect(),
+            width: legend_w,
+        };
+        legend.draw(&right, yr, l.tick)
+    })
+}
 
-        // Legend: every category present, with its share and count, in the given order.
-        let font_px = l.tick;
-        let row_h = font_px * 1.45;
-        let avail = f64::from(yr.end - yr.start) - row_h;
-        let sw = |f: f64| (f * 0.9) as i32;
-        // Member swatch plus a label of up to two digits, per shared-row cell.
-        let cell_w = |f: f64| f64::from(sw(f)) + f * 1.6;
-        let per_line = |f: f64| ((f64::from(legend_w) - 8.0) / cell_w(f)).max(1.0) as usize;
-        let present: Vec<usize> = (0..map.categories.len())
-            .filter(|&k| counts[k] > 0)
-            .collect();
-        let family_of = |code: u16| {
-            map.families
-                .iter()
-                .position(|f| (f.1..=f.2).contains(&code))
-        };
-        let mut collapsed = vec![false; map.families.len()];
-        let rows = |collapsed: &[bool], f: f64| -> usize {
-            let mut r = usize::from(counts[map.categories.len()] > 0);
-            for (fi, fam) in map.families.iter().enumerate() {
-                let m = present
-                    .iter()
-                    .filter(|&&k| (fam.1..=fam.2).contains(&map.categories[k].0))
-                    .count();
-                if m > 0 && collapsed[fi] {
-                    r += 1 + m.div_ceil(per_line(f));
-                } else {
-                    r += m;
-                }
+fn rgb(c: [u8; 3]) -> RGBColor {
+    RGBColor(c[0], c[1], c[2])
+}
+
+/// The legend of a class map: every category present, with its share and count, in the given
+/// order; families of many members share rows, collapsed largest first until the legend fits.
+struct Legend<'a> {
+    map: &'a CategoryMap<'a>,
+    /// Cells per category (the last slot: unknown codes).
+    counts: &'a [usize],
+    /// The categories with cells.
+    present: Vec<usize>,
+    width: u32,
+}
+
+/// Member swatch side at font size `f`.
+fn swatch_side(f: f64) -> i32 {
+    (f * 0.9) as i32
+}
+
+/// A member swatch plus a label of up to two digits, per shared-row cell.
+fn member_cell_w(f: f64) -> f64 {
+    f64::from(swatch_side(f)) + f * 1.6
+}
+
+impl Legend<'_> {
+    fn per_line(&self, f: f64) -> usize {
+        ((f64::from(self.width) - 8.0) / member_cell_w(f)).max(1.0) as usize
+    }
+
+    fn family_of(&self, code: u16) -> Option<usize> {
+        self.map
+            .families
+            .iter()
+            .position(|f| (f.1..=f.2).contains(&code))
+    }
+
+    /// The present categories of family `fi`.
+    fn members(&self, fi: usize) -> Vec<usize> {
+        let f = self.map.families[fi];
+        self.present
+            .iter()
+            .copied()
+            .filter(|&k| (f.1..=f.2).contains(&self.map.categories[k].0))
+            .collect()
+    }
+
+    /// Rows the legend takes with the families `collapsed` at font size `f`.
+    fn rows(&self, collapsed: &[bool], f: f64) -> usize {
+        let n = self.map.categories.len();
+        let mut r = usize::from(self.counts[n] > 0);
+        for (fi, &folded) in collapsed.iter().enumerate() {
+            let m = self.members(fi).len();
+            if m > 0 && folded {
+                r += 1 + m.div_ceil(self.per_line(f));
+            } else {
+                r += m;
             }
-            r + present
-                .iter()
-                .filter(|&&k| family_of(map.categories[k].0).is_none())
-                .count()
-        };
-        // Collapse the families with the most members first until the legend fits.
-        while rows(&collapsed, font_px) as f64 * row_h > avail {
-            let members = |fi: usize| {
-                let f = map.families[fi];
-                present
-                    .iter()
-                    .filter(|&&k| (f.1..=f.2).contains(&map.categories[k].0))
-                    .count()
-            };
-            match (0..map.families.len())
-                .filter(|&fi| !collapsed[fi] && members(fi) > 1)
-                .max_by_key(|&fi| members(fi))
+        }
+        r + self
+            .present
+            .iter()
+            .filter(|&&k| self.family_of(self.map.categories[k].0).is_none())
+            .count()
+    }
+
+    /// Collapses the families with the most members first until `avail` pixels hold the legend.
+    fn collapse(&self, avail: f64, font_px: f64, row_h: f64) -> Vec<bool> {
+        let mut collapsed = vec![false; self.map.families.len()];
+        while self.rows(&collapsed, font_px) as f64 * row_h > avail {
+            match (0..self.map.families.len())
+                .filter(|&fi| !collapsed[fi] && self.members(fi).len() > 1)
+                .max_by_key(|&fi| self.members(fi).len())
             {
                 Some(fi) => collapsed[fi] = true,
                 None => break,
             }
         }
-        // Still too long (only with very short images): smaller type rather than lost rows.
-        let n_rows = rows(&collapsed, font_px).max(1) as f64;
-        let scale = (avail / (n_rows * row_h)).min(1.0);
-        let (font_px, row_h) = (font_px * scale, row_h * scale);
+        collapsed
+    }
 
+    /// The legend's entries, with the families `collapsed` into shared rows.
+    fn entries(&self, collapsed: &[bool]) -> Vec<LegendEntry> {
+        let map = self.map;
         let mut entries = Vec::new();
         let mut done_family = vec![false; map.families.len()];
-        for &k in &present {
+        for &k in &self.present {
             let (code, label, c) = map.categories[k];
-            match family_of(code).filter(|&fi| collapsed[fi]) {
+            match self.family_of(code).filter(|&fi| collapsed[fi]) {
                 Some(fi) if !done_family[fi] => {
                     done_family[fi] = true;
-                    let f = map.families[fi];
-                    let mem: Vec<usize> = present
-                        .iter()
-                        .copied()
-                        .filter(|&j| (f.1..=f.2).contains(&map.categories[j].0))
-                        .collect();
+                    let mem = self.members(fi);
                     entries.push(LegendEntry::Family {
-                        label: f.0.to_string(),
-                        n: mem.iter().map(|&j| counts[j]).sum(),
+                        label: map.families[fi].0.to_string(),
+                        n: mem.iter().map(|&j| self.counts[j]).sum(),
                         members: mem
                             .iter()
                             .map(|&j| {
@@ -227,21 +258,41 @@ pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderErro
                 None => entries.push(LegendEntry::Item {
                     label: label.to_string(),
                     color: rgb(c),
-                    n: counts[k],
+                    n: self.counts[k],
                 }),
             }
         }
-        if counts[map.categories.len()] > 0 {
+        let other = self.counts[map.categories.len()];
+        if other > 0 {
             entries.push(LegendEntry::Item {
                 label: "other".into(),
                 color: MISSING_GREY,
-                n: counts[map.categories.len()],
+                n: other,
             });
         }
+        entries
+    }
 
+    /// Draws the legend into `right` beside the plot's rows `yr`, type of `font_px` (smaller
+    /// where even collapsed families do not fit).
+    fn draw(
+        &self,
+        right: &Area<'_>,
+        yr: std::ops::Range<i32>,
+        font_px: f64,
+    ) -> Result<(), RenderError> {
+        let total = self.map.cells.len();
+        let row_h = font_px * 1.45;
+        let avail = f64::from(yr.end - yr.start) - row_h;
+        let collapsed = self.collapse(avail, font_px, row_h);
+        // Still too long (only with very short images): smaller type rather than lost rows.
+        let n_rows = self.rows(&collapsed, font_px).max(1) as f64;
+        let scale = (avail / (n_rows * row_h)).min(1.0);
+        let (font_px, row_h) = (font_px * scale, row_h * scale);
+        let entries = self.entries(&collapsed);
         let font = (FONT, font_px).into_font();
         let small = (FONT, font_px * 0.85).into_font();
-        let s = sw(font_px);
+        let s = swatch_side(font_px);
         let swatch = |x: i32, y: i32, col: RGBColor| -> Result<(), RenderError> {
             let r = [(x, y), (x + s, y + s)];
             right
@@ -276,9 +327,9 @@ pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderErro
                     let t = format!("{label}: {} ({})", percent(*n, total), grouped(*n));
                     text(t, 4, y, &font)?;
                     y += row_h;
-                    for line in members.chunks(per_line(font_px)) {
+                    for line in members.chunks(self.per_line(font_px)) {
                         for (i, (name, col)) in line.iter().enumerate() {
-                            let x = 4 + (i as f64 * cell_w(font_px)) as i32;
+                            let x = 4 + (i as f64 * member_cell_w(font_px)) as i32;
                             swatch(x, y as i32, *col)?;
                             text(name.clone(), x + s + 3, y + 0.1 * font_px, &small)?;
                         }
@@ -287,7 +338,7 @@ pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderErro
                 }
             }
         }
-        if let Some(n) = map.note {
+        if let Some(n) = self.map.note {
             y += 0.3 * row_h;
             for line in n.lines() {
                 text(line.to_string(), 4, y, &small)?;
@@ -295,7 +346,7 @@ pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderErro
             }
         }
         Ok(())
-    })
+    }
 }
 
 /// Continuous parameter map (e.g. largest Lyapunov exponent per cell).

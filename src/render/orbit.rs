@@ -244,6 +244,7 @@ fn draw<DB: DrawingBackend>(
     let lw = ((l.tick / 8.0).round() as u32).max(1);
     let ms = (l.tick * 0.35).round().max(3.0) as i32;
     let root = root.titled(fig.title, (FONT, l.title)).map_err(draw_err)?;
+    let pen = Pen { l: &l, lw, ms };
 
     let legend_w = legend_width(&root, &l);
     let (w, h) = root.dim_in_pixel();
@@ -254,13 +255,38 @@ fn draw<DB: DrawingBackend>(
     let (b_area, c_area) = row2.split_horizontally(main.dim_in_pixel().0 / 2);
     let (d_area, e_area) = row3.split_horizontally(main.dim_in_pixel().0 * 62 / 100);
 
-    // (a) z and v on one time axis.
+    time_series(&a_top, &a_bottom, fig, &pen)?;
+    phase_portrait(&b_area, fig, &pen)?;
+    section(&c_area, fig, &pen)?;
+    section_series(&d_area, fig, &pen)?;
+    histogram(&e_area, fig, &pen)?;
+    draw_legend(&legend, &l, lw, ms)
+}
+
+/// The figure's layout and line and mark sizes.
+struct Pen<'a> {
+    l: &'a Layout,
+    /// Line width.
+    lw: u32,
+    /// Mark size.
+    ms: i32,
+}
+
+type Panel<DB> = DrawingArea<DB, Shift>;
+
+/// (a) z and v on one time axis.
+fn time_series<DB: DrawingBackend>(
+    a_top: &Panel<DB>,
+    a_bottom: &Panel<DB>,
+    fig: &PointFigure,
+    pen: &Pen,
+) -> Result<(), RenderError> {
     let t = extent(all(fig.z).map(|p| p.0)).ok_or_else(|| invalid("no time points"))?;
     let r = fig.stop;
     let zr = extent(all(fig.z).map(|p| p.1).chain([-r, r])).expect("the stops");
     let mut c = chart(
-        &a_top,
-        &l,
+        a_top,
+        pen.l,
         fig.titles[0],
         t,
         pad(zr, 0.08),
@@ -270,20 +296,20 @@ fn draw<DB: DrawingBackend>(
     bands(&mut c, fig.stick, ORANGE)?;
     bands(&mut c, fig.lock, GREEN)?;
     for s in [-r, r] {
-        dashed(&mut c, (t.0, s), (t.1, s), lw)?;
+        dashed(&mut c, (t.0, s), (t.1, s), pen.lw)?;
     }
-    pieces(&mut c, fig.z, BLUE, lw + 1)?;
+    pieces(&mut c, fig.z, BLUE, pen.lw + 1)?;
     c.draw_series(
         fig.impacts
             .iter()
-            .map(|&p| TriangleMarker::new(p, ms + 1, BLACK.filled())),
+            .map(|&p| TriangleMarker::new(p, pen.ms + 1, BLACK.filled())),
     )
     .map_err(draw_err)?;
 
     let vr = extent(all(fig.v).map(|p| p.1).chain([0.0])).expect("zero");
     let mut c = chart(
-        &a_bottom,
-        &l,
+        a_bottom,
+        pen.l,
         "",
         t,
         pad(vr, 0.08),
@@ -294,16 +320,24 @@ fn draw<DB: DrawingBackend>(
     bands(&mut c, fig.lock, GREEN)?;
     c.draw_series(LineSeries::new(
         [(t.0, 0.0), (t.1, 0.0)],
-        RGBColor(170, 170, 170).stroke_width(lw),
+        RGBColor(170, 170, 170).stroke_width(pen.lw),
     ))
     .map_err(draw_err)?;
-    pieces(&mut c, fig.v, VERMILLION, lw + 1)?;
+    pieces(&mut c, fig.v, VERMILLION, pen.lw + 1)?;
+    Ok(())
+}
 
-    // (b) phase portrait.
+/// (b) The phase portrait.
+fn phase_portrait<DB: DrawingBackend>(
+    area: &Panel<DB>,
+    fig: &PointFigure,
+    pen: &Pen,
+) -> Result<(), RenderError> {
+    let r = fig.stop;
     let pr = extent(all(fig.phase).map(|p| p.1)).ok_or_else(|| invalid("no phase points"))?;
     let mut c = chart(
-        &b_area,
-        &l,
+        area,
+        pen.l,
         fig.titles[1],
         pad((-r, r), 0.06),
         pad(pr, 0.06),
@@ -312,22 +346,29 @@ fn draw<DB: DrawingBackend>(
     )?;
     let (y0, y1) = (c.y_range().start, c.y_range().end);
     for s in [-r, r] {
-        dashed(&mut c, (s, y0), (s, y1), lw)?;
+        dashed(&mut c, (s, y0), (s, y1), pen.lw)?;
     }
-    pieces(&mut c, fig.phase, BLUE, lw)?;
+    pieces(&mut c, fig.phase, BLUE, pen.lw)?;
     c.draw_series(
         fig.phase_impacts
             .iter()
-            .map(|&p| TriangleMarker::new(p, ms + 1, BLACK.filled())),
+            .map(|&p| TriangleMarker::new(p, pen.ms + 1, BLACK.filled())),
     )
     .map_err(draw_err)?;
+    Ok(())
+}
 
-    // (c) stroboscopic section.
+/// (c) The stroboscopic section, with the Newton cycle's points.
+fn section<DB: DrawingBackend>(
+    area: &Panel<DB>,
+    fig: &PointFigure,
+    pen: &Pen,
+) -> Result<(), RenderError> {
     let sx = extent(fig.section.iter().chain(fig.cycle).map(|p| p.0)).expect("section");
     let sy = extent(fig.section.iter().chain(fig.cycle).map(|p| p.1)).expect("section");
     let mut c = chart(
-        &c_area,
-        &l,
+        area,
+        pen.l,
         fig.titles[2],
         widen(sx),
         widen(sy),
@@ -338,7 +379,7 @@ fn draw<DB: DrawingBackend>(
     let dot = if fig.section.len() > 600 {
         2
     } else {
-        (ms / 2).max(2)
+        (pen.ms / 2).max(2)
     };
     c.draw_series(
         fig.section
@@ -349,17 +390,24 @@ fn draw<DB: DrawingBackend>(
     c.draw_series(
         fig.cycle
             .iter()
-            .map(|&p| Circle::new(p, ms * 2, BLACK.stroke_width(lw + 1))),
+            .map(|&p| Circle::new(p, pen.ms * 2, BLACK.stroke_width(pen.lw + 1))),
     )
     .map_err(draw_err)?;
+    Ok(())
+}
 
-    // (d) section value against period index, nearly periodic episodes shaded.
+/// (d) The section value against the period index, nearly periodic episodes shaded.
+fn section_series<DB: DrawingBackend>(
+    area: &Panel<DB>,
+    fig: &PointFigure,
+    pen: &Pen,
+) -> Result<(), RenderError> {
     let n = fig.series.len() as f64;
     let kr = extent(fig.series.iter().map(|p| p.0)).expect("series");
     let yr = extent(fig.series.iter().map(|p| p.1)).expect("series");
     let mut c = chart(
-        &d_area,
-        &l,
+        area,
+        pen.l,
         fig.titles[3],
         (kr.0 - 0.5, kr.1 + 0.5),
         widen(yr),
@@ -373,7 +421,7 @@ fn draw<DB: DrawingBackend>(
         .collect();
     bands(&mut c, &spans, SKY)?;
     // Fewer, larger dots for short records; a dense record would merge into a band.
-    let dot = if n > 600.0 { 1 } else { (ms / 2).max(2) };
+    let dot = if n > 600.0 { 1 } else { (pen.ms / 2).max(2) };
     c.draw_series(
         fig.series
             .iter()
@@ -386,8 +434,15 @@ fn draw<DB: DrawingBackend>(
             .map(|&p| Circle::new(p, dot + 1, VERMILLION.filled())),
     )
     .map_err(draw_err)?;
+    Ok(())
+}
 
-    // Histogram of episode lengths.
+/// (e) The histogram of episode lengths.
+fn histogram<DB: DrawingBackend>(
+    area: &Panel<DB>,
+    fig: &PointFigure,
+    pen: &Pen,
+) -> Result<(), RenderError> {
     let (hx, hy) = if fig.histogram.is_empty() {
         ((0.0, 1.0), (0.0, 1.0))
     } else {
@@ -409,8 +464,8 @@ fn draw<DB: DrawingBackend>(
         )
     };
     let mut c = chart(
-        &e_area,
-        &l,
+        area,
+        pen.l,
         fig.titles[4],
         hx,
         hy,
@@ -425,8 +480,7 @@ fn draw<DB: DrawingBackend>(
         )
     }))
     .map_err(draw_err)?;
-
-    draw_legend(&legend, &l, lw, ms)
+    Ok(())
 }
 
 /// What the legend lists: a sample of each mark and its meaning.
