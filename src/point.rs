@@ -129,7 +129,6 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
 
 impl fmt::Display for PointReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let d = &self.diagnostics;
         writeln!(f, "class              {}", self.class)?;
         writeln!(
             f,
@@ -137,6 +136,40 @@ impl fmt::Display for PointReport {
             self.period.map_or("-".into(), |n| n.to_string())
         )?;
         writeln!(f, "impacts per period {:.4}", self.impacts_per_period)?;
+        self.fmt_observables(f)?;
+        self.fmt_evidence(f)?;
+        self.fmt_exponents_and_cycle(f)?;
+        let d = &self.diagnostics;
+        writeln!(
+            f,
+            "diagnostics        impacts {} sticks {} locks {} overflows {} wrong slips {} nonfinite {}",
+            d.impacts, d.sticks, d.locks, d.overflows, d.wrong_slips, d.nonfinite
+        )?;
+        writeln!(
+            f,
+            "backend            {} on {} ({}), {:.3} s",
+            self.backend, self.device, self.precision, self.seconds
+        )?;
+        writeln!(f, "samples (phase 0 of the forcing):")?;
+        writeln!(
+            f,
+            "{:>5} {:>14} {:>14} {:>14} {:>14}",
+            "k", "y1", "y2", "y3", "y4"
+        )?;
+        for (i, s) in self.samples.iter().enumerate() {
+            writeln!(
+                f,
+                "{i:>5} {:>14.8} {:>14.8} {:>14.8} {:>14.8}",
+                s[0], s[1], s[2], s[3]
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl PointReport {
+    /// The impact speeds, dissipation and stick fraction lines.
+    fn fmt_observables(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let o = &self.observables;
         if let (Some(m), Some(x)) = (o.impact_speed_mean, o.impact_speed_max) {
             writeln!(f, "impact speed       mean {m:.6}, max {x:.6}")?;
@@ -146,7 +179,7 @@ impl fmt::Display for PointReport {
             writeln!(
                 f,
                 "impact speeds      5% {:.6}, median {:.6}, 95% {:.6} ({} impacts, CPU f64, \
-                 from the end)",
+             from the end)",
                 sd.p05, sd.median, sd.p95, sd.defined
             )?;
         }
@@ -161,6 +194,11 @@ impl fmt::Display for PointReport {
             )?;
             writeln!(f, "stick fraction     {s:.6} (of the sampled time)")?;
         }
+        Ok(())
+    }
+
+    /// The exponent, torus test and deciding rule lines: the evidence of the class.
+    fn fmt_evidence(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if self.lyapunov.is_nan() && self.rule == crate::classify::Rule::ExponentLost {
             writeln!(
                 f,
@@ -190,6 +228,11 @@ impl fmt::Display for PointReport {
             self.periods,
             self.tried_periods
         )?;
+        Ok(())
+    }
+
+    /// The spectrum, the refined cycle and its multipliers.
+    fn fmt_exponents_and_cycle(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if let Some(s) = &self.lyapunov_spectrum {
             let spec: Vec<String> = s.iter().map(|l| format!("{l:.5}")).collect();
             writeln!(
@@ -219,29 +262,6 @@ impl fmt::Display for PointReport {
             if !m.is_empty() {
                 writeln!(f, "multipliers        {}", m.join(", "))?;
             }
-        }
-        writeln!(
-            f,
-            "diagnostics        impacts {} sticks {} locks {} overflows {} wrong slips {} nonfinite {}",
-            d.impacts, d.sticks, d.locks, d.overflows, d.wrong_slips, d.nonfinite
-        )?;
-        writeln!(
-            f,
-            "backend            {} on {} ({}), {:.3} s",
-            self.backend, self.device, self.precision, self.seconds
-        )?;
-        writeln!(f, "samples (phase 0 of the forcing):")?;
-        writeln!(
-            f,
-            "{:>5} {:>14} {:>14} {:>14} {:>14}",
-            "k", "y1", "y2", "y3", "y4"
-        )?;
-        for (i, s) in self.samples.iter().enumerate() {
-            writeln!(
-                f,
-                "{i:>5} {:>14.8} {:>14.8} {:>14.8} {:>14.8}",
-                s[0], s[1], s[2], s[3]
-            )?;
         }
         Ok(())
     }

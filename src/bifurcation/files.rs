@@ -283,16 +283,10 @@ impl Serialize for Chain<'_> {
     }
 }
 
-/// Writes PREFIX.csv (parameter, sample index, state; with the direction of a continuation),
-/// PREFIX.png (density-shaded samples, one panel per chain) and PREFIX.json; all or nothing.
-pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
+/// PREFIX.csv: every sample of every point (and chain).
+fn write_csv(staged: &mut Staged, out: &Path, b: &Bifurcation) -> Result<()> {
     let cfg = &b.cfg;
     let cont = b.continuation.is_some();
-    let all: Vec<_> = b.runs.iter().flat_map(|r| &r.1).collect();
-    if all.iter().all(|pt| pt.class == Class::Failed) {
-        return Err(Error::AllFailed { points: all.len() });
-    }
-    let mut staged = Staged::new();
     let csv_path = with_ext(out, "csv");
     {
         let err = |e| Error::csv(&csv_path, e);
@@ -323,6 +317,12 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         w.flush()
             .map_err(|e| Error::csv(&csv_path, csv::Error::from(e)))?;
     }
+    Ok(())
+}
+
+/// PREFIX.png: the density diagram, one panel per chain; returns the number of panels.
+fn write_png(staged: &mut Staged, out: &Path, b: &Bifurcation) -> Result<usize> {
+    let cfg = &b.cfg;
     let var = cfg.sweep.plot.as_str();
     let base_title = title(cfg);
     let x_label = cfg.sweep.param.label();
@@ -350,6 +350,21 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
     } else {
         panels_png(&png_path, &panels, 1, 1200, 1400)?;
     }
+    Ok(panels_n)
+}
+
+/// Writes PREFIX.csv (parameter, sample index, state; with the direction of a continuation),
+/// PREFIX.png (density-shaded samples, one panel per chain) and PREFIX.json; all or nothing.
+pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
+    let cfg = &b.cfg;
+    let cont = b.continuation.is_some();
+    let all: Vec<_> = b.runs.iter().flat_map(|r| &r.1).collect();
+    if all.iter().all(|pt| pt.class == Class::Failed) {
+        return Err(Error::AllFailed { points: all.len() });
+    }
+    let mut staged = Staged::new();
+    write_csv(&mut staged, out, b)?;
+    let panels_n = write_png(&mut staged, out, b)?;
     let mut counts = BTreeMap::<String, usize>::new();
     for (_, points) in &b.runs {
         for pt in points {
