@@ -66,20 +66,12 @@ struct PaperJson<'a> {
     y_range: (f64, f64),
 }
 
-/// The paper's Figs. 2, 3, 4a and 4b side by side (the built-in configs, or `fig2.toml` ...
-/// `fig4b.toml` in `dir`; each changed by `adjust`), written to `out` with its caption in `out`
-/// with the extension `.json`. Progress counts sweep points.
-///
-/// The panels share their axes (the same eta range and one y range over all four), carry the
-/// letters (a)-(d), and leave out isolated samples (no other sample within 2 pixels: stray
-/// transients, and the sparsest chaotic samples; their number is in the JSON and caption).
-pub fn paper_figure(
+/// The four configs of the paper figure (from `dir`, or the built-in copies) with `adjust`
+/// applied, all read and checked before the first is computed, each error naming its file.
+fn paper_configs(
     dir: Option<&Path>,
     adjust: &dyn Fn(&mut Config),
-    out: &Path,
-    progress: &dyn Progress,
-) -> Result<Vec<PathBuf>> {
-    // All four read and checked before the first is computed, each error naming its file.
+) -> Result<Vec<(&'static str, Config)>> {
     let mut cfgs = Vec::new();
     for (name, text) in PAPER_CONFIGS {
         let (file, cfg) = match dir {
@@ -95,6 +87,73 @@ pub fn paper_figure(
         });
         cfgs.push((name, cfg.map_err(|e| e.in_file(&file))?));
     }
+    Ok(cfgs)
+}
+
+/// A panel's config name, plotted points and sweep.
+type PanelData<'a> = (&'a str, Vec<(f64, f64)>, super::Bifurcation);
+
+/// The paper figure's caption.
+fn paper_caption(
+    data: &[PanelData],
+    titles: &[String],
+    (x0, x1): (f64, f64),
+    (dropped, inside): (usize, usize),
+    (w, h): (u32, u32),
+    built_in: bool,
+) -> String {
+    let c0 = &data[0].2.cfg;
+    format!(
+        "Bifurcation diagrams of {plot} at the stroboscopic section against eta, \
+         {points} values from {x0} to {x1} per panel. {panels}. Every value starts from \
+         y0 = {y0:?}; integrated with {how}; {tr} transient periods discarded, then {sa} \
+         samples per value, shaded by log density. All panels share the eta range and the y \
+         range. Isolated samples (no other sample within 2 pixels: stray transients not yet on \
+         the attractor, and the sparsest samples of chaotic bands) are left out: {dropped} of \
+         {inside} samples ({share:.3}%). Raster image, {w} x {h} px: {wcm} x {hcm} cm at {dpi} dpi, fonts 7-8 pt \
+         at that size.{notice} Broken branches come from different attractors reached from the \
+         same y0. {marks}",
+        panels = titles.join("; "),
+        marks = marks_sentence(
+            &data
+                .iter()
+                .map(|(_, _, b)| b.bifurcations[0].clone())
+                .collect::<Vec<_>>()
+        )
+        .trim_end(),
+        notice = if built_in {
+            " Compare the rows: the change of R from 0.60 (top) to 0.62 (bottom) moves the \
+             windows of chaos and the periodic branches."
+        } else {
+            ""
+        },
+        plot = c0.sweep.plot,
+        points = c0.sweep.points,
+        y0 = c0.initial.y,
+        how = computed_with(c0, data[0].2.backend, &data[0].2.device),
+        tr = c0.run.transient_periods,
+        sa = c0.run.sample_periods,
+        share = 100.0 * dropped as f64 / inside.max(1) as f64,
+        wcm = PAPER_WIDTH_CM,
+        hcm = PAPER_HEIGHT_CM,
+        dpi = PAPER_DPI,
+    )
+}
+
+/// The paper's Figs. 2, 3, 4a and 4b side by side (the built-in configs, or `fig2.toml` ...
+/// `fig4b.toml` in `dir`; each changed by `adjust`), written to `out` with its caption in `out`
+/// with the extension `.json`. Progress counts sweep points.
+///
+/// The panels share their axes (the same eta range and one y range over all four), carry the
+/// letters (a)-(d), and leave out isolated samples (no other sample within 2 pixels: stray
+/// transients, and the sparsest chaotic samples; their number is in the JSON and caption).
+pub fn paper_figure(
+    dir: Option<&Path>,
+    adjust: &dyn Fn(&mut Config),
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<Vec<PathBuf>> {
+    let cfgs = paper_configs(dir, adjust)?;
     let mut data = Vec::new();
     for (name, cfg) in cfgs {
         let engine = Engine::open(cfg.method.backend)?;
@@ -155,41 +214,13 @@ pub fn paper_figure(
     let stats = panels_png(&st.path(out), &panels, 2, w, h)?;
     let dropped: usize = stats.iter().map(|s| s.dropped).sum();
     let inside: usize = stats.iter().map(|s| s.inside).sum();
-    let c0 = &data[0].2.cfg;
-    let caption = format!(
-        "Bifurcation diagrams of {plot} at the stroboscopic section against eta, \
-         {points} values from {x0} to {x1} per panel. {panels}. Every value starts from \
-         y0 = {y0:?}; integrated with {how}; {tr} transient periods discarded, then {sa} \
-         samples per value, shaded by log density. All panels share the eta range and the y \
-         range. Isolated samples (no other sample within 2 pixels: stray transients not yet on \
-         the attractor, and the sparsest samples of chaotic bands) are left out: {dropped} of \
-         {inside} samples ({share:.3}%). Raster image, {w} x {h} px: {wcm} x {hcm} cm at {dpi} dpi, fonts 7-8 pt \
-         at that size.{notice} Broken branches come from different attractors reached from the \
-         same y0. {marks}",
-        panels = titles.join("; "),
-        marks = marks_sentence(
-            &data
-                .iter()
-                .map(|(_, _, b)| b.bifurcations[0].clone())
-                .collect::<Vec<_>>()
-        )
-        .trim_end(),
-        notice = if dir.is_none() {
-            " Compare the rows: the change of R from 0.60 (top) to 0.62 (bottom) moves the \
-             windows of chaos and the periodic branches."
-        } else {
-            ""
-        },
-        plot = c0.sweep.plot,
-        points = c0.sweep.points,
-        y0 = c0.initial.y,
-        how = computed_with(c0, data[0].2.backend, &data[0].2.device),
-        tr = c0.run.transient_periods,
-        sa = c0.run.sample_periods,
-        share = 100.0 * dropped as f64 / inside.max(1) as f64,
-        wcm = PAPER_WIDTH_CM,
-        hcm = PAPER_HEIGHT_CM,
-        dpi = PAPER_DPI,
+    let caption = paper_caption(
+        &data,
+        &titles,
+        (x0, x1),
+        (dropped, inside),
+        (w, h),
+        dir.is_none(),
     );
     let j = PaperJson {
         caption,

@@ -139,32 +139,11 @@ pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<DensityStats
     }
     let ph = hist.len() / pw.max(1);
     let inside: u32 = hist.iter().sum();
-    let mut dropped = 0;
-    if plot.drop_isolated {
-        let at = |c: isize, r: isize| {
-            if c < 0 || r < 0 || c >= pw as isize || r >= ph as isize {
-                0
-            } else {
-                hist[r as usize * pw + c as usize]
-            }
-        };
-        let lonely: Vec<usize> = (0..hist.len())
-            .filter(|&i| hist[i] == 1)
-            .filter(|&i| {
-                let (c, r) = ((i % pw) as isize, (i / pw) as isize);
-                let r2 = ISOLATION_RADIUS;
-                let around: u32 = (-r2..=r2)
-                    .flat_map(|dr| (-r2..=r2).map(move |dc| (dc, dr)))
-                    .map(|(dc, dr)| at(c + dc, r + dr))
-                    .sum();
-                around == 1
-            })
-            .collect();
-        dropped = lonely.len();
-        for i in lonely {
-            hist[i] = 0;
-        }
-    }
+    let dropped = if plot.drop_isolated {
+        drop_isolated(&mut hist, pw, ph)
+    } else {
+        0
+    };
     let max = f64::from(hist.iter().copied().max().unwrap_or(0));
     if max == 0.0 {
         return Err(invalid(format!(
@@ -184,32 +163,7 @@ pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<DensityStats
         let t = floor + (1.0 - floor) * f64::from(n).ln_1p() / max.ln_1p();
         (n > 0).then(|| shade.get_color(t))
     })?;
-    // The legend goes in the upper corner with fewer samples under it (the lower corners hold
-    // the triangles).
-    let kinds = MARK_KINDS
-        .iter()
-        .enumerate()
-        .filter(|(k, _)| plot.marks.iter().any(|m| m.kind == *k))
-        .count();
-    let (bw, bh) = (
-        (pw / 4).max(1),
-        ((kinds as f64 * 1.3 * l.tick + 12.0) as usize).min(ph),
-    );
-    let under = |c0: usize, r0: usize| -> u64 {
-        (r0..(r0 + bh).min(ph))
-            .flat_map(|r| (c0..(c0 + bw).min(pw)).map(move |c| (r, c)))
-            .map(|(r, c)| u64::from(hist[r * pw + c]))
-            .sum()
-    };
-    let corners = [
-        (SeriesLabelPosition::UpperRight, under(pw - bw, 0)),
-        (SeriesLabelPosition::UpperLeft, under(0, 0)),
-    ];
-    let corner = corners
-        .into_iter()
-        .min_by_key(|c| c.1)
-        .map(|c| c.0)
-        .unwrap_or(SeriesLabelPosition::UpperRight);
+    let corner = legend_corner(&hist, (pw, ph), plot, l.tick);
     draw_marks(&mut chart, plot, &l, y0, corner)?;
     // Axes last so they sit on top of the density.
     let (fx, fy) = (
@@ -222,6 +176,69 @@ pub fn density_panel(area: &Area<'_>, plot: &DensityPlot) -> Result<DensityStats
         inside: inside as usize,
         dropped,
     })
+}
+
+/// Clears the pixels of `hist` (`pw` x `ph`) holding a single sample with no other sample within
+/// ISOLATION_RADIUS pixels (stray transients, the sparsest chaotic samples); returns how many.
+fn drop_isolated(hist: &mut [u32], pw: usize, ph: usize) -> usize {
+    let at = |c: isize, r: isize| {
+        if c < 0 || r < 0 || c >= pw as isize || r >= ph as isize {
+            0
+        } else {
+            hist[r as usize * pw + c as usize]
+        }
+    };
+    let lonely: Vec<usize> = (0..hist.len())
+        .filter(|&i| hist[i] == 1)
+        .filter(|&i| {
+            let (c, r) = ((i % pw) as isize, (i / pw) as isize);
+            let r2 = ISOLATION_RADIUS;
+            let around: u32 = (-r2..=r2)
+                .flat_map(|dr| (-r2..=r2).map(move |dc| (dc, dr)))
+                .map(|(dc, dr)| at(c + dc, r + dr))
+                .sum();
+            around == 1
+        })
+        .collect();
+    let dropped = lonely.len();
+    for i in lonely {
+        hist[i] = 0;
+    }
+    dropped
+}
+
+/// The upper corner with fewer samples under the legend box (the lower corners hold the
+/// triangles); `tick` is the type size.
+fn legend_corner(
+    hist: &[u32],
+    (pw, ph): (usize, usize),
+    plot: &DensityPlot,
+    tick: f64,
+) -> SeriesLabelPosition {
+    let kinds = MARK_KINDS
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| plot.marks.iter().any(|m| m.kind == *k))
+        .count();
+    let (bw, bh) = (
+        (pw / 4).max(1),
+        ((kinds as f64 * 1.3 * tick + 12.0) as usize).min(ph),
+    );
+    let under = |c0: usize, r0: usize| -> u64 {
+        (r0..(r0 + bh).min(ph))
+            .flat_map(|r| (c0..(c0 + bw).min(pw)).map(move |c| (r, c)))
+            .map(|(r, c)| u64::from(hist[r * pw + c]))
+            .sum()
+    };
+    let corners = [
+        (SeriesLabelPosition::UpperRight, under(pw - bw, 0)),
+        (SeriesLabelPosition::UpperLeft, under(0, 0)),
+    ];
+    corners
+        .into_iter()
+        .min_by_key(|c| c.1)
+        .map(|c| c.0)
+        .unwrap_or(SeriesLabelPosition::UpperRight)
 }
 
 /// Triangles on the x axis at the bifurcation points, with a legend of the kinds shown.
