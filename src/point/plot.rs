@@ -562,58 +562,97 @@ fn pieces(trace: &[TracePoint], f: impl Fn(&TracePoint) -> (f64, f64)) -> Vec<Ve
     out
 }
 
+/// The panels' data of the point's figure, as the renderer takes it.
+struct FigureData {
+    z: Vec<Vec<(f64, f64)>>,
+    v: Vec<Vec<(f64, f64)>>,
+    phase: Vec<Vec<(f64, f64)>>,
+    stick: Vec<(f64, f64)>,
+    lock: Vec<(f64, f64)>,
+    impacts: Vec<(f64, f64)>,
+    phase_impacts: Vec<(f64, f64)>,
+    section: Vec<(f64, f64)>,
+    cycle: Vec<(f64, f64)>,
+    series: Vec<(f64, f64)>,
+    returns: Vec<(f64, f64)>,
+    episodes: Vec<(f64, f64)>,
+    histogram: Vec<(f64, f64, u32)>,
+}
+
+impl FigureData {
+    fn of(p: &PointPlot) -> FigureData {
+        let z = |q: &TracePoint| q.y[2] - q.y[0];
+        let zt = pieces(&p.trace, |q| (q.t, z(q)));
+        let vt = pieces(&p.trace, |q| (q.t, q.y[1] - q.y[3]));
+        let phase = pieces(&p.trace, |q| (z(q), q.y[3] - q.y[1]));
+        let span = |m: fn(Mode) -> bool| -> Vec<(f64, f64)> {
+            p.intervals
+                .iter()
+                .filter(|i| m(i.mode))
+                .map(|i| (i.from, i.to))
+                .collect()
+        };
+        let stick = span(|m| m == Mode::Stick);
+        let lock = span(|m| matches!(m, Mode::LockPos | Mode::LockNeg));
+        let impacts: Vec<&EventRecord> = p.events.iter().filter(|e| e.is_impact()).collect();
+        let r = p.cfg.model.r;
+        let imp_t: Vec<(f64, f64)> = impacts
+            .iter()
+            .map(|e| (e.t, if e.kind == "impact+" { r } else { -r }))
+            .collect();
+        let imp_phase: Vec<(f64, f64)> = impacts.iter().map(|e| (e.z, -e.v_before)).collect();
+        let xy = |y: &[f64; 4]| (y[0], y[1]);
+        let section: Vec<(f64, f64)> = p.samples.iter().map(xy).collect();
+        let cycle: Vec<(f64, f64)> = p.cycle_points.iter().map(xy).collect();
+        let series: Vec<(f64, f64)> = p
+            .samples
+            .iter()
+            .enumerate()
+            .map(|(k, y)| (k as f64 + 1.0, y[0]))
+            .collect();
+        let l = &p.laminar;
+        let returns: Vec<(f64, f64)> = l
+            .episodes
+            .iter()
+            .flat_map(|e| {
+                series[e.first as usize - 1..e.last as usize]
+                    .iter()
+                    .copied()
+            })
+            .collect();
+        let episodes: Vec<(f64, f64)> = l
+            .episodes
+            .iter()
+            .map(|e| (f64::from(e.first), f64::from(e.last)))
+            .collect();
+        let hist: Vec<(f64, f64, u32)> = l
+            .histogram
+            .iter()
+            .map(|b| (f64::from(b.from), f64::from(b.to), b.count))
+            .collect();
+        FigureData {
+            z: zt,
+            v: vt,
+            phase,
+            stick,
+            lock,
+            impacts: imp_t,
+            phase_impacts: imp_phase,
+            section,
+            cycle,
+            series,
+            returns,
+            episodes,
+            histogram: hist,
+        }
+    }
+}
+
 /// Writes PREFIX.png and PREFIX.svg (the four panels) and PREFIX.json (the data behind them
 /// and the caption); all or nothing.
 pub fn write_outputs(prefix: &Path, p: &PointPlot) -> Result<Vec<PathBuf>> {
-    let z = |q: &TracePoint| q.y[2] - q.y[0];
-    let zt = pieces(&p.trace, |q| (q.t, z(q)));
-    let vt = pieces(&p.trace, |q| (q.t, q.y[1] - q.y[3]));
-    let phase = pieces(&p.trace, |q| (z(q), q.y[3] - q.y[1]));
-    let span = |m: fn(Mode) -> bool| -> Vec<(f64, f64)> {
-        p.intervals
-            .iter()
-            .filter(|i| m(i.mode))
-            .map(|i| (i.from, i.to))
-            .collect()
-    };
-    let stick = span(|m| m == Mode::Stick);
-    let lock = span(|m| matches!(m, Mode::LockPos | Mode::LockNeg));
-    let impacts: Vec<&EventRecord> = p.events.iter().filter(|e| e.is_impact()).collect();
-    let r = p.cfg.model.r;
-    let imp_t: Vec<(f64, f64)> = impacts
-        .iter()
-        .map(|e| (e.t, if e.kind == "impact+" { r } else { -r }))
-        .collect();
-    let imp_phase: Vec<(f64, f64)> = impacts.iter().map(|e| (e.z, -e.v_before)).collect();
-    let xy = |y: &[f64; 4]| (y[0], y[1]);
-    let section: Vec<(f64, f64)> = p.samples.iter().map(xy).collect();
-    let cycle: Vec<(f64, f64)> = p.cycle_points.iter().map(xy).collect();
-    let series: Vec<(f64, f64)> = p
-        .samples
-        .iter()
-        .enumerate()
-        .map(|(k, y)| (k as f64 + 1.0, y[0]))
-        .collect();
+    let d = FigureData::of(p);
     let l = &p.laminar;
-    let returns: Vec<(f64, f64)> = l
-        .episodes
-        .iter()
-        .flat_map(|e| {
-            series[e.first as usize - 1..e.last as usize]
-                .iter()
-                .copied()
-        })
-        .collect();
-    let episodes: Vec<(f64, f64)> = l
-        .episodes
-        .iter()
-        .map(|e| (f64::from(e.first), f64::from(e.last)))
-        .collect();
-    let hist: Vec<(f64, f64, u32)> = l
-        .histogram
-        .iter()
-        .map(|b| (f64::from(b.from), f64::from(b.to), b.count))
-        .collect();
     let m = &p.cfg.model;
     let title = format!(
         "{}: {} (CPU, f64)",
@@ -639,19 +678,19 @@ pub fn write_outputs(prefix: &Path, p: &PointPlot) -> Result<Vec<PathBuf>> {
         width: WIDTH,
         height: HEIGHT,
         stop: m.r,
-        z: &zt,
-        v: &vt,
-        stick: &stick,
-        lock: &lock,
-        impacts: &imp_t,
-        phase: &phase,
-        phase_impacts: &imp_phase,
-        section: &section,
-        cycle: &cycle,
-        series: &series,
-        returns: &returns,
-        episodes: &episodes,
-        histogram: &hist,
+        z: &d.z,
+        v: &d.v,
+        stick: &d.stick,
+        lock: &d.lock,
+        impacts: &d.impacts,
+        phase: &d.phase,
+        phase_impacts: &d.phase_impacts,
+        section: &d.section,
+        cycle: &d.cycle,
+        series: &d.series,
+        returns: &d.returns,
+        episodes: &d.episodes,
+        histogram: &d.histogram,
     };
     let mut st = Staged::new();
     point_figure_png(&st.path(&with_ext(prefix, "png")), &fig)?;
