@@ -601,6 +601,20 @@ fn nearest_changes(
             });
         }
     }
+    let distances = distances(u, &lines, &brackets, at);
+    Ok((distances, timings, runs))
+}
+
+/// The distance to the nearest class change along each parameter, below and above, from the
+/// final brackets of its two lines (`lines[l]`: parameter and side; `at(j, t)`: parameter j's
+/// value t scales from the nominal).
+fn distances(
+    u: &[Uncertain],
+    lines: &[(usize, f64)],
+    brackets: &[Option<(f64, f64, Class)>],
+    at: impl Fn(usize, f64) -> f64,
+) -> Vec<Distance> {
+    let nominal: Vec<f64> = u.iter().map(Uncertain::nominal).collect();
     let change = |l: usize| {
         let (j, side) = lines[l];
         brackets[l].map(|(a, b, beyond)| {
@@ -613,13 +627,12 @@ fn nearest_changes(
             }
         })
     };
-    let distances = (0..d)
+    (0..u.len())
         .map(|j| Distance {
             param: u[j].param,
             below: change(2 * j),
             above: change(2 * j + 1),
             searched_scales: SCAN_SIGMAS,
         })
-        .collect();
-    Ok((distances, timings, runs))
+        .collect()
 }
