@@ -51,6 +51,25 @@ fn run(
     Ok(engine.run(&spec, &points, &Silent)?.0)
 }
 
+/// [`run`] for the configured transient and sampled periods, from `initial.y`.
+fn run_configured(
+    engine: &Engine,
+    cfg: &Config,
+    prec: Precision,
+    values: &[f64],
+) -> Result<Vec<RunResult>> {
+    let r = &cfg.run;
+    run(
+        engine,
+        cfg,
+        prec,
+        r.transient_periods,
+        r.sample_periods,
+        values,
+        None,
+    )
+}
+
 /// The validation report: state differences after 1, 10 and 100 periods from the same start
 /// (`state_points` points spread over the sweep), and class agreement over the whole sweep.
 pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
@@ -83,15 +102,7 @@ fn state_table(
     // any difference, so the table also starts every point on its attractor: from the state
     // the CPU f64 reference reaches after the configured transient, and takes the maximum over
     // the points whose reference attractor is periodic.
-    let reference = run(
-        cpu,
-        c,
-        Precision::F64,
-        cfg.run.transient_periods,
-        cfg.run.sample_periods,
-        &values,
-        None,
-    )?;
+    let reference = run_configured(cpu, c, Precision::F64, &values)?;
     let on_attractor: Vec<[f64; 4]> = reference.iter().map(|r| r.final_y).collect();
     let periodic: Vec<bool> = reference
         .iter()
@@ -168,15 +179,7 @@ fn class_table(out: &mut String, gpu: &Engine, cpu: &Engine, cfg: &Config) -> Re
         cfg.run.transient_periods,
         cfg.run.sample_periods
     );
-    let reference = run(
-        cpu,
-        cfg,
-        Precision::F64,
-        cfg.run.transient_periods,
-        cfg.run.sample_periods,
-        &values,
-        None,
-    )?;
+    let reference = run_configured(cpu, cfg, Precision::F64, &values)?;
     let classes = |rs: &[RunResult]| -> Vec<Class> {
         rs.iter().map(|r| r.class(cfg.run.period_tol)).collect()
     };
@@ -220,30 +223,14 @@ fn class_table(out: &mut String, gpu: &Engine, cpu: &Engine, cfg: &Config) -> Re
     };
     row(out, "cpu f64 ref", &reference);
     for prec in [Precision::F32, Precision::F64] {
-        match run(
-            gpu,
-            cfg,
-            prec,
-            cfg.run.transient_periods,
-            cfg.run.sample_periods,
-            &values,
-            None,
-        ) {
+        match run_configured(gpu, cfg, prec, &values) {
             Ok(rs) => row(out, &format!("gpu {}", prec.name()), &rs),
             Err(e) => {
                 let _ = writeln!(out, "gpu {}: not run ({e})", prec.name());
             }
         }
     }
-    let cpu32 = run(
-        cpu,
-        cfg,
-        Precision::F32,
-        cfg.run.transient_periods,
-        cfg.run.sample_periods,
-        &values,
-        None,
-    )?;
+    let cpu32 = run_configured(cpu, cfg, Precision::F32, &values)?;
     row(out, "cpu f32", &cpu32);
     Ok(())
 }
