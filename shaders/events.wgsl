@@ -115,7 +115,7 @@ fn clear_of(g0: F, g1: F, m0: F, m1: F) -> bool {
 fn clear_of_stops(z0: F, z1: F, zd0: F, zd1: F) -> bool {
     let d = z1 - z0;
     let bound = F(0.25) * fmax(fabs(zd0 - d), fabs(zd1 - d));
-    return r() - fmax(fabs(z0), fabs(z1)) > bound;
+    return clearance() - fmax(fabs(z0), fabs(z1)) > bound;
 }
 
 // NaN or infinity (tested on the bits), or a state beyond any physical scale.

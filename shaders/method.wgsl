@@ -89,14 +89,14 @@ fn locate(y0: vec4<F>, y1: vec4<F>, f0: vec4<F>, f1: vec4<F>, mode: u32, cs0: ve
             let z1 = y1.z - y1.x;
             let zd0 = (y0.w - y0.y) * dt;
             let zd1 = (y1.w - y1.y) * dt;
-            if (r() - z0 <= F(0.0) && zd0 > F(0.0)) {
+            if (clearance() - z0 <= F(0.0) && zd0 > F(0.0)) {
                 return Hit(F(0.0), EV_IMPACT_POS);
             }
-            if (r() + z0 <= F(0.0) && zd0 < F(0.0)) {
+            if (clearance() + z0 <= F(0.0) && zd0 < F(0.0)) {
                 return Hit(F(0.0), EV_IMPACT_NEG);
             }
-            b0 = bracket(r() - z0, r() - z1, -zd0, -zd1, F(0.0), EV_IMPACT_POS);
-            b1 = bracket(r() + z0, r() + z1, zd0, zd1, F(0.0), EV_IMPACT_NEG);
+            b0 = bracket(clearance() - z0, clearance() - z1, -zd0, -zd1, F(0.0), EV_IMPACT_POS);
+            b1 = bracket(clearance() + z0, clearance() + z1, zd0, zd1, F(0.0), EV_IMPACT_NEG);
         }
         let s = select(F(-1.0), F(1.0), mode == MODE_SLIP_POS);
         let g0 = s * (y0.y - y0.w);
@@ -274,14 +274,14 @@ fn naive_impact(k: u32) -> bool {
     let z = st.y.z - st.y.x;
     let zd = st.y.w - st.y.y;
     var stop = 0;
-    if (z > r() && zd > F(0.0)) {
+    if (z > clearance() && zd > F(0.0)) {
         stop = 1;
-    } else if (z < -r() && zd < F(0.0)) {
+    } else if (z < -clearance() && zd < F(0.0)) {
         stop = -1;
     } else {
         return false;
     }
-    st.y.z = st.y.x + select(-r(), r(), stop > 0);
+    st.y.z = st.y.x + select(-clearance(), clearance(), stop > 0);
     apply_event(select(EV_IMPACT_NEG, EV_IMPACT_POS, stop > 0), forcing(k, F(1.0)).x);
     return true;
 }

@@ -18,7 +18,7 @@
 //! decided block by block ([`run_summaries`]).
 
 use crate::class::Class;
-use crate::classify::Pool;
+use crate::classify::{Exponent, Pool};
 use crate::decide::{Proposal, Summary, Trials, Verdict, confirm_many};
 use crate::engine::{Engine, EngineError, Timings};
 use crate::method::{Diagnostics, RunResult};
@@ -400,7 +400,7 @@ impl Keep for Samples {
                         // The configured run's own exponent stands; the windows after it pool
                         // with it.
                         Stage::Final => {
-                            p.add(r.lyapunov, r.lyapunov_se);
+                            p.add(r.lyapunov);
                         }
                         _ => r.pool(p),
                     }
@@ -480,9 +480,12 @@ fn early_answer(
             let keep = RunResult {
                 samples: r.samples[w - n..].to_vec(),
                 sample_impacts: (ipp * n as f64).round() as u64,
-                lyapunov: v.cycle.as_ref().map_or(f64::NAN, |c| {
-                    floquet_exponent(c.leading_modulus(), c.period, p)
-                }),
+                lyapunov: Exponent {
+                    value: v.cycle.as_ref().map_or(f64::NAN, |c| {
+                        floquet_exponent(c.leading_modulus(), c.period, p)
+                    }),
+                    ..r.lyapunov
+                },
                 ..r
             };
             (keep, Some(v))
@@ -592,8 +595,10 @@ impl Keep for Summaries {
         params: &Params<f64>,
     ) {
         if let (Stage::Early(..), Some(n)) = (stage, s.class.period()) {
-            s.lyapunov = floquet_exponent(s.multiplier, n, params);
-            s.lyapunov_se = 0.0;
+            s.lyapunov = Exponent {
+                value: floquet_exponent(s.multiplier, n, params),
+                se: 0.0,
+            };
         }
         s.diag = diag;
         s.periods = periods;

@@ -363,7 +363,7 @@ impl Common {
     pub fn refuse_varied(&self, varied: &[Param], by: &str) -> Result<()> {
         let flags = [
             ("--eta", Param::Eta, self.eta),
-            ("--R", Param::R, self.restitution),
+            ("--R", Param::Restitution, self.restitution),
             ("--lambda", Param::Lambda, self.lambda),
         ];
         for &v in varied {

@@ -49,7 +49,12 @@ pub fn model_title(cfg: &Config, except: &[&str]) -> String {
         FrictionLaw::Stribeck => &[("fs", m.fs), ("fk", m.fk), ("l1", m.l1), ("l2", m.l2)],
     };
     let mut fixed = Vec::new();
-    let common = [("r", m.r), ("delta", m.delta), ("b1", m.b1), ("mu", m.mu)];
+    let common = [
+        ("r", m.clearance),
+        ("delta", m.delta),
+        ("b1", m.b1),
+        ("mu", m.mu),
+    ];
     let head = [("eta", m.eta), ("R", m.restitution)];
     for &(k, v) in head.iter().chain(friction).chain(&common) {
         if !except.contains(&k) {

@@ -88,9 +88,9 @@ impl Growth {
         blocks: u32,
         m2: f64,
         period: f64,
-    ) -> (f64, f64) {
+    ) -> Exponent {
         if count == 0 {
-            return (f64::NAN, f64::NAN);
+            return Exponent::NONE;
         }
         let lyap = sum / (f64::from(count) * period);
         let se = if blocks >= 2 {
@@ -99,11 +99,11 @@ impl Growth {
         } else {
             f64::NAN
         };
-        (lyap, se)
+        Exponent { value: lyap, se }
     }
 
     /// [`Growth::exponent_from`] of this accumulator.
-    pub fn exponent(&self, period: f64) -> (f64, f64) {
+    pub fn exponent(&self, period: f64) -> Exponent {
         Self::exponent_from(self.sum, self.count, self.len, self.blocks, self.m2, period)
     }
 }
@@ -118,17 +118,46 @@ pub struct Pool {
 }
 
 impl Pool {
-    /// Adds a window's exponent and error; returns the pooled pair. A window without a finite
-    /// error (no exponent) leaves the pool as it was and gives its own pair back.
-    pub fn add(&mut self, lyapunov: f64, se: f64) -> (f64, f64) {
-        if !(lyapunov.is_finite() && se.is_finite()) {
-            return (lyapunov, se);
+    /// Adds a window's exponent; returns the pooled one. A window without a finite error
+    /// (no exponent) leaves the pool as it was and gives its own exponent back.
+    pub fn add(&mut self, e: Exponent) -> Exponent {
+        if !(e.value.is_finite() && e.se.is_finite()) {
+            return e;
         }
         // A zero error (a window whose blocks agree to round-off) counts as a tiny one.
-        let w = 1.0 / se.max(1e-12).powi(2);
+        let w = 1.0 / e.se.max(1e-12).powi(2);
         self.weight += w;
-        self.weighted += w * lyapunov;
-        (self.weighted / self.weight, self.weight.sqrt().recip())
+        self.weighted += w * e.value;
+        Exponent {
+            value: self.weighted / self.weight,
+            se: self.weight.sqrt().recip(),
+        }
+    }
+}
+
+/// The largest Lyapunov exponent per unit time and its standard error by batch means
+/// ([`Growth`]); both NaN where it was not computed, or lost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Exponent {
+    pub value: f64,
+    pub se: f64,
+}
+
+impl Exponent {
+    /// No exponent.
+    pub const NONE: Exponent = Exponent {
+        value: f64::NAN,
+        se: f64::NAN,
+    };
+
+    /// Whether the exponent is positive by [`CHAOS_MARGIN`] standard errors.
+    pub fn clearly_positive(&self) -> bool {
+        self.se.is_finite() && self.value > CHAOS_MARGIN * self.se
+    }
+
+    /// Whether the exponent is negative by [`CHAOS_MARGIN`] standard errors.
+    pub fn clearly_negative(&self) -> bool {
+        self.se.is_finite() && self.value < -CHAOS_MARGIN * self.se
     }
 }
 
@@ -421,21 +450,11 @@ pub struct Evidence<'a> {
     /// The last section values of y1, oldest first.
     pub tail: &'a [f64],
     /// Largest exponent and its standard error per unit time (NaN when not computed).
-    pub lyapunov: f64,
-    pub lyapunov_se: f64,
+    pub lyapunov: Exponent,
     /// Agreeing digits of the torus test (NaN when the window had no two halves).
     pub torus: f64,
     /// The exponent was asked for and lost ([`crate::method::RunResult::exponent_lost`]).
     pub exponent_lost: bool,
-}
-
-/// Whether the exponent is positive by [`CHAOS_MARGIN`] standard errors.
-fn clearly_positive(e: &Evidence) -> bool {
-    e.lyapunov_se.is_finite() && e.lyapunov > CHAOS_MARGIN * e.lyapunov_se
-}
-
-fn clearly_negative(e: &Evidence) -> bool {
-    e.lyapunov_se.is_finite() && e.lyapunov < -CHAOS_MARGIN * e.lyapunov_se
 }
 
 /// The periods Newton is to try, in order: the strict detector's (its cycle needs no more than
@@ -448,14 +467,14 @@ pub fn proposals(e: &Evidence, last_resort: bool) -> Vec<(u32, Option<Candidate>
         Class::Periodic(n) => vec![(n, None)],
         _ => Vec::new(),
     };
-    if clearly_positive(e) {
+    if e.lyapunov.clearly_positive() {
         return out;
     }
     // Without an exponent (sweeps) nothing else can decide the point, and a weakly stable
     // cycle's near-repeats (|mu| = 0.9997 next to Fig. 2's Neimark-Sacker point) fluctuate
     // with the phase of its spiral: they may grow by half and still propose the lag, whose
     // cycle must then still show the decay its multiplier predicts ([`approaches`]).
-    let growth = if e.lyapunov.is_nan() { 1.5 } else { 1.0 };
+    let growth = if e.lyapunov.value.is_nan() { 1.5 } else { 1.0 };
     for c in lags(e.tail, growth) {
         if !out.iter().any(|t| t.0 == c.period) {
             out.push((c.period, Some(c)));
@@ -467,7 +486,7 @@ pub fn proposals(e: &Evidence, last_resort: bool) -> Vec<(u32, Option<Candidate>
     // rounds (no exponent, 32 periods) it found no cycle the run was on in 36,554 trials of
     // the 256 x 256 R x lambda map, a third of their Newton time.
     if last_resort
-        && (e.lyapunov.is_nan() || clearly_negative(e))
+        && (e.lyapunov.value.is_nan() || e.lyapunov.clearly_negative())
         && !out.iter().any(|t| t.0 == 1)
         && let Some(c) = candidate_at(e.tail, 1)
     {
@@ -494,14 +513,14 @@ pub fn conclude(e: &Evidence, stable: Option<u32>) -> (Class, Rule) {
     if let Some(n) = stable {
         return (Class::Periodic(n), Rule::StableCycle);
     }
-    let (l, se) = (e.lyapunov, e.lyapunov_se);
+    let (l, se) = (e.lyapunov.value, e.lyapunov.se);
     if l.is_nan() && e.exponent_lost {
         return (Class::Unresolved, Rule::ExponentLost);
     }
     if l.is_nan() {
         return (Class::Aperiodic, Rule::NoExponent);
     }
-    if clearly_positive(e) {
+    if e.lyapunov.clearly_positive() {
         return (Class::Chaotic, Rule::PositiveExponent);
     }
     let near_zero = se.is_finite() && l.abs() + CHAOS_MARGIN * se <= TORUS_BOUND;

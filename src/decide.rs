@@ -9,7 +9,7 @@
 //! unstable orbit converges to that orbit, whose multipliers reject it).
 
 use crate::class::Class;
-use crate::classify::{Candidate, Pool, Rule, approaches, conclude, proposals};
+use crate::classify::{Candidate, Exponent, Pool, Rule, approaches, conclude, proposals};
 use crate::cycles::{Cycle, Refine, run_parallel};
 use crate::method::{Diagnostics, Integrator, PointState, RunResult, Settings};
 use crate::model::{Mode, Params};
@@ -176,13 +176,12 @@ pub fn confirm_all(
 pub struct Summary {
     pub class: Class,
     pub impacts_per_period: f64,
-    /// Largest Lyapunov exponent per unit time (NaN when not available).
-    pub lyapunov: f64,
+    /// Largest Lyapunov exponent per unit time and its standard error (batch means; NaN when
+    /// not available).
+    pub lyapunov: Exponent,
     /// Largest Floquet multiplier modulus of the confirmed (stable) cycle; NaN where the class
     /// is not periodic.
     pub multiplier: f64,
-    /// Standard error of `lyapunov` (batch means; NaN without it).
-    pub lyapunov_se: f64,
     /// Agreeing digits of the torus test (NaN without two full halves).
     pub torus: f64,
     /// The rule that decided the class.
@@ -261,7 +260,6 @@ impl Summary {
             impacts_per_period: r.sample_impacts as f64 / samples.max(1) as f64,
             lyapunov: r.lyapunov,
             multiplier,
-            lyapunov_se: r.lyapunov_se,
             torus: r.torus,
             rule: v.rule,
             tried,

@@ -58,12 +58,12 @@ macro_rules! model_params {
     ($then:ident) => {
         $then! {
             eta, Eta, "eta", 1.5, "(0, inf)", |v| v > 0.0, "Forcing frequency.";
-            restitution, R, "R", 0.6, "[0, 1]", |v| (0.0..=1.0).contains(&v), "Restitution coefficient.";
+            restitution, Restitution, "R", 0.6, "[0, 1]", |v| (0.0..=1.0).contains(&v), "Restitution coefficient.";
             fs, Fs, "fs", 0.25, "[0, inf)", |v| v >= 0.0, "Static friction limit (Stribeck).";
             fk, Fk, "fk", 0.05, "[0, inf)", |v| v >= 0.0, "Kinetic friction level (Stribeck).";
             l1, L1, "l1", 1.42, "[0, inf)", |v| v >= 0.0, "Stribeck decay rate.";
             l2, L2, "l2", 0.005, "[0, inf)", |v| v >= 0.0, "Quadratic (viscous-like) friction growth.";
-            r, Clearance, "r", 0.8, "(0, inf)", |v| v > 0.0, "Clearance: |z| <= r.";
+            clearance, Clearance, "r", 0.8, "(0, inf)", |v| v > 0.0, "Clearance: |z| <= r.";
             delta, Delta, "delta", 0.5, "[0, inf)", |v| v >= 0.0, "Damper ratio c2/c1 between the masses.";
             b1, B1, "b1", 0.1, "[0, inf)", |v| v >= 0.0, "Damping of m1.";
             mu, Mu, "mu", 0.693, "(0, inf)", |v| v > 0.0, "Mass ratio m2/m1.";
@@ -198,7 +198,7 @@ impl Param {
     pub fn label(self) -> String {
         match self {
             Param::Eta => "eta (forcing frequency)".into(),
-            Param::R => "R (restitution)".into(),
+            Param::Restitution => "R (restitution)".into(),
             Param::Lambda => "lambda (Coulomb friction)".into(),
             p => p.name().into(),
         }
@@ -453,9 +453,9 @@ pub fn initial_mode<F: Real>(p: &Params<F>, y: &[F; 4], c: F) -> Mode {
         return Mode::slip(v);
     }
     let z = y[2] - y[0];
-    let stop = if z >= p.r {
+    let stop = if z >= p.clearance {
         1
-    } else if z <= -p.r {
+    } else if z <= -p.clearance {
         -1
     } else {
         0

@@ -165,7 +165,7 @@ fn impact_free_at(
     let mut p = *base;
     param.set(&mut p, v);
     let mut free = p;
-    free.r = 1e6;
+    free.clearance = 1e6;
     let loose = Integrator::<f64>::new(&free, settings);
     let mut s = *st;
     for _ in 0..GRAZE_SETTLE {

@@ -132,7 +132,7 @@ fn early_stop_map_agrees_with_the_brute_force_map() {
             let n = y.0.class.period().unwrap() as f64;
             let exact = y.0.multiplier.ln() * common::points::CHAOTIC_ETA
                 / (2.0 * std::f64::consts::PI * n);
-            assert!((y.0.lyapunov - exact).abs() < 1e-12 && exact < 0.0);
+            assert!((y.0.lyapunov.value - exact).abs() < 1e-12 && exact < 0.0);
         }
     }
 }

@@ -4,7 +4,9 @@
 //! docs/classes.md) on three maps: R x lambda (Coulomb), a Stribeck map and eta x lambda.
 
 use rattle::class::Class;
-use rattle::classify::{Birkhoff, CHAOS_MARGIN, Evidence, Growth, Rule, TORUS_DIGITS, conclude};
+use rattle::classify::{
+    Birkhoff, CHAOS_MARGIN, Evidence, Exponent, Growth, Rule, TORUS_DIGITS, conclude,
+};
 use rattle::config::{Config, Precision};
 use rattle::decide::Summary;
 use rattle::engine::Engine;
@@ -24,7 +26,8 @@ fn digits(n: u32, f: impl Fn(u32) -> f64) -> f64 {
 fn exponent(n: u32, l: impl Fn(u32) -> f64) -> (f64, f64) {
     let mut g = Growth::new(n);
     (0..n).for_each(|k| g.push(l(k)));
-    g.exponent(1.0)
+    let e = g.exponent(1.0);
+    (e.value, e.se)
 }
 
 const GOLDEN: f64 = 0.618_033_988_749_895;
@@ -109,8 +112,10 @@ fn torus_test_and_error_bar_separate_a_torus_chaos_and_a_slow_cycle() {
         let e = Evidence {
             detected: Class::Aperiodic,
             tail: &tail,
-            lyapunov,
-            lyapunov_se,
+            lyapunov: Exponent {
+                value: lyapunov,
+                se: lyapunov_se,
+            },
             torus,
             exponent_lost: false,
         };
@@ -159,7 +164,7 @@ fn the_exponent_error_bar_covers_the_mean() {
             e = 0.5 * e + uniform();
             g.push(0.01 + e);
         }
-        let (l, se) = g.exponent(1.0);
+        let Exponent { value: l, se } = g.exponent(1.0);
         covered += usize::from((l - 0.01).abs() <= CHAOS_MARGIN * se);
         means.push(l);
         ses.push(se);

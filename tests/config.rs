@@ -6,7 +6,10 @@ use rattle::config::Config;
 fn defaults_are_the_paper() {
     let c = Config::from_toml("", &[]).unwrap();
     let p = c.params();
-    assert_eq!((p.restitution, p.fs, p.fk, p.r), (0.6, 0.02, 0.02, 0.8));
+    assert_eq!(
+        (p.restitution, p.fs, p.fk, p.clearance),
+        (0.6, 0.02, 0.02, 0.8)
+    );
     assert_eq!((p.delta, p.b1, p.mu), (0.5, 0.1, 0.693));
 }
 

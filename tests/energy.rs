@@ -85,8 +85,8 @@ fn guards(p: &Params<f64>, t: f64, x: &X, m: Motion) -> [f64; 3] {
     let zd = x[3] - x[1];
     match m {
         Motion::Slip(s) => [
-            if zd > 0.0 { p.r - z } else { 1.0 },
-            if zd < 0.0 { p.r + z } else { 1.0 },
+            if zd > 0.0 { p.clearance - z } else { 1.0 },
+            if zd < 0.0 { p.clearance + z } else { 1.0 },
             s * (x[1] - x[3]),
         ],
         Motion::Stuck => [p.fs - needed(p, t, x).abs(), 1.0, 1.0],

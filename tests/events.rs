@@ -88,7 +88,7 @@ fn chattering_ends_in_lock_and_lock_releases_at_the_holding_limit() {
             impacts_before_first_lock.get_or_insert(b.diag.impacts);
             // Co-moving at the stop.
             assert_eq!(b.y[1], b.y[3]);
-            assert!(((b.y[2] - b.y[0]).abs() - p.r).abs() < 1e-9);
+            assert!(((b.y[2] - b.y[0]).abs() - p.clearance).abs() < 1e-9);
         }
         if locked(a.mode) {
             // While locked the pair moves together.

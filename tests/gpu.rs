@@ -232,12 +232,12 @@ fn lyapunov_exponents_and_classes_agree_with_cpu() {
                      {:.5} torus {:.1}",
                     if f64 { "f64" } else { "f32" },
                     gv.class,
-                    g.results[i].lyapunov,
-                    g.results[i].lyapunov_se,
+                    g.results[i].lyapunov.value,
+                    g.results[i].lyapunov.se,
                     g.results[i].torus,
                     cc.class,
-                    c.lyapunov,
-                    c.lyapunov_se,
+                    c.lyapunov.value,
+                    c.lyapunov.se,
                     c.torus
                 );
                 assert_eq!(gv.class, want[i], "GPU eta {eta}");
@@ -245,8 +245,8 @@ fn lyapunov_exponents_and_classes_agree_with_cpu() {
                 if want[i] == Class::Periodic(1) && eta < 1.7 {
                     // On a periodic attractor both estimate the same contraction rate, and
                     // the same (small) error.
-                    assert!((g.results[i].lyapunov - c.lyapunov).abs() < 1e-3);
-                    assert!((g.results[i].lyapunov_se - c.lyapunov_se).abs() < 1e-3);
+                    assert!((g.results[i].lyapunov.value - c.lyapunov.value).abs() < 1e-3);
+                    assert!((g.results[i].lyapunov.se - c.lyapunov.se).abs() < 1e-3);
                 }
             }
         }
@@ -300,13 +300,13 @@ fn small_map_classes_agree_with_cpu() {
                 "  cell {i}: CPU {:?} (exponent {:.4} +- {:.4}, {} periods, tried {:?}), GPU {:?} \
                  (exponent {:.4} +- {:.4}, {} periods, tried {:?})",
                 cpu[i].class,
-                cpu[i].lyapunov,
-                cpu[i].lyapunov_se,
+                cpu[i].lyapunov.value,
+                cpu[i].lyapunov.se,
                 cpu[i].periods,
                 cpu[i].tried,
                 gpu[i].class,
-                gpu[i].lyapunov,
-                gpu[i].lyapunov_se,
+                gpu[i].lyapunov.value,
+                gpu[i].lyapunov.se,
                 gpu[i].periods,
                 gpu[i].tried
             );
@@ -417,7 +417,7 @@ fn overflowing_points_fail_on_the_gpu_as_on_the_cpu() {
                     e.name()
                 );
                 assert!(s.diag.nonfinite, "{} {prec:?} cell {c}", e.name());
-                assert!(s.lyapunov.is_nan(), "{} {prec:?} cell {c}", e.name());
+                assert!(s.lyapunov.value.is_nan(), "{} {prec:?} cell {c}", e.name());
             }
             // One point with its samples (the `point` command's path).
             cfg.model.b1 = 1e4;

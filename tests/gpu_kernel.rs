@@ -29,7 +29,10 @@ fn every_rung_of_the_kernel_ladder_compiles_and_the_top_rung_is_the_kernel() {
             assert_eq!(a.final_y, b.final_y, "f64 {f64}");
             assert_eq!(a.samples, b.samples, "f64 {f64}");
             assert_eq!(a.diag, b.diag, "f64 {f64}");
-            assert!(a.lyapunov.is_nan() && b.lyapunov.is_finite(), "f64 {f64}");
+            assert!(
+                a.lyapunov.value.is_nan() && b.lyapunov.value.is_finite(),
+                "f64 {f64}"
+            );
         }
     }
 }
@@ -57,11 +60,11 @@ fn ladder_rungs(f64: bool, lyapunov: bool) -> Option<GpuOutput> {
                 assert_eq!(a.samples, b.samples, "{what}");
                 assert_eq!(a.diag.impacts, b.diag.impacts, "{what}");
                 assert_eq!(
-                    a.lyapunov.to_bits(),
-                    b.lyapunov.to_bits(),
+                    a.lyapunov.value.to_bits(),
+                    b.lyapunov.value.to_bits(),
                     "{what}: {} vs {}",
-                    a.lyapunov,
-                    b.lyapunov
+                    a.lyapunov.value,
+                    b.lyapunov.value
                 );
             }
         }
@@ -190,7 +193,7 @@ fn tangent_exponents_agree_with_cpu_at_periodic_points_of_fig2() {
             } else {
                 run_cpu::<f32>(eta, &s, 300, 200)
             };
-            let (a, b) = (g.results[i].lyapunov, c.lyapunov);
+            let (a, b) = (g.results[i].lyapunov.value, c.lyapunov.value);
             assert!(a.is_finite() && b < 0.0, "eta {eta}: GPU {a}, CPU {b}");
             worst = worst.max((a - b).abs());
             assert!((a - b).abs() <= tol, "eta {eta} f64 {f64}: GPU {a} CPU {b}");
@@ -221,7 +224,7 @@ fn tangent_exponent_where_an_impact_falls_near_the_section() {
             },
             ..eta_spec(s, 300, 100, f64)
         };
-        let vary = [Param::R, Param::Lambda];
+        let vary = [Param::Restitution, Param::Lambda];
         let points = Points::along(&vary, &values);
         let Some(g) = run_job(&Job::new(&spec, points, false)) else {
             return;
@@ -239,12 +242,12 @@ fn tangent_exponent_where_an_impact_falls_near_the_section() {
             let floquet = c.leading_modulus().ln() / (2.0 * std::f64::consts::PI / p.eta);
             eprintln!(
                 "lambda {lambda} f64 {f64}: GPU {:.5}, Floquet {floquet:.5}",
-                res.lyapunov
+                res.lyapunov.value
             );
             assert!(
-                (res.lyapunov - floquet).abs() < 2e-3,
+                (res.lyapunov.value - floquet).abs() < 2e-3,
                 "lambda {lambda} f64 {f64}: {} vs {floquet}",
-                res.lyapunov
+                res.lyapunov.value
             );
         }
     }
@@ -274,7 +277,7 @@ fn the_loop_budget_holds_with_the_tangent_at_n_64() {
             g.truncated.len()
         );
         assert!(g.truncated.is_empty(), "cut short: {:?}", g.truncated);
-        assert!(g.results.iter().all(|r| r.lyapunov.is_finite()));
+        assert!(g.results.iter().all(|r| r.lyapunov.value.is_finite()));
     }
 }
 

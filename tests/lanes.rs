@@ -43,7 +43,7 @@ fn mixed_points() -> Vec<(Params<f64>, [f64; 4])> {
                 p.l1 = 5.0;
                 p.l2 = 0.01;
             }
-            3 => p.r = 50.0,
+            3 => p.clearance = 50.0,
             4 if i == 10 => p.l2 = 1e30,
             _ => {}
         }
@@ -60,7 +60,7 @@ fn same(a: &RunResult, b: &RunResult) -> bool {
         && a.diag == b.diag
         && bits(&a.final_y) == bits(&b.final_y)
         && a.final_mode == b.final_mode
-        && a.lyapunov.to_bits() == b.lyapunov.to_bits()
+        && a.lyapunov.value.to_bits() == b.lyapunov.value.to_bits()
 }
 
 fn check<F: Real>(settings: &Settings, n_points: usize, points: Vec<(Params<f64>, [f64; 4])>) {

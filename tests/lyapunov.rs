@@ -21,7 +21,7 @@ fn settings() -> Settings {
 fn run(p: &Params<f64>, y0: [f64; 4], transient: u32, samples: u32) -> (Class, f64) {
     let r = Integrator::<f64>::new(p, &settings()).run(y0, transient, samples);
     let c = classify(&r.samples, r.sample_impacts, r.diag.nonfinite, 1e-4);
-    (confirm(p, &settings(), &r, c).class, r.lyapunov)
+    (confirm(p, &settings(), &r, c).class, r.lyapunov.value)
 }
 
 #[test]
@@ -71,11 +71,11 @@ fn slow_transient_before_and_torus_after_the_neimark_sacker_bifurcation() {
     let class = v.class;
     eprintln!(
         "eta 1.717: {class:?}, |mu| {mu:?}, exponent {:.5}",
-        r.lyapunov
+        r.lyapunov.value
     );
     assert!(mu.is_none_or(|m| m > 1.0), "{mu:?}");
-    assert_eq!(class, Class::QuasiPeriodic, "exponent {}", r.lyapunov);
-    assert!(r.lyapunov.abs() < 0.005);
+    assert_eq!(class, Class::QuasiPeriodic, "exponent {}", r.lyapunov.value);
+    assert!(r.lyapunov.value.abs() < 0.005);
 }
 
 #[test]
@@ -91,19 +91,23 @@ fn impact_free_linear_case_has_the_exact_exponent() {
             fk: 0.0,
             l1: 0.0,
             l2: 0.0,
-            r: 1e9,
+            clearance: 1e9,
             delta: 0.0,
             b1,
             mu: 0.693,
         };
         let r = Integrator::<f64>::new(&p, &settings()).run([0.0, 0.0, 0.0, 5.0], 10, 200);
-        eprintln!("b1 {b1}: lambda {:.6}, exact {}", r.lyapunov, -b1 / 2.0);
+        eprintln!(
+            "b1 {b1}: lambda {:.6}, exact {}",
+            r.lyapunov.value,
+            -b1 / 2.0
+        );
         assert_eq!(r.diag.impacts, 0);
         // Finite-time error: the log of the oscillator's non-orthogonality over T = 200 P.
         assert!(
-            (r.lyapunov + b1 / 2.0).abs() < 5e-4,
+            (r.lyapunov.value + b1 / 2.0).abs() < 5e-4,
             "b1 {b1}: {}",
-            r.lyapunov
+            r.lyapunov.value
         );
     }
 }
@@ -120,7 +124,7 @@ fn run_exponent_is_the_largest_of_the_spectrum() {
         for _ in 0..300 {
             it.period(&mut st);
         }
-        let run = it.run_from(&mut st.clone(), 0, 200).lyapunov;
+        let run = it.run_from(&mut st.clone(), 0, 200).lyapunov.value;
         let largest = spectrum(&it, &mut st.clone(), 200, 4).exponents[0];
         eprintln!(
             "eta {eta}: run {run:.9}, spectrum {largest:.9}, |difference| {:.1e}",
@@ -155,7 +159,7 @@ fn map_point<F: Real>(r: f64, lambda: f64) -> (f64, f64) {
     let c = refine(&Integrator::<f64>::new(&p, &s), &start, 1);
     assert!(c.is_stable(), "R {r} lambda {lambda}: {c:?}");
     let floquet = c.leading_modulus().ln() / (2.0 * std::f64::consts::PI / p.eta);
-    (res.lyapunov, floquet)
+    (res.lyapunov.value, floquet)
 }
 
 #[test]
@@ -183,7 +187,7 @@ fn the_exponent_leaves_the_trajectory_bit_for_bit() {
         let p = Params::paper(eta);
         let plain = Integrator::<F>::new(&p, &Settings::default()).run([0.0; 4], 50, 100);
         let with = Integrator::<F>::new(&p, &settings()).run([0.0; 4], 50, 100);
-        assert!(plain.lyapunov.is_nan() && with.lyapunov.is_finite());
+        assert!(plain.lyapunov.value.is_nan() && with.lyapunov.value.is_finite());
         assert_eq!(plain.samples, with.samples, "eta {eta}");
         assert_eq!(plain.final_y, with.final_y, "eta {eta}");
         assert_eq!(plain.diag, with.diag, "eta {eta}");

@@ -109,7 +109,7 @@ fn failed_cells_are_never_a_valid_class() {
     // and exponent say so, and its neighbours are exactly what they are when run on their own.
     let cfg = Config::from_toml(&small(), &[]).unwrap();
     let spec = RunSpec::new(&cfg).with_lyapunov();
-    let vary = [Param::R, Param::Lambda];
+    let vary = [Param::Restitution, Param::Lambda];
     let run = |values: &[f64]| {
         rattle::adaptive::run_once(&Engine::Cpu, &spec, &Points::along(&vary, values), &Silent)
             .unwrap()
@@ -119,7 +119,10 @@ fn failed_cells_are_never_a_valid_class() {
     let alone = run(&[0.6, 0.02, 0.62, 0.05]);
     assert_eq!(sum[1].class, Class::Failed);
     assert!(sum[1].diag.nonfinite);
-    assert!(sum[1].lyapunov.is_nan(), "a failed point has no exponent");
+    assert!(
+        sum[1].lyapunov.value.is_nan(),
+        "a failed point has no exponent"
+    );
     // Debug text compares NaN fields (no multiplier off a cycle) as equal.
     assert_eq!(
         format!("{:?}", (sum[0], sum[2])),
@@ -146,8 +149,10 @@ fn failed_cells_are_never_a_valid_class() {
     let e = rattle::classify::Evidence {
         detected: Class::Failed,
         tail: &tail,
-        lyapunov: 0.5,
-        lyapunov_se: 0.01,
+        lyapunov: rattle::classify::Exponent {
+            value: 0.5,
+            se: 0.01,
+        },
         torus: 10.0,
         exponent_lost: false,
     };
@@ -441,9 +446,11 @@ fn cell(class: Class, lyapunov: f64, multiplier: f64) -> (rattle::decide::Summar
         rattle::decide::Summary {
             class,
             impacts_per_period: 1.0,
-            lyapunov,
+            lyapunov: rattle::classify::Exponent {
+                value: lyapunov,
+                se: 0.0,
+            },
             multiplier,
-            lyapunov_se: 0.0,
             torus: f64::NAN,
             rule: rattle::classify::Rule::StableCycle,
             tried: [0, 0],

@@ -190,7 +190,7 @@ fn impact_free_linear_case_is_the_matrix_exponential() {
     // No friction and a clearance no orbit reaches: y' = A y + forcing, whose monodromy is
     // exp(A P). Slip reversals still happen (v crosses 0) and their saltation is the identity.
     let p = Params {
-        r: 1e3,
+        clearance: 1e3,
         ..coulomb(1.3, 0.6, 0.0)
     };
     let (it, st) = settled(&p, &settings(1024, 1e-4), 50);
@@ -530,7 +530,7 @@ fn fig2_impact_free_motion_grazes_under_continuation_down() {
         .min_by(|a, c| a.value.total_cmp(&c.value))
         .unwrap();
     let mut p = Params::paper(g.value + g.uncertainty);
-    p.r = 1e6;
+    p.clearance = 1e6;
     let it = Integrator::<f64>::new(&p, &settings(4096, 1e-4));
     let mut st = PointState {
         y: above.result.final_y,

@@ -31,7 +31,7 @@ pub fn title(cfg: &Config) -> String {
     format!(
         "{friction}, R={}, r={}, delta={}, b1={}, mu={} (N={}, {})",
         m.restitution,
-        m.r,
+        m.clearance,
         m.delta,
         m.b1,
         m.mu,

@@ -30,11 +30,11 @@ impl Config {
             }
         }
         let z0 = self.initial.y[2] - self.initial.y[0];
-        if z0.abs() > m.r {
+        if z0.abs() > m.clearance {
             return Err(ConfigError::range(
                 "initial.y",
                 format!("{:?} (|y3 - y1| = {})", self.initial.y, z0.abs()),
-                &format!("|y3 - y1| <= r = {}", m.r),
+                &format!("|y3 - y1| <= r = {}", m.clearance),
             ));
         }
         let me = &self.method;
@@ -87,7 +87,7 @@ impl Config {
                 "(0, inf)",
             ));
         }
-        self.check_clearance("model.r", m.r)?;
+        self.check_clearance("model.r", m.clearance)?;
         self.check_precision(
             m.values().into_iter().chain(
                 [

@@ -45,7 +45,7 @@ impl MapConfig {
 impl Default for MapConfig {
     fn default() -> Self {
         MapConfig {
-            x: Param::R,
+            x: Param::Restitution,
             x_from: 0.5,
             x_to: 0.7,
             x_points: 128,
@@ -233,7 +233,7 @@ impl Config {
     /// The basin axes' ranges, defaults resolved: (x_from, x_to, y_from, y_to).
     pub fn basin_ranges(&self) -> (f64, f64, f64, f64) {
         let b = &self.basin;
-        let r = self.model.r;
+        let r = self.model.clearance;
         let default = |c: StateCoord| match c {
             StateCoord::Z0 => (-r, r),
             _ => (-1.0, 1.0),
@@ -263,7 +263,7 @@ impl Config {
         }
         check_grid("basin", (b.x_points, b.y_points), 16384, MAX_BASIN_CELLS)?;
         let (x0, x1, y0, y1) = self.basin_ranges();
-        let r = self.model.r;
+        let r = self.model.clearance;
         for (key, c, v) in [
             ("basin.x_from", b.x, x0),
             ("basin.x_to", b.x, x1),

@@ -10,7 +10,7 @@ use super::layout::{
     U_TAN_BAD, U_TRUNCATED, U_WRONG_SLIPS, UTAB_BYTES, VARY_NONE, WORKGROUP, Y_MAIN, Y_SLOTS, at,
 };
 use super::{Gpu, GpuError, Job};
-use crate::classify::{BLOCKS, Growth, PeriodDetector, birkhoff_digits, block_len};
+use crate::classify::{BLOCKS, Exponent, Growth, PeriodDetector, birkhoff_digits, block_len};
 use crate::method::{Diagnostics, ImpactMethod, RunResult, forcing_table, half_step};
 use crate::model::{Mode, Params, initial_mode};
 use crate::real::Real;
@@ -395,23 +395,22 @@ impl<F: Real> ReadBack<F> {
             // Mean log growth per unit time over the sampled periods, and its batch-means
             // error (the kernel's blocks complete as Growth's do over `count` periods).
             let ring = |slot| self.ring[at(slot, self.m, i)].to_f64();
-            let (lyapunov, lyapunov_se) =
-                if spec.settings.lyapunov && u(U_TAN_BAD) == 0 && count > 0 {
-                    let eta = job.points.params(&spec.params, self.start + i).eta;
-                    let period = 2.0 * std::f64::consts::PI / eta;
-                    let len = block_len(spec.samples);
-                    let blocks = (count / len).min(BLOCKS);
-                    Growth::exponent_from(
-                        ring(R_LOG_SUM),
-                        count,
-                        len,
-                        blocks,
-                        ring(R_BLOCK_M2),
-                        period,
-                    )
-                } else {
-                    (f64::NAN, f64::NAN)
-                };
+            let lyapunov = if spec.settings.lyapunov && u(U_TAN_BAD) == 0 && count > 0 {
+                let eta = job.points.params(&spec.params, self.start + i).eta;
+                let period = 2.0 * std::f64::consts::PI / eta;
+                let len = block_len(spec.samples);
+                let blocks = (count / len).min(BLOCKS);
+                Growth::exponent_from(
+                    ring(R_LOG_SUM),
+                    count,
+                    len,
+                    blocks,
+                    ring(R_BLOCK_M2),
+                    period,
+                )
+            } else {
+                Exponent::NONE
+            };
             let complete = count >= 2 * (spec.samples / 2) && spec.samples >= 2;
             let torus = if complete {
                 birkhoff_digits(ring(R_WB_FIRST), ring(R_WB_SECOND), ring(R_LO), ring(R_HI))
@@ -425,11 +424,10 @@ impl<F: Real> ReadBack<F> {
                 crate::method::energy(&diag, n_samples, spec.settings.steps_per_period);
             results.push(RunResult {
                 exponent_lost: spec.settings.lyapunov
-                    && lyapunov.is_nan()
+                    && lyapunov.value.is_nan()
                     && u(U_NONFINITE) == 0
                     && count > 0,
                 lyapunov,
-                lyapunov_se,
                 torus,
                 tail,
                 samples,

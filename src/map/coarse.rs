@@ -53,7 +53,7 @@ pub const CLEAR_CHAOTIC: f64 = 3.0;
 /// corners always refine.
 fn clear(s: &Summary, tol: f64, chaotic: f64) -> bool {
     match s.class {
-        Class::Chaotic => s.lyapunov > chaotic * tol,
+        Class::Chaotic => s.lyapunov.value > chaotic * tol,
         Class::Periodic(_) => s.multiplier < 0.95,
         Class::NoImpact => true,
         _ => false,
@@ -149,7 +149,7 @@ pub fn coarse_grid<E>(
                         if known[c].is_none() {
                             // The class of the corners; no exponent or multiplier is claimed.
                             let mut s = cs[0].0;
-                            s.lyapunov = f64::NAN;
+                            s.lyapunov.value = f64::NAN;
                             s.multiplier = f64::NAN;
                             s.periods = 0;
                             known[c] = Some((s, 1));

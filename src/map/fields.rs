@@ -129,7 +129,7 @@ map_layers! {
     /// Mean impacts per sampled forcing period.
     impacts_per_period: [f64; 1] = |c| [c.impacts_per_period];
     /// Largest Lyapunov exponent per unit time; NaN where no estimate exists.
-    lyapunov: [Option<f64>; 1] = |c| [finite(c.lyapunov)];
+    lyapunov: [Option<f64>; 1] = |c| [finite(c.lyapunov.value)];
     /// Largest Floquet multiplier modulus of the cell's stable cycle; NaN where not periodic.
     multiplier: [Option<f64>; 1] = |c| [finite(c.multiplier)];
     /// Impacts over the run.
@@ -153,7 +153,7 @@ map_layers! {
     /// 1 where `--refine` filled the cell from the corners of a uniform block.
     inferred: [u8; 1] = |_c| [0];
     /// Standard error of the exponent (batch means); NaN where the exponent is NaN.
-    lyapunov_se: [Option<f64>; 1] = |c| [finite(c.lyapunov_se)];
+    lyapunov_se: [Option<f64>; 1] = |c| [finite(c.lyapunov.se)];
     /// Agreeing digits of the torus test over the cell's last window; NaN without one.
     torus: [Option<f64>; 1] = |c| [finite(c.torus)];
     /// The rule that decided the cell: 0 stable cycle, 1 positive exponent, 2 torus, 3 no impact, 4 failed, 5 no exponent, 6 undecided, 7 exponent lost (docs/classes.md).

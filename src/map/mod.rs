@@ -62,7 +62,12 @@ pub fn start_states(cfg: &Config, k: usize) -> Vec<[f64; 4]> {
             }
             let u = (j as f64 * 0.618_033_988_749_895).fract();
             let w = (j as f64 * 0.754_877_666_246_693).fract();
-            [0.0, 0.0, 0.9 * cfg.model.r * (2.0 * u - 1.0), 2.0 * w - 1.0]
+            [
+                0.0,
+                0.0,
+                0.9 * cfg.model.clearance * (2.0 * u - 1.0),
+                2.0 * w - 1.0,
+            ]
         })
         .collect()
 }

@@ -71,7 +71,7 @@ impl<F: Real, const N: usize> LaneParams<F, N> {
         self.delta[l] = it.p.delta;
         self.mu[l] = it.p.mu;
         self.inv_mu[l] = crate::model::inv_mu(&it.p);
-        self.r[l] = it.p.r;
+        self.r[l] = it.p.clearance;
         self.h[l] = it.h;
     }
 

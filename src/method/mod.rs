@@ -8,7 +8,7 @@
 //! number of events per step. The forcing phase is kept as (step index, fraction of the step),
 //! so no large-argument cosine is ever evaluated.
 
-use crate::classify::{Birkhoff, Growth, tail_of};
+use crate::classify::{Birkhoff, Exponent, Growth, tail_of};
 use crate::model::{
     Mode, Params, co_move, field, friction_power, impact, impact_loss, initial_mode, mode_at_rest,
     needed_force, needed_force_rate,
@@ -237,14 +237,28 @@ impl<F: Real> Integrator<F> {
                 let zd1 = (y1[3] - y1[1]) * dt;
                 // A stop already passed and still approached (round-off, or a step whose event
                 // budget ran out) is an impact right now: m2 never goes through a stop.
-                if p.r - z0 <= F::zero() && zd0 > F::zero() {
+                if p.clearance - z0 <= F::zero() && zd0 > F::zero() {
                     return (F::zero(), EV_IMPACT_POS);
                 }
-                if p.r + z0 <= F::zero() && zd0 < F::zero() {
+                if p.clearance + z0 <= F::zero() && zd0 < F::zero() {
                     return (F::zero(), EV_IMPACT_NEG);
                 }
-                b[0] = bracket(p.r - z0, p.r - z1, -zd0, -zd1, F::zero(), EV_IMPACT_POS);
-                b[1] = bracket(p.r + z0, p.r + z1, zd0, zd1, F::zero(), EV_IMPACT_NEG);
+                b[0] = bracket(
+                    p.clearance - z0,
+                    p.clearance - z1,
+                    -zd0,
+                    -zd1,
+                    F::zero(),
+                    EV_IMPACT_POS,
+                );
+                b[1] = bracket(
+                    p.clearance + z0,
+                    p.clearance + z1,
+                    zd0,
+                    zd1,
+                    F::zero(),
+                    EV_IMPACT_NEG,
+                );
             }
             // Slip reversal: s*v reaches 0.
             let s = if mode == Mode::SlipPos {
@@ -342,7 +356,7 @@ impl<F: Real> Integrator<F> {
             } else {
                 -F::one()
             };
-            return clear_of_stops(p.r, z0, z1, zd0, zd1)
+            return clear_of_stops(p.clearance, z0, z1, zd0, zd1)
                 & clear_of(
                     s * (y0[1] - y0[3]),
                     s * (y1[1] - y1[3]),
@@ -429,14 +443,19 @@ impl<F: Real> Integrator<F> {
         }
         let z = st.y[2] - st.y[0];
         let zd = st.y[3] - st.y[1];
-        let stop = if z > self.p.r && zd > F::zero() {
+        let stop = if z > self.p.clearance && zd > F::zero() {
             1
-        } else if z < -self.p.r && zd < F::zero() {
+        } else if z < -self.p.clearance && zd < F::zero() {
             -1
         } else {
             return false;
         };
-        st.y[2] = st.y[0] + if stop > 0 { self.p.r } else { -self.p.r };
+        st.y[2] = st.y[0]
+            + if stop > 0 {
+                self.p.clearance
+            } else {
+                -self.p.clearance
+            };
         let ev = if stop > 0 {
             EV_IMPACT_POS
         } else {

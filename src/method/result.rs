@@ -138,15 +138,13 @@ pub struct RunResult {
     pub diag: Diagnostics,
     pub final_y: [f64; 4],
     pub final_mode: Mode,
-    /// Largest Lyapunov exponent per unit time over the sampled periods (NaN when not
-    /// computed or when the tangent vector overflowed).
-    pub lyapunov: f64,
+    /// Largest Lyapunov exponent per unit time over the sampled periods and its standard
+    /// error by batch means (NaN when not computed or when the tangent vector overflowed).
+    pub lyapunov: crate::classify::Exponent,
     /// The exponent was asked for but the tangent vector left the finite range while the state
     /// did not (f32 overflows first): no exponent, and none of the conclusions drawn from
     /// its absence ([`crate::classify::Rule::ExponentLost`]).
     pub exponent_lost: bool,
-    /// Its standard error by batch means ([`crate::classify::Growth`]); NaN with the exponent.
-    pub lyapunov_se: f64,
     /// Agreeing digits of the torus test over the sampled window
     /// ([`crate::classify::Birkhoff`]); NaN without two full halves.
     pub torus: f64,
@@ -207,8 +205,7 @@ impl RunResult {
             self.diag.nonfinite = true;
         }
         if self.diag.nonfinite {
-            self.lyapunov = f64::NAN;
-            self.lyapunov_se = f64::NAN;
+            self.lyapunov = crate::classify::Exponent::NONE;
         }
     }
 
@@ -218,7 +215,6 @@ impl RunResult {
             detected,
             tail: &self.tail,
             lyapunov: self.lyapunov,
-            lyapunov_se: self.lyapunov_se,
             torus: self.torus,
             exponent_lost: self.exponent_lost,
         }
@@ -227,7 +223,7 @@ impl RunResult {
     /// Pools this window's exponent with the windows before it (`pool`), keeping the pooled
     /// exponent and error.
     pub fn pool(&mut self, pool: &mut crate::classify::Pool) {
-        (self.lyapunov, self.lyapunov_se) = pool.add(self.lyapunov, self.lyapunov_se);
+        self.lyapunov = pool.add(self.lyapunov);
     }
 
     /// Mean impacts per sampled period.

@@ -79,12 +79,12 @@ impl<F: Real> Integrator<F> {
 
     /// The largest exponent and its standard error per unit time from the log growth over the
     /// sampled periods; NaN without a running tangent or samples.
-    pub(crate) fn exponent(&self, tangent_ok: bool, growth: &Growth, samples: u32) -> (f64, f64) {
+    pub(crate) fn exponent(&self, tangent_ok: bool, growth: &Growth, samples: u32) -> Exponent {
         let period = 2.0 * std::f64::consts::PI / self.p.eta.to_f64();
         if tangent_ok && samples > 0 {
             growth.exponent(period)
         } else {
-            (f64::NAN, f64::NAN)
+            Exponent::NONE
         }
     }
 
@@ -94,17 +94,16 @@ impl<F: Real> Integrator<F> {
         st: &PointState<F>,
         samples: Vec<[f64; 4]>,
         before: u64,
-        (lyapunov, lyapunov_se): (f64, f64),
+        lyapunov: Exponent,
     ) -> RunResult {
         let mut torus = Birkhoff::new(samples.len() as u32);
         let (dissipation, stick_fraction) = energy(&st.diag, samples.len(), self.n);
         samples.iter().for_each(|s| torus.push(s[0]));
         RunResult {
             exponent_lost: self.lyapunov
-                && lyapunov.is_nan()
+                && lyapunov.value.is_nan()
                 && !st.diag.nonfinite
                 && !samples.is_empty(),
-            lyapunov_se,
             torus: torus.digits(),
             tail: tail_of(&samples),
             samples,

@@ -377,7 +377,10 @@ fn model_line(cfg: &Config, all: bool) -> String {
         ),
     };
     let rest = if all {
-        format!(", r={}, delta={}, b1={}, mu={}", m.r, m.delta, m.b1, m.mu)
+        format!(
+            ", r={}, delta={}, b1={}, mu={}",
+            m.clearance, m.delta, m.b1, m.mu
+        )
     } else {
         String::new()
     };
@@ -507,7 +510,7 @@ pub fn caption(p: &PointPlot) -> String {
         n = p.options.periods,
         from = sh.from,
         to = sh.to,
-        rr = c.model.r,
+        rr = c.model.clearance,
         imp = sh.impacts_pos + sh.impacts_neg,
         ip = sh.impacts_pos,
         im = sh.impacts_neg,
@@ -595,7 +598,7 @@ impl FigureData {
         let stick = span(|m| m == Mode::Stick);
         let lock = span(|m| matches!(m, Mode::LockPos | Mode::LockNeg));
         let impacts: Vec<&EventRecord> = p.events.iter().filter(|e| e.is_impact()).collect();
-        let r = p.cfg.model.r;
+        let r = p.cfg.model.clearance;
         let imp_t: Vec<(f64, f64)> = impacts
             .iter()
             .map(|e| (e.t, if e.kind == "impact+" { r } else { -r }))
@@ -677,7 +680,7 @@ pub fn write_outputs(prefix: &Path, p: &PointPlot) -> Result<Vec<PathBuf>> {
         titles: [&t[0], &t[1], &t[2], &t[3], &t[4]],
         width: WIDTH,
         height: HEIGHT,
-        stop: m.r,
+        stop: m.clearance,
         z: &d.z,
         v: &d.v,
         stick: &d.stick,

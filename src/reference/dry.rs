@@ -105,7 +105,7 @@ impl DryReference {
             fk: p.fk,
             l1: p.l1,
             l2: p.l2,
-            r: p.r,
+            r: p.clearance,
             delta: p.delta,
             b1: p.b1,
             mu: p.mu,

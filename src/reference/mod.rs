@@ -198,7 +198,7 @@ impl From<&crate::model::Params<f64>> for FrictionlessParams {
             eta: p.eta,
             b1: p.b1,
             restitution: p.restitution,
-            r: p.r,
+            r: p.clearance,
             mu: p.mu,
         }
     }
@@ -215,7 +215,7 @@ pub fn frictionless_case() -> crate::model::Params<f64> {
         fk: 0.0,
         l1: 0.0,
         l2: 0.0,
-        r: 1.0,
+        clearance: 1.0,
         delta: 0.0,
         b1: 0.2,
         mu: 0.5,

@@ -27,7 +27,7 @@ pub struct Uncertain {
 /// The physical bounds of a parameter (where the truncated normal is cut).
 pub(super) fn bounds(p: Param) -> (f64, f64) {
     match p {
-        Param::R => (0.0, 1.0),
+        Param::Restitution => (0.0, 1.0),
         _ => (0.0, f64::INFINITY),
     }
 }
