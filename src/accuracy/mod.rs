@@ -165,6 +165,20 @@ pub fn study(
     o: &Options,
     log: &mut dyn FnMut(&str),
 ) -> Result<(Vec<Row>, ReferenceInfo)> {
+    check_options(o)?;
+    let engines: Vec<Engine> = o
+        .backends
+        .iter()
+        .map(|&b| Engine::open(b))
+        .collect::<Result<_, _>>()?;
+    let (mut rows, meta) = error_rows(cfg, o, &engines, log)?;
+    rows.extend(failure_rows(cfg, o, &engines[0], log)?);
+    rows.extend(stress_rows(o));
+    Ok((rows, meta))
+}
+
+/// The study's own options, checked before any computing.
+fn check_options(o: &Options) -> Result<()> {
     if o.ensemble == 0 {
         return Err(OptionError::Range {
             option: "ensemble",
@@ -182,27 +196,20 @@ pub fn study(
         .into());
     }
     crate::memory::check_option("ensemble", o.ensemble as u64, 1)?;
-    let mut rows = Vec::new();
-    let engines: Vec<Engine> = o
-        .backends
-        .iter()
-        .map(|&b| Engine::open(b))
-        .collect::<Result<_, _>>()?;
-    let combos = || {
-        let mut v = Vec::new();
-        for e in &engines {
-            for m in [ImpactMethod::Located, ImpactMethod::Naive] {
-                for p in [Precision::F32, Precision::F64] {
-                    v.push((e, m, p));
-                }
-            }
-        }
-        v
-    };
+    Ok(())
+}
 
-    // (b) Reference for the full model: CPU f64 at N_REF, checked against 2 N_REF.
-    let base = cfg.params();
-    let p0 = base;
+/// Error against a reference at every step count, for every backend, impact method and
+/// precision: (a) the frictionless case against its closed form, (b) the configured point
+/// against CPU f64 at `N_REF` (checked against `2 N_REF`).
+fn error_rows(
+    cfg: &Config,
+    o: &Options,
+    engines: &[Engine],
+    log: &mut dyn FnMut(&str),
+) -> Result<(Vec<Row>, ReferenceInfo)> {
+    let mut rows = Vec::new();
+    let p0 = cfg.params();
     let (_, _, r_ref) = point_outcome(&p0, N_REF, ImpactMethod::Located, true, o.transient, 1);
     let (c_ref, _, _) = point_outcome(&p0, N_REF, ImpactMethod::Located, true, o.transient, 100);
     let (_, _, r_ref2) = point_outcome(&p0, 2 * N_REF, ImpactMethod::Located, true, o.transient, 1);
@@ -219,14 +226,10 @@ pub fn study(
 
     let case_main = format!(
         "{} eta={}",
-        if cfg.params().l1 > 0.0 {
-            "stribeck"
-        } else {
-            "coulomb"
-        },
+        if p0.l1 > 0.0 { "stribeck" } else { "coulomb" },
         p0.eta
     );
-    for (engine, m, prec) in combos() {
+    for (engine, m, prec) in combos(engines) {
         for &n in &NS {
             for (case, params, transient, reference) in [
                 ("frictionless exact, 3 periods", fp, 2u32, exact),
@@ -278,8 +281,38 @@ pub fn study(
             prec.name()
         ));
     }
+    let meta = ReferenceInfo {
+        case: case_main,
+        class: c_ref.name(),
+        n: N_REF,
+        change_at_2n: ref_change,
+        transient_periods: o.transient,
+        ensemble: o.ensemble,
+    };
+    Ok((rows, meta))
+}
 
-    // Failure fractions over a reduced sweep of the configuration, against CPU f64 at N_REF.
+/// Every (backend, impact method, precision) the error rows cover.
+fn combos(engines: &[Engine]) -> Vec<(&Engine, ImpactMethod, Precision)> {
+    let mut v = Vec::new();
+    for e in engines {
+        for m in [ImpactMethod::Located, ImpactMethod::Naive] {
+            for p in [Precision::F32, Precision::F64] {
+                v.push((e, m, p));
+            }
+        }
+    }
+    v
+}
+
+/// Failure fractions over a reduced sweep of the configuration, against CPU f64 at `N_REF`.
+fn failure_rows(
+    cfg: &Config,
+    o: &Options,
+    engine: &Engine,
+    log: &mut dyn FnMut(&str),
+) -> Result<Vec<Row>> {
+    let mut rows = Vec::new();
     let mut spec = RunSpec::new(cfg);
     spec.transient = o.transient;
     spec.samples = 100;
@@ -295,7 +328,6 @@ pub fn study(
     let (rref, _) = Engine::Cpu.run(&sref, &points, &Silent)?;
     let class_ref = classes_of(&rref);
     log("failure reference done");
-    let engine = &engines[0];
     for m in [ImpactMethod::Located, ImpactMethod::Naive] {
         for prec in [Precision::F32, Precision::F64] {
             for &n in &NS {
@@ -338,8 +370,12 @@ pub fn study(
             ));
         }
     }
+    Ok(rows)
+}
 
-    // Stress cases (CPU; classes and impact counts against the N_REF reference).
+/// Stress cases (CPU; classes and impact counts against the `N_REF` reference).
+fn stress_rows(o: &Options) -> Vec<Row> {
+    let mut rows = Vec::new();
     for s in stress_cases() {
         let (cr, ir, _) = point_outcome(
             &s.params,
@@ -371,15 +407,7 @@ pub fn study(
             }
         }
     }
-    let meta = ReferenceInfo {
-        case: case_main,
-        class: c_ref.name(),
-        n: N_REF,
-        change_at_2n: ref_change,
-        transient_periods: o.transient,
-        ensemble: o.ensemble,
-    };
-    Ok((rows, meta))
+    rows
 }
 
 /// The f32 run's section point refined in f64 by Newton's method at the run's own N (the
@@ -464,17 +492,72 @@ pub fn write_outputs(
     seconds: f64,
 ) -> Result<Vec<PathBuf>> {
     let mut st = Staged::new();
-    let csv_path = with_ext(out, "csv");
-    {
-        let err = |e| Error::csv(&csv_path, e);
-        let mut w = csv::Writer::from_path(st.path(&csv_path)).map_err(err)?;
-        for r in rows {
-            w.serialize(r).map_err(err)?;
-        }
-        w.flush()
-            .map_err(|e| Error::csv(&csv_path, csv::Error::from(e)))?;
-    }
+    write_csv(&mut st, &with_ext(out, "csv"), rows)?;
+    let (series, orders) = work_precision_series(rows, reference.case.as_str());
     let case = reference.case.as_str();
+    let title = format!("work-precision at {case} (section point of the attractor)");
+    let plot = LinePlot {
+        title: &title,
+        x_label: "seconds per parameter point",
+        y_label: "max |error| of the section point",
+        x_scale: Scale::Log10,
+        y_scale: Scale::Log10,
+        series: &series,
+        width: 1200,
+        height: 800,
+    };
+    line_plot_png(&st.path(&with_ext(out, "png")), &plot)?;
+    line_plot_svg(&st.path(&with_ext(out, "svg")), &plot)?;
+    // Failure chart: class mismatch against the reference, per method, precision and backend.
+    let fseries = failure_series(rows);
+    let sweep_points = rows
+        .iter()
+        .find(|r| r.kind == "failure")
+        .map_or(String::new(), |r| r.case.clone());
+    let y_label = "% of sweep points (linear below 1%, logarithmic above)";
+    let fplot = LinePlot {
+        title: "class differs from the reference (located, f64, N = 4096)",
+        x_label: "steps per forcing period N",
+        y_label,
+        x_scale: Scale::Log2,
+        // Linear up to 1% so that zero has a place; the 1-4% lines stay apart from 40-70%.
+        y_scale: Scale::SymLog { linear_below: 1.0 },
+        series: &fseries,
+        width: 1200,
+        height: 800,
+    };
+    let fpath = crate::output::with_suffix(out, "failure");
+    line_plot_png(&st.path(&with_ext(&fpath, "png")), &fplot)?;
+    line_plot_svg(&st.path(&with_ext(&fpath, "svg")), &fplot)?;
+    let caption = work_precision_caption(rows, reference, &orders);
+    let failure_caption = failure_caption(rows, &sweep_points, reference, cfg);
+    let j = AccuracyJson {
+        caption,
+        failure_caption,
+        reference,
+        orders,
+        config: cfg,
+        seconds,
+    };
+    st.write_json(&with_ext(out, "json"), &j)?;
+    Ok(st.commit()?)
+}
+
+/// The study's rows as CSV, one line per row.
+fn write_csv(st: &mut Staged, csv_path: &Path, rows: &[Row]) -> Result<()> {
+    let err = |e| Error::csv(csv_path, e);
+    let mut w = csv::Writer::from_path(st.path(csv_path)).map_err(err)?;
+    for r in rows {
+        w.serialize(r).map_err(err)?;
+    }
+    w.flush()
+        .map_err(|e| Error::csv(csv_path, csv::Error::from(e)))?;
+    Ok(())
+}
+
+/// The work-precision chart's lines (error against seconds per point, one per impact method,
+/// precision and backend) and the observed order of each, for the configured point `case`.
+fn work_precision_series<'a>(rows: &'a [Row], case: &str) -> (Vec<Series>, Vec<OrderJson<'a>>) {
     let mut series = Vec::new();
     let mut orders = Vec::new();
     let mut keys: Vec<(&str, &str, &str)> = rows
@@ -542,20 +625,12 @@ pub fn write_outputs(
             dashed: m == "naive",
         });
     }
-    let title = format!("work-precision at {case} (section point of the attractor)");
-    let plot = LinePlot {
-        title: &title,
-        x_label: "seconds per parameter point",
-        y_label: "max |error| of the section point",
-        x_scale: Scale::Log10,
-        y_scale: Scale::Log10,
-        series: &series,
-        width: 1200,
-        height: 800,
-    };
-    line_plot_png(&st.path(&with_ext(out, "png")), &plot)?;
-    line_plot_svg(&st.path(&with_ext(out, "svg")), &plot)?;
-    // Failure chart: class mismatch against the reference, per method, precision and backend.
+    (series, orders)
+}
+
+/// The failure chart's lines: class mismatch against the reference, per method, precision
+/// and backend, and where any, the overflow or non-finite fraction.
+fn failure_series(rows: &[Row]) -> Vec<Series> {
     let frows = || rows.iter().filter(|r| r.kind == "failure");
     let fkeys = {
         let mut k: Vec<(&str, &str, &str)> = frows()
@@ -598,32 +673,5 @@ pub fn write_outputs(
             });
         }
     }
-    let sweep_points = frows().next().map_or(String::new(), |r| r.case.clone());
-    let y_label = "% of sweep points (linear below 1%, logarithmic above)";
-    let fplot = LinePlot {
-        title: "class differs from the reference (located, f64, N = 4096)",
-        x_label: "steps per forcing period N",
-        y_label,
-        x_scale: Scale::Log2,
-        // Linear up to 1% so that zero has a place; the 1-4% lines stay apart from 40-70%.
-        y_scale: Scale::SymLog { linear_below: 1.0 },
-        series: &fseries,
-        width: 1200,
-        height: 800,
-    };
-    let fpath = crate::output::with_suffix(out, "failure");
-    line_plot_png(&st.path(&with_ext(&fpath, "png")), &fplot)?;
-    line_plot_svg(&st.path(&with_ext(&fpath, "svg")), &fplot)?;
-    let caption = work_precision_caption(rows, reference, &orders);
-    let failure_caption = failure_caption(rows, &sweep_points, reference, cfg);
-    let j = AccuracyJson {
-        caption,
-        failure_caption,
-        reference,
-        orders,
-        config: cfg,
-        seconds,
-    };
-    st.write_json(&with_ext(out, "json"), &j)?;
-    Ok(st.commit()?)
+    fseries
 }

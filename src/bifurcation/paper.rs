@@ -140,29 +140,9 @@ fn paper_caption(
     )
 }
 
-/// The paper's Figs. 2, 3, 4a and 4b side by side (the built-in configs, or `fig2.toml` ...
-/// `fig4b.toml` in `dir`; each changed by `adjust`), written to `out` with its caption in `out`
-/// with the extension `.json`. Progress counts sweep points.
-///
-/// The panels share their axes (the same eta range and one y range over all four), carry the
-/// letters (a)-(d), and leave out isolated samples (no other sample within 2 pixels: stray
-/// transients, and the sparsest chaotic samples; their number is in the JSON and caption).
-pub fn paper_figure(
-    dir: Option<&Path>,
-    adjust: &dyn Fn(&mut Config),
-    out: &Path,
-    progress: &dyn Progress,
-) -> Result<Vec<PathBuf>> {
-    let cfgs = paper_configs(dir, adjust)?;
-    let mut data = Vec::new();
-    for (name, cfg) in cfgs {
-        let engine = Engine::open(cfg.method.backend)?;
-        let b = run(&engine, &cfg, None, &Silent)?;
-        progress.advance(cfg.sweep.points as u64);
-        let xy = plot_points(&cfg.sweep.plot, &b.runs[0].1);
-        data.push((name, xy, b));
-    }
-    // One x range and one y range for all panels, so that they can be compared by eye.
+/// The x range that holds every panel's sweep and the y range of every finite sample inside
+/// it (3% margins), shared by the panels.
+fn shared_ranges(data: &[PanelData]) -> Result<((f64, f64), (f64, f64))> {
     let x0 = data
         .iter()
         .map(|d| d.2.cfg.sweep.from.min(d.2.cfg.sweep.to))
@@ -186,6 +166,33 @@ pub fn paper_figure(
     }
     let m = 0.03 * (hi - lo).max(1e-9);
     let y_range = (lo - m, hi + m);
+    Ok(((x0, x1), y_range))
+}
+
+/// The paper's Figs. 2, 3, 4a and 4b side by side (the built-in configs, or `fig2.toml` ...
+/// `fig4b.toml` in `dir`; each changed by `adjust`), written to `out` with its caption in `out`
+/// with the extension `.json`. Progress counts sweep points.
+///
+/// The panels share their axes (the same eta range and one y range over all four), carry the
+/// letters (a)-(d), and leave out isolated samples (no other sample within 2 pixels: stray
+/// transients, and the sparsest chaotic samples; their number is in the JSON and caption).
+pub fn paper_figure(
+    dir: Option<&Path>,
+    adjust: &dyn Fn(&mut Config),
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<Vec<PathBuf>> {
+    let cfgs = paper_configs(dir, adjust)?;
+    let mut data = Vec::new();
+    for (name, cfg) in cfgs {
+        let engine = Engine::open(cfg.method.backend)?;
+        let b = run(&engine, &cfg, None, &Silent)?;
+        progress.advance(cfg.sweep.points as u64);
+        let xy = plot_points(&cfg.sweep.plot, &b.runs[0].1);
+        data.push((name, xy, b));
+    }
+    // One x range and one y range for all panels, so that they can be compared by eye.
+    let ((x0, x1), y_range) = shared_ranges(&data)?;
     let titles: Vec<String> = data
         .iter()
         .zip(['a', 'b', 'c', 'd'])

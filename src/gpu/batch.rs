@@ -175,6 +175,55 @@ pub(super) struct Batch<F> {
     _f: PhantomData<F>,
 }
 
+/// The per-point slots a batch starts from (`ys`, `us`): the initial state, its mode, the
+/// failure flag of non-finite input and the period detector's "every period possible".
+fn initial_slots<F: Real>(job: &Job, range: Range<usize>) -> (Vec<F>, Vec<u32>) {
+    let (pts, spec) = (&job.points, job.spec);
+    let nv = pts.vary.len();
+    let (start, m) = (range.start, range.len());
+    let mut ys = vec![F::zero(); Y_SLOTS as usize * m];
+    let mut us = vec![0u32; U_SLOTS as usize * m];
+    for i in 0..m {
+        let y0 = pts.y0(spec, start + i);
+        let mut p: Params<F> = spec.params.cast();
+        for (c, v) in pts.vary.iter().enumerate() {
+            v.set(&mut p, F::of(pts.values[(start + i) * nv + c]));
+        }
+        let yf = y0.map(F::of);
+        for (c, &v) in yf.iter().enumerate() {
+            ys[at(Y_MAIN + c as u32, m, i)] = v;
+        }
+        let mode = pts
+            .mode0(start + i)
+            .unwrap_or_else(|| initial_mode(&p, &yf, F::one()));
+        us[at(U_MODE, m, i)] = mode as u32;
+        // Non-finite input fails the point before it runs (as `Integrator::start`).
+        us[at(U_NONFINITE, m, i)] = (!p.is_finite() || !yf.iter().all(|v| v.is_finite())) as u32;
+        // Every period is possible until a sample rules it out.
+        us[at(U_DET_LO, m, i)] = u32::MAX;
+        us[at(U_DET_HI, m, i)] = u32::MAX;
+    }
+    (ys, us)
+}
+
+/// The dispatch grid of `m` points: beyond the per-dimension limit the workgroups fill rows
+/// of a 2-D grid.
+fn dispatch_grid(gpu: &Gpu, job: &Job, m: usize) -> Result<(u32, u32), GpuError> {
+    let groups = (m as u32).div_ceil(WORKGROUP);
+    let max_dim = job
+        .max_groups_per_dim
+        .unwrap_or(u32::MAX)
+        .min(gpu.limits.max_compute_workgroups_per_dimension);
+    let gx = groups.min(max_dim).max(1);
+    let gy = groups.div_ceil(gx);
+    if gy > max_dim {
+        return Err(GpuError::Job(format!(
+            "{m} points exceed a {max_dim}^2 dispatch"
+        )));
+    }
+    Ok((gx, gy))
+}
+
 impl<F: Real + Pod> Batch<F> {
     /// Uploads the per-point values and initial states of the points in `range`. `pipelines`:
     /// the job's kernel, and the one for transient periods if it differs.
@@ -198,29 +247,7 @@ impl<F: Real + Pod> Batch<F> {
                 .map(|&v| F::of(v))
                 .collect()
         };
-        let mut ys = vec![F::zero(); Y_SLOTS as usize * m];
-        let mut us = vec![0u32; U_SLOTS as usize * m];
-        for i in 0..m {
-            let y0 = pts.y0(spec, start + i);
-            let mut p: Params<F> = spec.params.cast();
-            for (c, v) in pts.vary.iter().enumerate() {
-                v.set(&mut p, F::of(pts.values[(start + i) * nv + c]));
-            }
-            let yf = y0.map(F::of);
-            for (c, &v) in yf.iter().enumerate() {
-                ys[at(Y_MAIN + c as u32, m, i)] = v;
-            }
-            let mode = pts
-                .mode0(start + i)
-                .unwrap_or_else(|| initial_mode(&p, &yf, F::one()));
-            us[at(U_MODE, m, i)] = mode as u32;
-            // Non-finite input fails the point before it runs (as `Integrator::start`).
-            us[at(U_NONFINITE, m, i)] =
-                (!p.is_finite() || !yf.iter().all(|v| v.is_finite())) as u32;
-            // Every period is possible until a sample rules it out.
-            us[at(U_DET_LO, m, i)] = u32::MAX;
-            us[at(U_DET_HI, m, i)] = u32::MAX;
-        }
+        let (ys, us) = initial_slots::<F>(job, range.clone());
         let fsz = size_of::<F>() as u64;
         let pvals = gpu.storage_init("pvals", bytemuck::cast_slice(&pv));
         let ys = gpu.storage_init("ys", bytemuck::cast_slice(&ys));
@@ -243,19 +270,7 @@ impl<F: Real + Pod> Batch<F> {
             ],
         });
 
-        // Beyond the per-dimension limit the workgroups fill rows of a 2-D grid.
-        let groups = (m as u32).div_ceil(WORKGROUP);
-        let max_dim = job
-            .max_groups_per_dim
-            .unwrap_or(u32::MAX)
-            .min(gpu.limits.max_compute_workgroups_per_dimension);
-        let gx = groups.min(max_dim).max(1);
-        let gy = groups.div_ceil(gx);
-        if gy > max_dim {
-            return Err(GpuError::Job(format!(
-                "{m} points exceed a {max_dim}^2 dispatch"
-            )));
-        }
+        let (gx, gy) = dispatch_grid(gpu, job, m)?;
         let s = &spec.settings;
         let code = |c: usize| pts.vary.get(c).map_or(VARY_NONE, |v| v.code());
         let control = Control {

@@ -86,6 +86,26 @@ pub fn compute_coarse(
     Ok(r)
 }
 
+impl Block {
+    /// The block split at its midpoints along each side longer than one cell.
+    fn split(&self) -> Vec<Block> {
+        let (xm, ym) = ((self.x0 + self.x1) / 2, (self.y0 + self.y1) / 2);
+        let xs = if self.x1 - self.x0 > 1 {
+            vec![(self.x0, xm), (xm, self.x1)]
+        } else {
+            vec![(self.x0, self.x1)]
+        };
+        let ys = if self.y1 - self.y0 > 1 {
+            vec![(self.y0, ym), (ym, self.y1)]
+        } else {
+            vec![(self.y0, self.y1)]
+        };
+        ys.iter()
+            .flat_map(|&(y0, y1)| xs.iter().map(move |&(x0, x1)| Block { x0, x1, y0, y1 }))
+            .collect()
+    }
+}
+
 /// The refinement of an `nx` x `ny` grid (row-major) with coarse spacing `k`, where `compute`
 /// integrates the listed cells (ascending, each once; its timings are the caller's). Kept apart
 /// from the engine so that the rule can be tested on classes with a known boundary.
@@ -160,24 +180,12 @@ pub fn coarse_grid<E>(
                 continue;
             }
             // Split at the midpoints; the new corners are computed at the next level.
-            let (xm, ym) = ((b.x0 + b.x1) / 2, (b.y0 + b.y1) / 2);
-            let xs = if b.x1 - b.x0 > 1 {
-                vec![(b.x0, xm), (xm, b.x1)]
-            } else {
-                vec![(b.x0, b.x1)]
-            };
-            let ys = if b.y1 - b.y0 > 1 {
-                vec![(b.y0, ym), (ym, b.y1)]
-            } else {
-                vec![(b.y0, b.y1)]
-            };
-            for &(y0, y1) in &ys {
-                for &(x0, x1) in &xs {
-                    next.push(Block { x0, x1, y0, y1 });
-                    for (x, y) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
-                        todo.push(y * nx + x);
-                    }
-                }
+            for q in b.split() {
+                todo.extend(
+                    [(q.x0, q.y0), (q.x1, q.y0), (q.x0, q.y1), (q.x1, q.y1)]
+                        .map(|(x, y)| y * nx + x),
+                );
+                next.push(q);
             }
         }
         if next.is_empty() {

@@ -3,19 +3,20 @@
 //! ([`command`], [`parts`]), coarse-to-fine ([`coarse`]) and the final PNG / NPY / JSON files
 //! ([`files`]).
 
+mod caption;
 pub mod coarse;
 mod command;
 mod fields;
 mod files;
 mod parts;
 
+pub use caption::{RASTER, compare_caption, title};
 pub use command::{
     MapOptions, MapSummary, merge_files, parse_shard, run, run_all_adapters, run_shared, work,
 };
 pub use fields::{Fields, Layer};
 pub use files::{
-    CoarseReport, CompareReport, MapReport, MapTimings, RASTER, category, compare_caption, title,
-    write_compare, write_outputs,
+    CoarseReport, CompareReport, MapReport, MapTimings, category, write_compare, write_outputs,
 };
 pub use parts::{Part, compute_part, merge, part_path, read_part, write_part};
 

@@ -103,6 +103,33 @@ fn finish_scalar<T: FlowTask>(
     t.finish();
 }
 
+/// Starts the task's next flow on lane `l` of `b` (flows of no period end at once); false
+/// when the task is done.
+fn load<T: FlowTask>(
+    b: &mut Batch<f64, Four<f64, NEWTON_LANES>, NEWTON_LANES>,
+    t: &mut T,
+    l: usize,
+    left: &mut u32,
+) -> bool {
+    while let Some((st, n)) = t.flow() {
+        if n == 0 {
+            t.ended(&st, &Tangent::identity(4));
+            continue;
+        }
+        b.q.set(l, t.integrator());
+        b.st[l] = st;
+        b.live[l] = true;
+        for (v, x) in b.tan.0.iter_mut().enumerate() {
+            for (i, xi) in x.iter_mut().enumerate() {
+                xi[l] = if i == v { 1.0 } else { 0.0 };
+            }
+        }
+        *left = n;
+        return true;
+    }
+    false
+}
+
 #[inline(always)]
 fn run_queue_portable<T: FlowTask + Send>(queue: &Queue<T>) {
     let mut start = queue.take_many(NEWTON_LANES).into_iter();
@@ -136,31 +163,6 @@ fn run_queue_portable<T: FlowTask + Send>(queue: &Queue<T>) {
     let mut left = [0u32; NEWTON_LANES];
     let mut waiting = std::iter::once(first).chain(start);
     let mut drained = false;
-    // Starts the task's next flow on lane `l` (flows of no period end at once); false when
-    // the task is done.
-    let load = |b: &mut Batch<f64, Four<f64, NEWTON_LANES>, NEWTON_LANES>,
-                t: &mut T,
-                l: usize,
-                left: &mut u32|
-     -> bool {
-        while let Some((st, n)) = t.flow() {
-            if n == 0 {
-                t.ended(&st, &Tangent::identity(4));
-                continue;
-            }
-            b.q.set(l, t.integrator());
-            b.st[l] = st;
-            b.live[l] = true;
-            for (v, x) in b.tan.0.iter_mut().enumerate() {
-                for (i, xi) in x.iter_mut().enumerate() {
-                    xi[l] = if i == v { 1.0 } else { 0.0 };
-                }
-            }
-            *left = n;
-            return true;
-        }
-        false
-    };
     loop {
         for l in 0..NEWTON_LANES {
             while slot[l].is_none() && !drained {

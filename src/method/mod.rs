@@ -230,42 +230,26 @@ impl<F: Real> Integrator<F> {
         let mut b = [Bracket::none(); 3];
         if mode.is_slip() {
             if !self.naive {
-                // Impact guards r - z and r + z; z' = y4 - y2 comes with the state.
+                // Impact guards r - z and r + z (r the clearance); z' = y4 - y2 comes with
+                // the state.
+                let r = p.clearance;
                 let z0 = y0[2] - y0[0];
                 let z1 = y1[2] - y1[0];
                 let zd0 = (y0[3] - y0[1]) * dt;
                 let zd1 = (y1[3] - y1[1]) * dt;
                 // A stop already passed and still approached (round-off, or a step whose event
                 // budget ran out) is an impact right now: m2 never goes through a stop.
-                if p.clearance - z0 <= F::zero() && zd0 > F::zero() {
+                if r - z0 <= F::zero() && zd0 > F::zero() {
                     return (F::zero(), EV_IMPACT_POS);
                 }
-                if p.clearance + z0 <= F::zero() && zd0 < F::zero() {
+                if r + z0 <= F::zero() && zd0 < F::zero() {
                     return (F::zero(), EV_IMPACT_NEG);
                 }
-                b[0] = bracket(
-                    p.clearance - z0,
-                    p.clearance - z1,
-                    -zd0,
-                    -zd1,
-                    F::zero(),
-                    EV_IMPACT_POS,
-                );
-                b[1] = bracket(
-                    p.clearance + z0,
-                    p.clearance + z1,
-                    zd0,
-                    zd1,
-                    F::zero(),
-                    EV_IMPACT_NEG,
-                );
+                b[0] = bracket(r - z0, r - z1, -zd0, -zd1, F::zero(), EV_IMPACT_POS);
+                b[1] = bracket(r + z0, r + z1, zd0, zd1, F::zero(), EV_IMPACT_NEG);
             }
             // Slip reversal: s*v reaches 0.
-            let s = if mode == Mode::SlipPos {
-                F::one()
-            } else {
-                -F::one()
-            };
+            let s = F::of(if mode == Mode::SlipPos { 1.0 } else { -1.0 });
             let (g0, g1) = (s * (y0[1] - y0[3]), s * (y1[1] - y1[3]));
             let m0 = s * (f0[1] - f0[3]) * dt;
             // A slip past v = 0, or at it and turning against the mode for the step (as where

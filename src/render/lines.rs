@@ -337,20 +337,13 @@ fn draw_line_plot<DB: DrawingBackend>(
                 .map_or(0, |d| d.0)
         })
         .max();
-    let sample_w = (l.tick * 2.2) as i32;
+    let sample_w = legend_sample_width(l.tick);
     let legend_w = text_w.map_or(0, |w| w + sample_w as u32 + (l.tick * 1.5) as u32);
     let legend_w = legend_w.min(plot.width / 2);
     let (left, right) = root.split_horizontally(plot.width - legend_w);
     // A title wider than the plot's side is set smaller, so that it is never cut at the edges.
     let room = f64::from(plot.width - legend_w) - 2.0 * f64::from(l.margin);
-    let title_w = root
-        .estimate_text_size(plot.title, &TextStyle::from((FONT, l.title).into_font()))
-        .map_or(0.0, |d| f64::from(d.0));
-    let title_size = if title_w > room && title_w > 0.0 {
-        l.title * room / title_w
-    } else {
-        l.title
-    };
+    let title_size = fitted_size(root, plot.title, l.title, room);
 
     let mut chart = ChartBuilder::on(&left)
         .caption(plot.title, (FONT, title_size))
@@ -405,7 +398,43 @@ fn draw_line_plot<DB: DrawingBackend>(
 
     // Legend rows from the top of the plotting area.
     let top = chart.plotting_area().get_pixel_range().1.start;
-    let row_h = (l.tick * 1.6) as i32;
+    draw_legend(&right, &legend, top, l.tick, ms, &legend_font)
+}
+
+/// A text size no larger than `size` at which `text` fits in `room` pixels.
+fn fitted_size<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    text: &str,
+    size: f64,
+    room: f64,
+) -> f64 {
+    let w = root
+        .estimate_text_size(text, &TextStyle::from((FONT, size).into_font()))
+        .map_or(0.0, |d| f64::from(d.0));
+    if w > room && w > 0.0 {
+        size * room / w
+    } else {
+        size
+    }
+}
+
+/// The width of a legend row's line sample, for tick labels of size `tick`.
+fn legend_sample_width(tick: f64) -> i32 {
+    (tick * 2.2) as i32
+}
+
+/// The legend beside the plot: one row per labelled series from `top`, its line (dashed as
+/// the series), its marker and its label.
+fn draw_legend<DB: DrawingBackend>(
+    right: &DrawingArea<DB, Shift>,
+    legend: &[(&Series, ShapeStyle, usize)],
+    top: i32,
+    tick: f64,
+    ms: i32,
+    legend_font: &FontDesc,
+) -> Result<(), RenderError> {
+    let sample_w = legend_sample_width(tick);
+    let row_h = (tick * 1.6) as i32;
     for (k, (s, style, shape)) in legend.iter().enumerate() {
         let y = top + k as i32 * row_h + row_h / 2;
         let (x0, x1) = (4, 4 + sample_w);
@@ -425,7 +454,7 @@ fn draw_line_plot<DB: DrawingBackend>(
         with_marker!(*shape, ms, *style, |m| right
             .draw(&m(((x0 + x1) / 2, y)))
             .map_err(draw_err)?);
-        let pos = (x1 + (l.tick * 0.6) as i32, y - (l.tick * 0.5) as i32);
+        let pos = (x1 + (tick * 0.6) as i32, y - (tick * 0.5) as i32);
         right
             .draw(&Text::new(s.label.as_str(), pos, legend_font.clone()))
             .map_err(draw_err)?;

@@ -1,6 +1,7 @@
 //! One parameter point: its class, exponent, diagnostics and samples, as text or JSON; and its
 //! figure ([`plot`]).
 
+mod caption;
 pub mod laminar;
 pub mod plot;
 

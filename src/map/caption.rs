@@ -1,0 +1,211 @@
+//! The captions of a map's set: what the class, exponent and multiplier images show, and how
+//! two configurations' maps differ.
+
+use super::files::MapReport;
+use crate::class::Class;
+use crate::config::Config;
+use crate::render::percent;
+use std::collections::BTreeMap;
+
+/// How large the maps' raster images print (1100 px at 150 dpi).
+pub const RASTER: &str = "18.6 cm wide at 150 dpi";
+
+/// The map's title: the configured one, or the model with the two axes' parameters left out.
+pub fn title(cfg: &Config) -> String {
+    if !cfg.map.title.is_empty() {
+        return cfg.map.title.clone();
+    }
+    crate::caption::model_title(cfg, &[cfg.map.x.name(), cfg.map.y.name()])
+}
+
+/// The caption of a map's JSON.
+pub(super) fn caption(
+    cfg: &Config,
+    report: &MapReport,
+    counts: &BTreeMap<String, usize>,
+    rules: &BTreeMap<String, usize>,
+    coexisting: usize,
+) -> String {
+    let r = &cfg.run;
+    let backend = report.backend.as_deref().unwrap_or("unknown");
+    let device = report
+        .device
+        .clone()
+        .or_else(|| report.devices.as_ref().map(|d| d.join(", ")))
+        .unwrap_or_default();
+    let coex = if coexisting > 0 {
+        format!(
+            " {coexisting} cells reached different attractors from their initial states \
+             (--starts) and are drawn as coexisting attractors; the other classes are those \
+             of the first start."
+        )
+    } else {
+        String::new()
+    };
+    let refined = report.refine.as_ref().map_or(String::new(), |f| {
+        format!(
+            " Coarse-to-fine (--refine {k}): {inf} of {all} cells ({pct}) were not integrated \
+             but filled with the class shared by the corners of their block (PREFIX-inferred.npy; \
+             corners chaotic with an exponent above {c} x {ltol}, periodic with |mu_1| < 0.95, or \
+             without impact), and claim no exponent or multiplier; an island of another class \
+             smaller than its block that touches no corner is missed.",
+            k = f.spacing,
+            inf = f.cells_inferred,
+            all = f.cells_integrated + f.cells_inferred,
+            pct = percent(f.cells_inferred, f.cells_integrated + f.cells_inferred),
+            c = f.chaotic_clear,
+            ltol = r.lyapunov_tol,
+        )
+    });
+    format!(
+        "Class map of the attractor reached at each of {grid}. Each cell starts from y0 = {start:?} and is integrated with {how}; {tr} transient periods, then \
+         {sa} sampled periods. Classes (docs/classes.md): period-n only where Newton's method \
+         converges to a cycle whose Floquet multipliers all lie inside the unit circle, tried at \
+         the detector's period (tolerance {tol}) and at up to {cand} candidate periods <= {maxp} \
+         that the last section values repeat with (relative tolerance {ctol}); chaotic only \
+         where the largest Lyapunov exponent exceeds {z} standard errors (batch means over \
+         {blocks} blocks); quasi-periodic only where the torus test passes (weighted Birkhoff \
+         averages of y1 over the two halves of the window agree to {digits} digits) with an \
+         exponent shown to be within {bound} of zero (|exponent| + {z} standard errors); aperiodic where no exponent was \
+         computed. A cell still undecided gets doubling windows up to {hz} x the configured \
+         periods (PREFIX-periods.npy) and is unresolved only then. Cells by deciding rule: \
+         {rules}. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64) with \
+         lightness steps inside a family; chaotic near-black, quasi-periodic light green. The \
+         legend gives the share and the count of every class shown. Most frequent: \
+         {top}.{coex}{refined} Raster image, 1100 x 800 px ({RASTER}).",
+        grid = grid_phrase(cfg),
+        start = cfg.initial.y,
+        how = crate::caption::computed_with(cfg, backend, &device),
+        tr = r.transient_periods,
+        sa = r.sample_periods,
+        tol = r.period_tol,
+        bound = crate::classify::TORUS_BOUND,
+        cand = crate::classify::MAX_CANDIDATES,
+        maxp = crate::classify::MAX_TRIAL_PERIOD,
+        ctol = crate::classify::CANDIDATE_TOL,
+        z = crate::classify::CHAOS_MARGIN,
+        blocks = crate::classify::BLOCKS,
+        digits = crate::classify::TORUS_DIGITS,
+        hz = r.horizon,
+        rules = rules
+            .iter()
+            .map(|(k, v)| format!("{k} {v}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        top = crate::caption::top_classes(counts, 5),
+    )
+}
+
+/// The grid and model of a map, for the captions of its images.
+fn grid_phrase(cfg: &Config) -> String {
+    let m = &cfg.map;
+    format!(
+        "{nx} x {ny} cell centres: {x} from {x0} to {x1} (horizontal) and {y} from {y0} to {y1} \
+         (vertical); {title}",
+        nx = m.x_points,
+        ny = m.y_points,
+        x = m.x,
+        x0 = m.x_from,
+        x1 = m.x_to,
+        y = m.y,
+        y0 = m.y_from,
+        y1 = m.y_to,
+        title = title(cfg),
+    )
+}
+
+/// The caption of PREFIX-lyapunov.png; None where it is not drawn.
+pub(super) fn lyapunov_caption(cfg: &Config, values: &[f64], clip: f64) -> Option<String> {
+    let v: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    let tol = cfg.run.lyapunov_tol;
+    let pos = v.iter().filter(|&&l| l > tol).count();
+    let zero = v.iter().filter(|&&l| l.abs() <= tol).count();
+    let (lo, hi) = v
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &l| {
+            (a.min(l), b.max(l))
+        });
+    Some(format!(
+        "Largest Lyapunov exponent per unit time at each of {grid}, from the same run as the \
+         class map (one tangent vector through the RK4 stages and the saltation matrices of the \
+         events; a cell whose cycle Newton confirmed carries ln|mu_1| / P). Diverging colours \
+         centred on 0, clipped at the 99th percentile of |exponent| ({clip:.3}); grey: no \
+         exponent (failed, or inferred by refinement). {n} cells with a value, from {lo:.3} to \
+         {hi:.3}: {pos} above +{tol}, {zero} within +-{tol}, the rest below (the classes weigh \
+         each exponent against its standard error, PREFIX-lyapunov_se.npy, not against this \
+         band). Raster image, 1100 x 800 px ({RASTER}).",
+        grid = grid_phrase(cfg),
+        n = v.len(),
+    ))
+}
+
+/// The caption of PREFIX-multiplier.png; None where it is not drawn.
+pub(super) fn multiplier_caption(cfg: &Config, values: &[f64]) -> Option<String> {
+    let v: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    let near = v.iter().filter(|&&m| m > 0.95).count();
+    let hi = v.iter().copied().fold(0.0, f64::max);
+    Some(format!(
+        "Stability margin at each of {grid}: the modulus of the leading Floquet multiplier of \
+         each cell's Newton-confirmed stable cycle (viridis, 0 to 1; 1 is where a cycle loses \
+         stability), grey where no stable cycle was confirmed (aperiodic, no impact, failed, \
+         inferred). {n} periodic cells, largest modulus {hi:.4}; {near} of them above 0.95, \
+         slowly contracting cycles near a bifurcation whose transients a fixed number of \
+         periods may not outlast. Raster image, 1100 x 800 px ({RASTER}).",
+        grid = grid_phrase(cfg),
+        n = v.len(),
+    ))
+}
+
+/// The caption of PREFIX-compare.png.
+pub fn compare_caption(cfg: &Config, other: &Config, a: &[Class], b: &[Class]) -> String {
+    let n = a.len().max(1);
+    let kind = |x: &Class, y: &Class| std::mem::discriminant(x) == std::mem::discriminant(y);
+    let failed = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| **x == Class::Failed || **y == Class::Failed)
+        .count();
+    let period = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| x != y && kind(x, y) && **x != Class::Failed)
+        .count();
+    let motion = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| !kind(x, y) && **x != Class::Failed && **y != Class::Failed)
+        .count();
+    format!(
+        "Where the class of the attractor changes between two configurations on the same grid: \
+         {grid}, against the same model with {diff}. Each cell of both maps is computed as in \
+         the class map (same initial state, method, periods and precision). Light grey: same \
+         class; sky blue: another period ({period} cells, {pp}); vermillion: another type of \
+         motion, e.g. periodic against chaotic or no impact ({motion} cells, {mp}); black: \
+         failed in one of the two ({failed} cells). Okabe-Ito colours, told apart with \
+         colour-vision deficiencies. Raster image, 1100 x 800 px ({RASTER}).",
+        grid = grid_phrase(cfg),
+        diff = model_diff(cfg, other).join(", "),
+        pp = percent(period, n),
+        mp = percent(motion, n),
+    )
+}
+
+/// `key = a -> b` for every model value that differs between two configurations.
+pub(super) fn model_diff(cfg: &Config, other: &Config) -> Vec<String> {
+    let (ma, mb) = (
+        serde_json::to_value(&cfg.model).unwrap_or_default(),
+        serde_json::to_value(&other.model).unwrap_or_default(),
+    );
+    ma.as_object()
+        .into_iter()
+        .flatten()
+        .filter(|(k, v)| mb.get(k.as_str()) != Some(v))
+        .map(|(k, v)| format!("{k} = {v} -> {}", mb[k.as_str()]))
+        .collect()
+}
