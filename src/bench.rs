@@ -37,6 +37,9 @@ pub enum Schedule {
     /// The CPU twin one point per task (the schedule before the lanes, the reference of the
     /// kernel's speed target).
     Scalar,
+    /// Rung 0 of the ladder: the bare RK4 step of the model (`shaders/bare.wgsl`, its CPU twin
+    /// `method::bare`), what the backend does for a step with nothing else to do.
+    Bare,
 }
 
 impl BenchRow {
@@ -45,6 +48,7 @@ impl BenchRow {
         match self.schedule {
             Schedule::Batched => self.backend.name().to_string(),
             Schedule::Scalar => format!("{}-1", self.backend.name()),
+            Schedule::Bare => format!("{}-bare", self.backend.name()),
         }
     }
 }
@@ -169,6 +173,9 @@ pub fn bench(
                 });
             rows.push(res);
         }
+        for prec in [Precision::F32, Precision::F64] {
+            rows.push(bare_row(&engine, &spec, &values, prec));
+        }
     }
     if backends.contains(&Backend::Cpu) {
         // The CPU twin one point at a time (the schedule before the lanes): the reference of
@@ -199,11 +206,65 @@ pub fn bench(
     Ok(rows)
 }
 
+/// Rung 0 on `engine` in `prec`: the bare RK4 step over the bench sweep (eta per point, the
+/// config's other parameters as constants), timed as the production rows are.
+fn bare_row(engine: &Engine, spec: &RunSpec, values: &[f64], prec: Precision) -> Result<BenchRow> {
+    let mut spec = spec.clone();
+    spec.precision = prec;
+    spec.settings.lyapunov = false;
+    let (points, n_steps) = (values.len(), spec.settings.steps_per_period);
+    let periods = spec.transient + spec.samples;
+    let steps = points as f64 * periods as f64 * n_steps as f64;
+    let secs = match engine {
+        Engine::Gpu(_) => {
+            engine.time_rung(&spec, Points::along(&[Param::Eta], values), Rung::Bare)?
+        }
+        Engine::Cpu => {
+            let k = crate::method::bare::BareConsts::new(&spec.params, n_steps);
+            let run = |secs: &mut f64| {
+                let t0 = std::time::Instant::now();
+                let y = match prec {
+                    Precision::F32 => {
+                        crate::method::bare::bare::<f32>(&k, values, spec.y0, periods, n_steps)
+                    }
+                    Precision::F64 => {
+                        crate::method::bare::bare::<f64>(&k, values, spec.y0, periods, n_steps)
+                    }
+                };
+                *secs = t0.elapsed().as_secs_f64();
+                std::hint::black_box(y);
+            };
+            let mut secs = 0.0;
+            run(&mut secs);
+            secs
+        }
+    };
+    Ok(BenchRow {
+        backend: match engine {
+            Engine::Gpu(_) => Backend::Gpu,
+            Engine::Cpu => Backend::Cpu,
+        },
+        schedule: Schedule::Bare,
+        device: engine.device(),
+        precision: prec,
+        points,
+        periods,
+        steps_per_period: n_steps,
+        rk4_steps: steps,
+        timings: Timings {
+            integration_s: secs,
+            ..Timings::default()
+        },
+        steps_per_s: steps / secs,
+        lyapunov: false,
+    })
+}
+
 pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12} {:>8} {:>10} {:>9} {:>10} {:>11}  device",
+        "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12} {:>8} {:>10} {:>9} {:>10} {:>11} {:>7}  device",
         "backend",
         "prec",
         "points",
@@ -214,8 +275,15 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
         "integr. s",
         "readb. s",
         "kernel s",
-        "steps/s"
+        "steps/s",
+        "of bare"
     );
+    // The same backend's bare step in the same precision.
+    let bare = |r: &BenchRow| {
+        rows.iter().flatten().find(|b| {
+            b.schedule == Schedule::Bare && b.backend == r.backend && b.precision == r.precision
+        })
+    };
     for r in rows {
         match r {
             Ok(r) => {
@@ -226,7 +294,7 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
                 };
                 let _ = writeln!(
                     s,
-                    "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12.4e} {:>8.3} {:>10.3} {:>9.4} {:>10} {:>11.3e}  {}",
+                    "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12.4e} {:>8.3} {:>10.3} {:>9.4} {:>10} {:>11.3e} {:>7}  {}",
                     r.label(),
                     prec,
                     r.points,
@@ -240,6 +308,10 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
                         .kernel_s
                         .map_or("-".to_string(), |k| format!("{k:.3}")),
                     r.steps_per_s,
+                    bare(r).map_or("-".to_string(), |b| format!(
+                        "{:.2}",
+                        r.steps_per_s / b.steps_per_s
+                    )),
                     r.device
                 );
             }
@@ -262,6 +334,16 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
                     g.steps_per_s / r.steps_per_s
                 );
             }
+        }
+    }
+    // The CPU against the GPU adapter's bare step on the same machine.
+    for p in ["f32", "f64"] {
+        if let (Some(c), Some(g)) = (row("cpu", p, false), row("gpu-bare", p, false)) {
+            let _ = writeln!(
+                s,
+                "cpu {p} / gpu-bare {p} (the adapter's bare step): {:.2}",
+                c.steps_per_s / g.steps_per_s
+            );
         }
     }
     // The exponent's extra cost, in integration seconds of the same sweep.

@@ -311,3 +311,37 @@ fn both_forcing_table_paths_agree_with_cpu() {
         }
     }
 }
+
+#[test]
+fn rung_0_the_bare_step_agrees_with_its_cpu_twin() {
+    // The ladder's rung 0 (shaders/bare.wgsl) is timed against the production kernel: it must
+    // do the work its twin (method::bare) does, in both precisions, over several dispatches.
+    use rattle::method::bare::{BareConsts, bare};
+    let etas: Vec<f64> = (0..100).map(|i| 1.0 + i as f64 / 100.0).collect();
+    for f64 in [false, true] {
+        let spec = eta_spec(Settings::default(), 8, 2, f64);
+        let job = Job {
+            rung: rattle::gpu::Rung::Bare,
+            ..Job::new(&spec, Points::along(&[Param::Eta], &etas), false)
+        };
+        let Some(out) = run_job(&job) else {
+            return;
+        };
+        let n = spec.settings.steps_per_period;
+        let k = BareConsts::new(&spec.params, n);
+        let cpu = if f64 {
+            bare::<f64>(&k, &etas, spec.y0, 10, n)
+        } else {
+            bare::<f32>(&k, &etas, spec.y0, 10, n)
+        };
+        let tol = if f64 { 1e-10 } else { 1e-4 };
+        let mut worst = 0.0f64;
+        for (g, c) in out.results.iter().zip(&cpu) {
+            // The motion is not trivial: m2 has moved from rest.
+            assert!(c[2].abs() > 1e-2, "{c:?}");
+            worst = worst.max(max_diff(&g.final_y, c));
+        }
+        assert!(worst < tol, "f64 {f64}: largest difference {worst:e}");
+        eprintln!("f64 {f64}: rung 0 GPU against CPU twin, largest difference {worst:e}");
+    }
+}

@@ -4,7 +4,8 @@
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 use rattle::config::Precision;
 use rattle::gpu::layout::{self, Control};
-use rattle::gpu::shader_source;
+use rattle::gpu::{BARE_SHADER, bare_source, shader_source};
+use rattle::method::bare::BareConsts;
 
 fn parse(src: &str) -> naga::Module {
     naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("{}", e.emit_to_string(src)))
@@ -29,6 +30,28 @@ fn integrate_f64_validates() {
     let src = shader_source(Precision::F64);
     assert!(src.contains("alias F = f64;"));
     validate(&src, Capabilities::FLOAT64).unwrap_or_else(|e| panic!("{e}"));
+}
+
+/// Every piece of WGSL: the kernel's and rung 0's.
+fn pieces() -> impl Iterator<Item = (&'static str, &'static str)> {
+    rattle::gpu::SHADER.into_iter().chain([BARE_SHADER])
+}
+
+/// Rung 0's constants at the paper's parameters, N = 256.
+fn bare_consts() -> BareConsts<f64> {
+    BareConsts::new(&rattle::model::Params::paper(1.5), 256)
+}
+
+#[test]
+fn bare_kernel_validates_in_f32_and_f64() {
+    validate(
+        &bare_source(Precision::F32, &bare_consts()),
+        Capabilities::empty(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let src = bare_source(Precision::F64, &bare_consts());
+    validate(&src, Capabilities::FLOAT64).unwrap_or_else(|e| panic!("{e}"));
+    assert!(validate(&src, Capabilities::empty()).is_err());
 }
 
 #[test]
@@ -234,16 +257,21 @@ fn rust_functions(path: &str) -> Vec<(String, usize)> {
 /// The functions are those naga finds in the whole kernel, so none escapes the check.
 #[test]
 fn every_shader_function_has_its_rust_twin_in_the_same_order() {
-    let module = parse(&shader_source(Precision::F32));
-    let kernel: Vec<String> = module
-        .functions
+    let bare = bare_source(Precision::F32, &bare_consts());
+    let kernel: Vec<String> = [parse(&shader_source(Precision::F32)), parse(&bare)]
         .iter()
-        .filter_map(|(_, f)| f.name.clone())
-        .chain(module.entry_points.iter().map(|e| e.name.clone()))
+        .flat_map(|module| {
+            module
+                .functions
+                .iter()
+                .filter_map(|(_, f)| f.name.clone())
+                .chain(module.entry_points.iter().map(|e| e.name.clone()))
+                .collect::<Vec<_>>()
+        })
         .collect();
     let generated = rattle::gpu::layout::prelude(Precision::F32);
     let mut seen = Vec::new();
-    for (piece, text) in rattle::gpu::SHADER {
+    for (piece, text) in pieces() {
         let lines: Vec<&str> = text.lines().collect();
         let twin_file = lines[0]
             .strip_prefix("// twin: ")
@@ -302,7 +330,7 @@ fn every_shader_function_has_its_rust_twin_in_the_same_order() {
 /// Comments of the pieces cite Rust files that exist.
 #[test]
 fn shader_comments_cite_files_that_exist() {
-    for (piece, text) in rattle::gpu::SHADER {
+    for (piece, text) in pieces() {
         for word in text.split(|c: char| c.is_whitespace() || "`(),:;".contains(c)) {
             if word.ends_with(".rs") {
                 let found = std::path::Path::new(word).exists()

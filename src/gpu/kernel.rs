@@ -2,6 +2,7 @@
 
 use super::layout::{self, B_CONSTS, B_CONTROL, B_PVALS, B_RING, B_SAMPLES, B_US, B_UTAB, B_YS};
 use crate::config::Precision;
+use crate::method::bare::BareConsts;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
@@ -17,6 +18,34 @@ pub const SHADER: [(&str, &str); 7] = [
     ("detector.wgsl", include_str!("../../shaders/detector.wgsl")),
     ("main.wgsl", include_str!("../../shaders/main.wgsl")),
 ];
+
+/// Rung 0 of the ladder, the bare RK4 step (file name, text); it compiles after the prelude
+/// and the literal block of [`bare_source`].
+pub const BARE_SHADER: (&str, &str) = ("bare.wgsl", include_str!("../../shaders/bare.wgsl"));
+
+/// The bare kernel's source in a precision: the generated contract of `layout` (without the
+/// model's parameters), the constants of `k` as literals (`BARE_*`), then `shaders/bare.wgsl`.
+pub fn bare_source(precision: Precision, k: &BareConsts<f64>) -> String {
+    let mut src = layout::contract(precision);
+    src += "\n// Rung 0's constants, literals of the run's base parameters (method/bare.rs).\n";
+    for (name, v) in [
+        ("BARE_B1", k.b1),
+        ("BARE_DELTA", k.delta),
+        ("BARE_T", k.t),
+        ("BARE_INV_MU", k.inv_mu),
+        ("BARE_ETA", k.eta),
+        ("BARE_DPHI", k.dphi),
+    ] {
+        src += &format!("const {name}: F = F({v:?});\n");
+    }
+    src += &format!(
+        "const BARE_HALF: vec2<F> = vec2<F>(F({:?}), F({:?}));\n",
+        k.half[0], k.half[1]
+    );
+    src += &format!("\n// ---- shaders/{} ----\n", BARE_SHADER.0);
+    src += BARE_SHADER.1;
+    src
+}
 
 /// The kernel source in a precision: the generated contract of `layout`, then the body.
 /// The one way to get the kernel text, for the runner and the tests alike.
@@ -34,8 +63,11 @@ pub fn shader_source(precision: Precision) -> String {
 /// the speed goes. `Full` is the production kernel.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Rung {
-    /// RK4 steps in the current mode with the forcing table, nothing else.
+    /// Rung 0: the bare RK4 step, a kernel of its own (`shaders/bare.wgsl`): the Coulomb field
+    /// with the friction sign held, parameters as literals, the forcing rotated, no events.
     Bare,
+    /// RK4 steps in the current mode with the forcing table, nothing else.
+    Table,
     /// + the non-finite test after each step.
     Finite,
     /// + stroboscopic samples and the period detector.
@@ -54,8 +86,9 @@ pub enum Rung {
 }
 
 impl Rung {
-    pub const ALL: [Rung; 7] = [
+    pub const ALL: [Rung; 8] = [
         Rung::Bare,
+        Rung::Table,
         Rung::Finite,
         Rung::Detector,
         Rung::Tangent,
@@ -66,7 +99,8 @@ impl Rung {
 
     pub fn describe(self) -> &'static str {
         match self {
-            Rung::Bare => "RK4 step, forcing table",
+            Rung::Bare => "0: bare RK4 step (minimal kernel)",
+            Rung::Table => "RK4 step, forcing table",
             Rung::Finite => "+ non-finite test",
             Rung::Detector => "+ samples, period detector",
             Rung::Tangent => "+ tangent (with the exponent)",
@@ -113,7 +147,7 @@ pub(super) struct Variant {
 /// compiles it).
 #[derive(Default)]
 pub(super) struct Kernels {
-    pipelines: Mutex<HashMap<(Precision, Rung, Variant), wgpu::ComputePipeline>>,
+    pipelines: Mutex<HashMap<(Precision, Rung, Variant, String), wgpu::ComputePipeline>>,
     /// One bind group layout for every pipeline (an automatic layout belongs to its pipeline
     /// alone), so that a batch's bind group serves the kernel with the tangent and the one
     /// without it, which runs the transient.
@@ -151,13 +185,16 @@ fn bind_group_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
 }
 
 impl Kernels {
+    /// The pipeline of `rung` for the job `spec` describes (rung 0 compiles the job's base
+    /// parameters in, and is cached per parameter set).
     pub(super) fn get(
         &self,
         device: &wgpu::Device,
-        precision: Precision,
+        spec: &crate::spec::RunSpec,
         rung: Rung,
         variant: Variant,
     ) -> wgpu::ComputePipeline {
+        let precision = spec.precision;
         let (_, layout) = self.layout.get_or_init(|| {
             let group = bind_group_layout(device);
             let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -167,21 +204,34 @@ impl Kernels {
             });
             (group, layout)
         });
+        let (source, entry) = if rung == Rung::Bare {
+            let k = BareConsts::new(&spec.params, spec.settings.steps_per_period);
+            (bare_source(precision, &k), "bare")
+        } else {
+            (String::new(), "main")
+        };
         let mut cache = self.pipelines.lock().unwrap();
         cache
-            .entry((precision, rung, variant))
+            .entry((precision, rung, variant, source.clone()))
             .or_insert_with(|| {
+                let source = if source.is_empty() {
+                    shader_source(precision)
+                } else {
+                    source
+                };
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("integrate"),
-                    source: wgpu::ShaderSource::Wgsl(shader_source(precision).into()),
+                    source: wgpu::ShaderSource::Wgsl(source.into()),
                 });
+                let constants = rung.constants(variant);
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some("integrate"),
                     layout: Some(layout),
                     module: &module,
-                    entry_point: Some("main"),
+                    entry_point: Some(entry),
                     compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &rung.constants(variant),
+                        // The bare kernel declares none of the overrides.
+                        constants: if rung == Rung::Bare { &[] } else { &constants },
                         ..Default::default()
                     },
                     cache: None,

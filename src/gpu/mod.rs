@@ -16,7 +16,7 @@ mod dispatch;
 mod kernel;
 pub mod layout;
 
-pub use kernel::{SHADER, shader_source};
+pub use kernel::{BARE_SHADER, SHADER, bare_source, shader_source};
 
 use crate::config::Precision;
 use crate::method::{RunResult, Timings};
@@ -305,9 +305,7 @@ impl Gpu {
             tangent: spec.settings.lyapunov,
             uniform_table,
         };
-        let pipeline = self
-            .kernels
-            .get(&self.device, spec.precision, job.rung, variant);
+        let pipeline = self.kernels.get(&self.device, spec, job.rung, variant);
         // The tangent's code costs on llvmpipe even where it does not run: the transient
         // periods run the kernel without it.
         let transient = spec.settings.lyapunov.then(|| {
@@ -315,7 +313,7 @@ impl Gpu {
                 tangent: false,
                 ..variant
             };
-            self.kernels.get(&self.device, spec.precision, job.rung, v)
+            self.kernels.get(&self.device, spec, job.rung, v)
         });
         self.check_error()?;
         let shared = Shared::new::<F>(self, spec);

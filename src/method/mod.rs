@@ -15,6 +15,7 @@ use crate::model::{
 };
 use crate::real::Real;
 
+pub mod bare;
 mod events;
 mod flows;
 mod lanes;
