@@ -43,6 +43,39 @@ pub enum Schedule {
 }
 
 impl BenchRow {
+    /// The row of `points` points run as `spec` says (its transient and sampled periods) on
+    /// `engine`, with `timings`; without the exponent.
+    fn of(
+        engine: &Engine,
+        schedule: Schedule,
+        precision: Precision,
+        spec: &RunSpec,
+        points: usize,
+        timings: Timings,
+    ) -> BenchRow {
+        let (periods, n) = (
+            spec.transient + spec.samples,
+            spec.settings.steps_per_period,
+        );
+        let steps = points as f64 * periods as f64 * n as f64;
+        BenchRow {
+            backend: match engine {
+                Engine::Gpu(_) => Backend::Gpu,
+                Engine::Cpu => Backend::Cpu,
+            },
+            schedule,
+            device: engine.device(),
+            precision,
+            points,
+            periods,
+            steps_per_period: n,
+            rk4_steps: steps,
+            timings,
+            steps_per_s: steps / timings.integration_s,
+            lyapunov: false,
+        }
+    }
+
     /// The row's name in the table: the backend, `cpu-1` for the scalar CPU schedule.
     pub fn label(&self) -> String {
         match self.schedule {
@@ -134,7 +167,6 @@ pub fn bench(
     lyapunov: bool,
 ) -> Result<Vec<Result<BenchRow>>> {
     let (mut spec, values) = bench_sweep(cfg, points, periods, lyapunov)?;
-    let n_steps = spec.settings.steps_per_period;
     let mut rows = Vec::new();
     let exponent = if lyapunov {
         &[false, true][..]
@@ -153,23 +185,9 @@ pub fn bench(
                 .run(&spec, &Points::along(&[Param::Eta], &values), &Silent)
                 .map_err(Error::from)
                 .map(|(_, t)| {
-                    let steps = points as f64 * periods as f64 * n_steps as f64;
-                    BenchRow {
-                        backend: match engine {
-                            Engine::Gpu(_) => Backend::Gpu,
-                            Engine::Cpu => Backend::Cpu,
-                        },
-                        schedule: Schedule::Batched,
-                        device: engine.device(),
-                        precision: prec,
-                        points,
-                        periods,
-                        steps_per_period: n_steps,
-                        rk4_steps: steps,
-                        timings: t,
-                        steps_per_s: steps / t.integration_s,
-                        lyapunov: lyap,
-                    }
+                    let mut r = BenchRow::of(&engine, Schedule::Batched, prec, &spec, points, t);
+                    r.lyapunov = lyap;
+                    r
                 });
             rows.push(res);
         }
@@ -185,23 +203,20 @@ pub fn bench(
         let t0 = std::time::Instant::now();
         crate::engine::run_scalar(&spec, &Points::along(&[Param::Eta], &values));
         let secs = t0.elapsed().as_secs_f64();
-        let steps = points as f64 * periods as f64 * n_steps as f64;
-        rows.push(Ok(BenchRow {
-            backend: Backend::Cpu,
-            schedule: Schedule::Scalar,
-            device: format!("{}, one point per task", Engine::Cpu.device()),
-            precision: Precision::F64,
+        let timings = Timings {
+            integration_s: secs,
+            ..Timings::default()
+        };
+        let mut r = BenchRow::of(
+            &Engine::Cpu,
+            Schedule::Scalar,
+            Precision::F64,
+            &spec,
             points,
-            periods,
-            steps_per_period: n_steps,
-            rk4_steps: steps,
-            timings: Timings {
-                integration_s: secs,
-                ..Timings::default()
-            },
-            steps_per_s: steps / secs,
-            lyapunov: false,
-        }));
+            timings,
+        );
+        r.device = format!("{}, one point per task", Engine::Cpu.device());
+        rows.push(Ok(r));
     }
     Ok(rows)
 }
@@ -214,50 +229,36 @@ fn bare_row(engine: &Engine, spec: &RunSpec, values: &[f64], prec: Precision) ->
     spec.settings.lyapunov = false;
     let (points, n_steps) = (values.len(), spec.settings.steps_per_period);
     let periods = spec.transient + spec.samples;
-    let steps = points as f64 * periods as f64 * n_steps as f64;
     let secs = match engine {
         Engine::Gpu(_) => {
             engine.time_rung(&spec, Points::along(&[Param::Eta], values), Rung::Bare)?
         }
         Engine::Cpu => {
-            let k = crate::method::bare::BareConsts::new(&spec.params, n_steps);
-            let run = |secs: &mut f64| {
-                let t0 = std::time::Instant::now();
-                let y = match prec {
-                    Precision::F32 => {
-                        crate::method::bare::bare::<f32>(&k, values, spec.y0, periods, n_steps)
-                    }
-                    Precision::F64 => {
-                        crate::method::bare::bare::<f64>(&k, values, spec.y0, periods, n_steps)
-                    }
-                };
-                *secs = t0.elapsed().as_secs_f64();
-                std::hint::black_box(y);
+            use crate::method::bare::{BareConsts, bare};
+            let k = BareConsts::new(&spec.params, n_steps);
+            let t0 = std::time::Instant::now();
+            // The final states are kept until the clock stops, so that no step is skipped.
+            let y = match prec {
+                Precision::F32 => bare::<f32>(&k, values, spec.y0, periods, n_steps),
+                Precision::F64 => bare::<f64>(&k, values, spec.y0, periods, n_steps),
             };
-            let mut secs = 0.0;
-            run(&mut secs);
+            let secs = t0.elapsed().as_secs_f64();
+            std::hint::black_box(y);
             secs
         }
     };
-    Ok(BenchRow {
-        backend: match engine {
-            Engine::Gpu(_) => Backend::Gpu,
-            Engine::Cpu => Backend::Cpu,
-        },
-        schedule: Schedule::Bare,
-        device: engine.device(),
-        precision: prec,
+    let timings = Timings {
+        integration_s: secs,
+        ..Timings::default()
+    };
+    Ok(BenchRow::of(
+        engine,
+        Schedule::Bare,
+        prec,
+        &spec,
         points,
-        periods,
-        steps_per_period: n_steps,
-        rk4_steps: steps,
-        timings: Timings {
-            integration_s: secs,
-            ..Timings::default()
-        },
-        steps_per_s: steps / secs,
-        lyapunov: false,
-    })
+        timings,
+    ))
 }
 
 pub fn bench_table(rows: &[Result<BenchRow>]) -> String {

@@ -87,7 +87,8 @@ fn axpy<F: Real>(y: &Lanes<F>, a: &[F; LANES], x: &Lanes<F>) -> Lanes<F> {
 }
 
 /// Runs every point (`etas`, from `y0`) for `periods` periods of `steps` steps, [`LANES`]
-/// points per grid step and the lanes over the cores; the final states.
+/// points per grid step and the lanes over the cores; the final states. Compiled for AVX2
+/// where the CPU has it, as the production lanes are (`lanes::run_lanes`).
 pub fn bare<F: Real>(
     k: &BareConsts<f64>,
     etas: &[f64],
@@ -98,34 +99,64 @@ pub fn bare<F: Real>(
     let kf: BareConsts<F> = k.cast();
     etas.par_chunks(LANES)
         .flat_map_iter(|chunk| {
-            let h: [F; LANES] =
-                std::array::from_fn(|l| kf.dphi / chunk.get(l).map_or(kf.eta, |&e| F::of(e)));
-            let half_h = h.map(|v| F::of(0.5) * v);
-            let sixth = h.map(|v| v / F::of(6.0));
-            let mut y: Lanes<F> = std::array::from_fn(|c| [F::of(y0[c]); LANES]);
-            for _ in 0..periods {
-                // Phase 0 at the start of every period, as the forcing table has it.
-                let mut cs = [F::one(), F::zero()];
-                let mut f0 = bare_field(&kf, &y, cs[0]);
-                for _ in 0..steps {
-                    let cm = bare_rotate(&kf, cs);
-                    let c1 = bare_rotate(&kf, cm);
-                    let k2 = bare_field(&kf, &axpy(&y, &half_h, &f0), cm[0]);
-                    let k3 = bare_field(&kf, &axpy(&y, &half_h, &k2), cm[0]);
-                    let k4 = bare_field(&kf, &axpy(&y, &h, &k3), c1[0]);
-                    for c in 0..4 {
-                        for l in 0..LANES {
-                            let two = F::of(2.0);
-                            y[c][l] +=
-                                sixth[l] * (f0[c][l] + two * (k2[c][l] + k3[c][l]) + k4[c][l]);
-                        }
-                    }
-                    // First same as last: the end's field is the next step's first stage.
-                    f0 = bare_field(&kf, &y, c1[0]);
-                    cs = c1;
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2, checked just above.
+                return unsafe { bare_lanes_avx2(&kf, chunk, y0, periods, steps) };
+            }
+            bare_lanes(&kf, chunk, y0, periods, steps)
+        })
+        .collect()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn bare_lanes_avx2<F: Real>(
+    kf: &BareConsts<F>,
+    chunk: &[f64],
+    y0: [f64; 4],
+    periods: u32,
+    steps: u32,
+) -> Vec<[f64; 4]> {
+    bare_lanes(kf, chunk, y0, periods, steps)
+}
+
+/// The points of `chunk` (at most [`LANES`]) in lanes; the final states.
+#[inline(always)]
+fn bare_lanes<F: Real>(
+    kf: &BareConsts<F>,
+    chunk: &[f64],
+    y0: [f64; 4],
+    periods: u32,
+    steps: u32,
+) -> Vec<[f64; 4]> {
+    let h: [F; LANES] =
+        std::array::from_fn(|l| kf.dphi / chunk.get(l).map_or(kf.eta, |&e| F::of(e)));
+    let half_h = h.map(|v| F::of(0.5) * v);
+    let sixth = h.map(|v| v / F::of(6.0));
+    let mut y: Lanes<F> = std::array::from_fn(|c| [F::of(y0[c]); LANES]);
+    for _ in 0..periods {
+        // Phase 0 at the start of every period, as the forcing table has it.
+        let mut cs = [F::one(), F::zero()];
+        let mut f0 = bare_field(kf, &y, cs[0]);
+        for _ in 0..steps {
+            let cm = bare_rotate(kf, cs);
+            let c1 = bare_rotate(kf, cm);
+            let k2 = bare_field(kf, &axpy(&y, &half_h, &f0), cm[0]);
+            let k3 = bare_field(kf, &axpy(&y, &half_h, &k2), cm[0]);
+            let k4 = bare_field(kf, &axpy(&y, &h, &k3), c1[0]);
+            for c in 0..4 {
+                for l in 0..LANES {
+                    let two = F::of(2.0);
+                    y[c][l] += sixth[l] * (f0[c][l] + two * (k2[c][l] + k3[c][l]) + k4[c][l]);
                 }
             }
-            (0..chunk.len()).map(move |l| std::array::from_fn(|c| y[c][l].to_f64()))
-        })
+            // First same as last: the end's field is the next step's first stage.
+            f0 = bare_field(kf, &y, c1[0]);
+            cs = c1;
+        }
+    }
+    (0..chunk.len())
+        .map(|l| std::array::from_fn(|c| y[c][l].to_f64()))
         .collect()
 }
