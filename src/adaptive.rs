@@ -310,7 +310,12 @@ pub fn drive<K: Keep>(
         for (&i, p) in live.iter().zip(live_pools) {
             pools[i] = p;
         }
+        // The stage's time that the engine did not report is the host's deciding.
+        let engine_s = tm.setup_s + tm.integration_s + tm.readback_s;
+        timings.host_s += (t0.elapsed().as_secs_f64() - engine_s).max(0.0);
+        timings.setup_s += tm.setup_s;
         timings.integration_s += tm.integration_s;
+        timings.readback_s += tm.readback_s;
         log::debug!(
             "stage {k}: {} points, {} + {} periods, {:.2} s ({:.2} s integration)",
             live.len(),

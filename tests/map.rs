@@ -662,3 +662,37 @@ fn the_docs_list_every_layer_of_the_registry() {
         "docs/maps.md must contain the layer table of map::Fields:\n{t}"
     );
 }
+
+/// A map's time is split into the engine's integration, the host's deciding and the files,
+/// each measured (not derived from the others), and together within the wall time the
+/// command took.
+#[test]
+fn map_timings_split_integration_deciding_and_files() {
+    let d = scratch("map-timings");
+    let cfg = d.join("m.toml");
+    std::fs::write(&cfg, small()).unwrap();
+    let t0 = std::time::Instant::now();
+    let out = rattle()
+        .args(["map", "--backend", "cpu", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(d.join("m"))
+        .output()
+        .unwrap();
+    let wall = t0.elapsed().as_secs_f64();
+    assert!(out.status.success());
+    let line = String::from_utf8_lossy(&out.stderr);
+    let t = &json(&d.join("m.json"))["timings"];
+    let part = |k: &str| t[k].as_f64().unwrap_or_else(|| panic!("timings.{k}: {t}"));
+    let (integration, host, files) = (part("integration_s"), part("host_s"), part("files_s"));
+    assert!(integration > 0.0 && host > 0.0 && files > 0.0, "{t}");
+    assert!(
+        integration + host + files < wall,
+        "{t} against {wall} s wall"
+    );
+    // The summary line says the same.
+    assert!(
+        line.contains("s host deciding") && line.contains("s files)"),
+        "{line}"
+    );
+}

@@ -163,6 +163,9 @@ pub struct MapSummary {
     /// Cells whose class changed against `--compare`, and the cell count.
     pub changed: Option<(usize, usize)>,
     pub integration_s: f64,
+    /// The host's deciding (`method::Timings::host_s`) and the files' writing.
+    pub host_s: f64,
+    pub files_s: f64,
     pub counts: std::collections::BTreeMap<String, usize>,
     pub wall_s: f64,
 }
@@ -181,7 +184,8 @@ impl MapSummary {
             );
         }
         s + &format!(
-            "map: {} x {} cells on {} ({}, {}) in {:.2} s ({:.2} s integration); {:?}\n",
+            "map: {} x {} cells on {} ({}, {}) in {:.2} s ({:.2} s integration, {:.2} s host \
+             deciding, {:.2} s files); {:?}\n",
             cfg.map.x_points,
             cfg.map.y_points,
             self.backend,
@@ -189,6 +193,8 @@ impl MapSummary {
             cfg.method.precision.name(),
             self.wall_s,
             self.integration_s,
+            self.host_s,
+            self.files_s,
             self.counts
         )
     }
@@ -236,6 +242,7 @@ pub fn run(
     let parts = checkpointed_parts(engine, cfg, out, o, &mut summary, progress)?;
     let (cfg, fields, parts) = merge(parts)?;
     let secs: f64 = parts.iter().map(|p| p.timings.integration_s).sum();
+    let host_s: f64 = parts.iter().map(|p| p.timings.host_s).sum();
     let periods = periods_integrated(&cfg, &fields);
     let steps = periods as f64 * cfg.method.steps_per_period as f64;
     let mut report = MapReport {
@@ -246,6 +253,7 @@ pub fn run(
         cells: Some(cells),
         timings: MapTimings {
             integration_s: Some(secs),
+            host_s: Some(host_s),
             rk4_steps: Some(steps),
             steps_per_s: Some(steps / secs),
             ..MapTimings::default()
@@ -278,9 +286,12 @@ pub fn run(
             .extend(write_compare(Path::new(&p), &cfg, other, &a, &b)?);
         summary.changed = Some((changed, cells));
     }
+    let t_files = std::time::Instant::now();
     summary
         .files
         .extend(write_outputs(out, &cfg, &fields, &report)?);
+    summary.files_s = t_files.elapsed().as_secs_f64();
+    summary.host_s = host_s;
     if n > 1 {
         for i in 0..n {
             let _ = std::fs::remove_file(part_path(out, i, n));

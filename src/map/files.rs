@@ -83,8 +83,16 @@ pub struct CoarseReport {
 /// Seconds (and RK4 steps) of a map run; which fields exist depends on how it ran.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct MapTimings {
+    /// The engine's integration (on a GPU adapter: the device's).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub integration_s: Option<f64>,
+    /// The host's deciding between the engine's runs (`method::Timings::host_s`), summed
+    /// over the parts.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub host_s: Option<f64>,
+    /// Writing the images and NPY files (the JSON, written last, not included).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub files_s: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rk4_steps: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -355,6 +363,7 @@ pub fn write_outputs(
     fields: &Fields,
     report: &MapReport,
 ) -> crate::Result<Vec<PathBuf>> {
+    let t_files = std::time::Instant::now();
     let m = &cfg.map;
     let mut st = Staged::new();
     let images = Images { prefix, cfg };
@@ -407,6 +416,10 @@ pub fn write_outputs(
         .iter()
         .filter(|&&c| c == Shown::Coexisting.code())
         .count();
+    // The time the files took so far (the JSON itself is written last).
+    let mut timed = report.clone();
+    timed.timings.files_s = Some(t_files.elapsed().as_secs_f64());
+    let report = &timed;
     let j = MapJson {
         caption: caption(
             cfg,

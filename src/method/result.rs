@@ -243,6 +243,11 @@ pub struct Timings {
     pub kernel_s: Option<f64>,
     pub dispatches: u32,
     pub batches: u32,
+    /// Host work between the engine's runs of an adaptive run: deciding the points (the
+    /// classifier's proposals, Newton's trials and multipliers on the CPU) and the bookkeeping
+    /// of the live points; zero for a plain run.
+    #[serde(default)]
+    pub host_s: f64,
 }
 
 impl Timings {
@@ -258,5 +263,6 @@ impl Timings {
         };
         self.dispatches += o.dispatches;
         self.batches += o.batches;
+        self.host_s += o.host_s;
     }
 }
