@@ -88,3 +88,32 @@ fn fabs(x: F) -> F { return select(-x, x, x >= F(0.0)); }
 fn fmax(a: F, b: F) -> F { return select(b, a, a > b); }
 // shader-only: as fabs.
 fn fmin(a: F, b: F) -> F { return select(b, a, a < b); }
+
+// shader-only: buffer access (the host side is src/gpu/layout.rs).
+// A vector in `ys` from slot `base` on (Y_MAIN, Y_TAN + k STATE_DIM).
+fn load_y(base: u32, i: u32) -> vec4<F> {
+    let n = ctl.n_points;
+    return vec4<F>(ys[base * n + i], ys[(base + 1u) * n + i], ys[(base + 2u) * n + i],
+                   ys[(base + 3u) * n + i]);
+}
+
+// shader-only: buffer access.
+fn store_y(base: u32, i: u32, y: vec4<F>) {
+    let n = ctl.n_points;
+    ys[base * n + i] = y.x;
+    ys[(base + 1u) * n + i] = y.y;
+    ys[(base + 2u) * n + i] = y.z;
+    ys[(base + 3u) * n + i] = y.w;
+}
+
+// shader-only: Integrator::new computes these from the point's parameters `prm`.
+// The per-invocation constants of the point's parameters.
+fn derive_constants() {
+    zeno = consts[C_ZENO];
+    tol = consts[C_TOL];
+    dphi = consts[C_DPHI];
+    half = vec2<F>(consts[C_HALF_COS], consts[C_HALF_SIN]);
+    h = dphi / eta();
+    inv_mu = F(1.0) / mu();
+    inv_1pmu = F(1.0) / (F(1.0) + mu());
+}

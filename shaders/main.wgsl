@@ -1,23 +1,6 @@
 // twin: none (the entry point: one invocation runs one point for the periods of one dispatch)
 // Loads a point's state and parameters, runs its periods, stores what the host reads back.
 
-// shader-only: buffer access (the host side is src/gpu/layout.rs).
-// A vector in `ys` from slot `base` on (Y_MAIN or Y_TAN).
-fn load_y(base: u32, i: u32) -> vec4<F> {
-    let n = ctl.n_points;
-    return vec4<F>(ys[base * n + i], ys[(base + 1u) * n + i], ys[(base + 2u) * n + i],
-                   ys[(base + 3u) * n + i]);
-}
-
-// shader-only: buffer access.
-fn store_y(base: u32, i: u32, y: vec4<F>) {
-    let n = ctl.n_points;
-    ys[base * n + i] = y.x;
-    ys[(base + 1u) * n + i] = y.y;
-    ys[(base + 2u) * n + i] = y.z;
-    ys[(base + 3u) * n + i] = y.w;
-}
-
 // shader-only: the entry point; its host side is gpu/batch.rs (buffers) and gpu/dispatch.rs.
 @compute @workgroup_size(WORKGROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -36,13 +19,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (ctl.n_vary > 2u) {
         set_param(ctl.vary2, pvals[i * ctl.n_vary + 2u]);
     }
-    zeno = consts[C_ZENO];
-    tol = consts[C_TOL];
-    dphi = consts[C_DPHI];
-    half = vec2<F>(consts[C_HALF_COS], consts[C_HALF_SIN]);
-    h = dphi / eta();
-    inv_mu = F(1.0) / mu();
-    inv_1pmu = F(1.0) / (F(1.0) + mu());
+    derive_constants();
 
     st.y = load_y(Y_MAIN, i);
     st.mode = us[U_MODE * n + i];
@@ -65,7 +42,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var tan_bad = 1u;
     var log_sum = F(0.0);
     if (TANGENT) {
-        tvec = load_y(Y_TAN, i);
+        tvec[0] = load_y(Y_TAN, i);
         tan_bad = us[U_TAN_BAD * n + i];
         log_sum = ring[R_LOG_SUM * n + i];
     }
@@ -83,7 +60,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         if (TANGENT && idx == ctl.transient) {
             // The tangent vector starts along y1 with sampling.
-            tvec = vec4<F>(F(1.0), F(0.0), F(0.0), F(0.0));
+            tvec[0] = vec4<F>(F(1.0), F(0.0), F(0.0), F(0.0));
             tan_bad = 0u;
             log_sum = F(0.0);
         }
@@ -117,7 +94,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 birkhoff_push(i, s, st.y.x);
             }
             if (tan_on) {
-                if (finite_state(tvec)) {
+                if (finite_state(tvec[0])) {
                     let l = F(tangent_renormalize());
                     log_sum += l;
                     growth_push(i, s, l);
@@ -135,7 +112,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (ctl.lyap != 0u) {
         // Without the tangent compiled in (ladder rungs below it) the point has no exponent.
         if (TANGENT) {
-            store_y(Y_TAN, i, tvec);
+            store_y(Y_TAN, i, tvec[0]);
             ring[R_LOG_SUM * n + i] = log_sum;
         }
         us[U_TAN_BAD * n + i] = tan_bad;

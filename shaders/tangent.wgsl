@@ -1,7 +1,9 @@
 // twin: src/method/tangent.rs
-// One tangent vector for the largest Lyapunov exponent (tangent.rs `Leading`).
+// The tangent vectors: TANGENTS of them (the host's constant before the pieces): one for the
+// largest Lyapunov exponent (tangent.rs `Leading`), four for the flows of Newton's method
+// (tangent.rs `Tangent`, flows.wgsl).
 
-var<private> tvec: vec4<F>;
+var<private> tvec: array<vec4<F>, TANGENTS>;
 
 // The tangent runs in this period (a sampled one, the vector still finite).
 var<private> tan_on: bool;
@@ -26,15 +28,18 @@ fn jump_apply(jump: u32, x: vec4<F>) -> vec4<F> {
 }
 
 // RK4 of the variational equation on the stage points of the state's last RK4 step, from its
-// start y (before the state is overwritten).
+// start y (before the state is overwritten), for each vector.
 fn tangent_substep(y: vec4<F>, mode: u32, dt: F) {
     let half = F(0.5) * dt;
-    let k1 = jacobian_times(y, mode, tvec);
-    let k2 = jacobian_times(stage1, mode, tvec + half * k1);
-    let k3 = jacobian_times(stage2, mode, tvec + half * k2);
-    let k4 = jacobian_times(stage3, mode, tvec + dt * k3);
     let sixth = dt / F(6.0);
-    tvec = tvec + sixth * (k1 + F(2.0) * (k2 + k3) + k4);
+    for (var v = 0u; v < TANGENTS; v++) {
+        let x = tvec[v];
+        let k1 = jacobian_times(y, mode, x);
+        let k2 = jacobian_times(stage1, mode, x + half * k1);
+        let k3 = jacobian_times(stage2, mode, x + half * k2);
+        let k4 = jacobian_times(stage3, mode, x + dt * k3);
+        tvec[v] = x + sixth * (k1 + F(2.0) * (k2 + k3) + k4);
+    }
 }
 
 // The saltation of event ev (tangent.rs `Saltation::at`, then `apply`), called after
@@ -67,19 +72,21 @@ fn tangent_event(ev: u32, before: vec4<F>, mode_before: u32, cs: vec2<F>) {
     let fp = field(st.y, st.mode, cs.x);
     let u = fp - jump_apply(jump, fm);
     let d = dot4(n, fm) + ht;
-    let a = dot4(n, tvec) / d;
-    tvec = jump_apply(jump, tvec) + u * a;
+    for (var v = 0u; v < TANGENTS; v++) {
+        let a = dot4(n, tvec[v]) / d;
+        tvec[v] = jump_apply(jump, tvec[v]) + u * a;
+    }
 }
 
 // Unit length, and the log of the length before, in f32 even in the f64 kernel (f64 log is
 // unreliable on some drivers). A collapsed vector restarts along y1 and counts at the floor.
 fn tangent_renormalize() -> f32 {
-    let norm = sqrt(dot4(tvec, tvec));
+    let norm = sqrt(dot4(tvec[0], tvec[0]));
     let floor = consts[C_TAN_FLOOR];
     if (norm <= floor) {
-        tvec = vec4<F>(F(1.0), F(0.0), F(0.0), F(0.0));
+        tvec[0] = vec4<F>(F(1.0), F(0.0), F(0.0), F(0.0));
         return log(f32(floor));
     }
-    tvec = tvec / norm;
+    tvec[0] = tvec[0] / norm;
     return log(f32(norm));
 }

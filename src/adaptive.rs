@@ -144,6 +144,7 @@ pub fn run_once(
     let timings = engine.run_lean(spec, points, progress, &mut |start, mut rs| {
         let part = points.slice(start, start + rs.len());
         out.extend(crate::decide::summaries(
+            engine.decider(spec.decide),
             spec,
             &part,
             &mut rs,
@@ -298,6 +299,7 @@ pub fn drive<K: Keep>(
         let mut live_pools: Vec<Pool> = live.iter().map(|&i| pools[i]).collect();
         let live_skip: Vec<[u32; 2]> = live.iter().map(|&i| skip[i]).collect();
         let t0 = Instant::now();
+        let decide0 = engine.decide_seconds();
         let run = StageRun {
             engine,
             round: &round,
@@ -312,7 +314,9 @@ pub fn drive<K: Keep>(
         }
         // The stage's time that the engine did not report is the host's deciding.
         let engine_s = tm.setup_s + tm.integration_s + tm.readback_s;
-        timings.host_s += (t0.elapsed().as_secs_f64() - engine_s).max(0.0);
+        let decide_s = engine.decide_seconds() - decide0;
+        timings.host_s += (t0.elapsed().as_secs_f64() - engine_s - decide_s).max(0.0);
+        timings.decide_s += decide_s;
         timings.setup_s += tm.setup_s;
         timings.integration_s += tm.integration_s;
         timings.readback_s += tm.readback_s;
@@ -388,7 +392,9 @@ impl Keep for Samples {
                         skip: [0; 2],
                     })
                     .collect();
-                let mut verdicts = confirm_many(&self.settings, &proposals).into_iter();
+                let mut verdicts =
+                    confirm_many(s.engine.decider(round.decide), &self.settings, &proposals)
+                        .into_iter();
                 rs.into_iter()
                     .zip(classes)
                     .enumerate()
@@ -422,7 +428,8 @@ impl Keep for Samples {
                         skip: [0; 2],
                     })
                     .collect();
-                let verdicts = confirm_many(&self.settings, &proposals);
+                let verdicts =
+                    confirm_many(s.engine.decider(round.decide), &self.settings, &proposals);
                 rs.into_iter()
                     .zip(verdicts)
                     .map(|(r, v)| (r, Some(v)))
@@ -560,6 +567,7 @@ impl Keep for Summaries {
             .run_lean(round, sub, s.progress, &mut |start, mut rs| {
                 let end = start + rs.len();
                 ss.extend(crate::decide::summaries(
+                    s.engine.decider(round.decide),
                     round,
                     &sub.slice(start, end),
                     &mut rs,

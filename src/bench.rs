@@ -40,6 +40,10 @@ pub enum Schedule {
     /// Rung 0 of the ladder: the bare RK4 step of the model (`shaders/bare.wgsl`, its CPU twin
     /// `method::bare`), what the backend does for a step with nothing else to do.
     Bare,
+    /// Newton's method (f64): a period-1 trial from each point's final state, its flows
+    /// (state and four tangent vectors) where `run.decide = "device"` puts them on this
+    /// backend (the CPU: the host's lanes); RK4 steps count the flows' steps.
+    Decide,
 }
 
 impl BenchRow {
@@ -82,6 +86,7 @@ impl BenchRow {
             Schedule::Batched => self.backend.name().to_string(),
             Schedule::Scalar => format!("{}-1", self.backend.name()),
             Schedule::Bare => format!("{}-bare", self.backend.name()),
+            Schedule::Decide => format!("{}-decide", self.backend.name()),
         }
     }
 }
@@ -175,6 +180,8 @@ pub fn bench(
     };
     for &b in backends {
         let engine = Engine::open(b)?;
+        // The f64 run's final states, where the decide row's trials start.
+        let mut ends: Vec<([f64; 4], crate::model::Mode)> = Vec::new();
         for (prec, &lyap) in [Precision::F32, Precision::F64]
             .into_iter()
             .flat_map(|p| exponent.iter().map(move |l| (p, l)))
@@ -184,12 +191,18 @@ pub fn bench(
             let res = engine
                 .run(&spec, &Points::along(&[Param::Eta], &values), &Silent)
                 .map_err(Error::from)
-                .map(|(_, t)| {
+                .map(|(rs, t)| {
+                    if prec == Precision::F64 && !lyap {
+                        ends = rs.iter().map(|r| (r.final_y, r.final_mode)).collect();
+                    }
                     let mut r = BenchRow::of(&engine, Schedule::Batched, prec, &spec, points, t);
                     r.lyapunov = lyap;
                     r
                 });
             rows.push(res);
+        }
+        if !ends.is_empty() {
+            rows.push(decide_row(&engine, &spec, &values, &ends));
         }
         for prec in [Precision::F32, Precision::F64] {
             rows.push(bare_row(&engine, &spec, &values, prec));
@@ -259,6 +272,62 @@ fn bare_row(engine: &Engine, spec: &RunSpec, values: &[f64], prec: Precision) ->
         points,
         timings,
     ))
+}
+
+/// The decide row on `engine`: a Newton trial of period 1 from each of the `ends` of the
+/// bench sweep (eta `values`), its flows where `run.decide = "device"` runs them on this
+/// engine (the device's flows kernel, the host's lanes on the CPU), timed as a whole.
+fn decide_row(
+    engine: &Engine,
+    spec: &RunSpec,
+    values: &[f64],
+    ends: &[([f64; 4], crate::model::Mode)],
+) -> Result<BenchRow> {
+    use crate::cycles::Refine;
+    use crate::method::{Integrator, PointState};
+    let settings = spec.settings;
+    let tasks: Vec<Refine> = values
+        .iter()
+        .zip(ends)
+        .map(|(&eta, &(y, mode))| {
+            let mut p = spec.params;
+            Param::Eta.set(&mut p, eta);
+            let start = PointState {
+                y,
+                mode,
+                diag: Default::default(),
+            };
+            Refine::new(Integrator::new(&p, &settings), &start, 1)
+        })
+        .collect();
+    let decider = engine.decider(crate::config::Decide::Device);
+    let t0 = std::time::Instant::now();
+    let done = decider.refine(&settings, tasks);
+    let secs = t0.elapsed().as_secs_f64();
+    let flows: u64 = done
+        .into_iter()
+        .map(|t| u64::from(t.cycle().iterations))
+        .sum();
+    let n = settings.steps_per_period;
+    Ok(BenchRow {
+        backend: match engine {
+            Engine::Gpu(_) => Backend::Gpu,
+            Engine::Cpu => Backend::Cpu,
+        },
+        schedule: Schedule::Decide,
+        device: format!("{}, {flows} flows", engine.device()),
+        precision: Precision::F64,
+        points: values.len(),
+        periods: 1,
+        steps_per_period: n,
+        rk4_steps: flows as f64 * f64::from(n),
+        timings: Timings {
+            integration_s: secs,
+            ..Timings::default()
+        },
+        steps_per_s: flows as f64 * f64::from(n) / secs,
+        lyapunov: false,
+    })
 }
 
 pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
@@ -344,6 +413,19 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
                 s,
                 "cpu {p} / gpu-bare {p} (the adapter's bare step): {:.2}",
                 c.steps_per_s / g.steps_per_s
+            );
+        }
+    }
+    // Newton's trials per second where `run.decide` puts them.
+    for r in rows.iter().flatten() {
+        if r.schedule == Schedule::Decide {
+            let _ = writeln!(
+                s,
+                "newton on {}: {} trials of period 1 in {:.3} s: {:.3e} trials/s",
+                r.backend.name(),
+                r.points,
+                r.timings.integration_s,
+                r.points as f64 / r.timings.integration_s
             );
         }
     }

@@ -11,10 +11,94 @@
 use crate::class::Class;
 use crate::classify::{Candidate, Exponent, Pool, Rule, approaches, conclude, proposals};
 use crate::cycles::{Cycle, Refine, run_parallel};
-use crate::method::{Diagnostics, Integrator, PointState, RunResult, Settings};
+use crate::gpu::{Flow, Gpu};
+use crate::method::tangent::{Tangent, flow};
+use crate::method::{Diagnostics, FlowTask, Integrator, PointState, RunResult, Settings};
 use crate::model::{Mode, Params};
 use crate::spec::{Points, RunSpec};
 use rayon::prelude::*;
+
+/// Where the flows of Newton's method run ([`confirm_many`]): both in f64, with the same
+/// iteration on the host (each iteration's 4 x 4 algebra, the least period of a converged
+/// cycle), so that the same evidence gives the same class up to round-off of the flows.
+#[derive(Clone, Copy)]
+pub enum Decider<'a> {
+    /// The host's lanes ([`run_parallel`]).
+    Host,
+    /// The device's flows kernel (`shaders/flows.wgsl`), one round of flows per iteration,
+    /// for calls of at least `min_trials` trials (fewer go to the host, whose lanes answer a
+    /// small call before the device's rounds have paid their latency).
+    Device { gpu: &'a Gpu, min_trials: usize },
+}
+
+/// Trials of one call below which `run.decide = "auto"` leaves Newton on the host: on an H200
+/// Fig. 2's 2000 points took 1.07 s of Newton on the device against 0.15 s on 16 host cores,
+/// a 512 x 512 map's calls (blocks of up to 131,072 points) 5.7 s against 11.5 s
+/// (docs/performance.md).
+pub const DEVICE_MIN_TRIALS: usize = 8192;
+
+impl Decider<'_> {
+    /// Runs the Newton trials `tasks` to their end and returns them in their order.
+    pub fn refine(self, settings: &Settings, mut tasks: Vec<Refine>) -> Vec<Refine> {
+        if let Decider::Device { gpu, min_trials } = self
+            && tasks.len() >= min_trials
+        {
+            match run_on_device(gpu, settings, &mut tasks) {
+                Ok(()) => return tasks,
+                // The trials go on from where the device left them.
+                Err(e) => eprintln!(
+                    "warning: Newton's flows on the device failed ({e}); the host finishes them"
+                ),
+            }
+        }
+        run_parallel(tasks, |t| u64::from(t.period()))
+    }
+}
+
+/// [`FlowTask`]s run to their end with their flows on the device: each round gathers the flow
+/// every unfinished task asks for, runs them all at once, and hands each task its end (the
+/// tasks' own work after a flow, in parallel on the host). A flow the driver cut short
+/// (llvmpipe's loop limit) is computed on the host.
+pub fn run_on_device<T: FlowTask + Send>(
+    gpu: &Gpu,
+    settings: &Settings,
+    tasks: &mut [T],
+) -> Result<(), crate::gpu::GpuError> {
+    loop {
+        let mut want: Vec<Option<Flow>> = vec![None; tasks.len()];
+        for (t, w) in tasks.iter_mut().zip(want.iter_mut()) {
+            while let Some((st, n)) = t.flow() {
+                if n == 0 {
+                    t.ended(&st, &Tangent::identity(4));
+                    continue;
+                }
+                *w = Some(Flow {
+                    params: t.integrator().p,
+                    start: st,
+                    periods: n,
+                });
+                break;
+            }
+        }
+        let flows: Vec<Flow> = want.iter().flatten().copied().collect();
+        if flows.is_empty() {
+            return Ok(());
+        }
+        let mut ends = gpu.flows(settings, &flows)?.into_iter();
+        let ends: Vec<_> = want
+            .iter()
+            .map(|w| w.map(|f| (f, ends.next().flatten())))
+            .collect();
+        tasks.par_iter_mut().zip(ends).for_each(|(t, e)| match e {
+            Some((_, Some((end, tan)))) => t.ended(&end, &tan),
+            Some((f, None)) => {
+                let (end, tan) = flow(t.integrator(), &f.start, f.periods);
+                t.ended(&end, &tan)
+            }
+            None => {}
+        });
+    }
+}
 
 /// A point's class after the multipliers had their say, and the cycle behind it.
 #[derive(Clone, Debug)]
@@ -36,6 +120,7 @@ pub struct Verdict {
 /// through here, so the same evidence gives the same class whatever the command.
 pub fn confirm(p: &Params<f64>, settings: &Settings, r: &RunResult, detected: Class) -> Verdict {
     confirm_many(
+        Decider::Host,
         settings,
         &[Proposal {
             params: *p,
@@ -77,7 +162,7 @@ pub enum Trials {
 /// [`confirm`] of many points: their Newton trials run [`LANES`](crate::method::LANES) at a
 /// time on the lanes of [`run_flows`], in parallel, one pass per proposed period (a point
 /// leaves once a stable cycle is found).
-pub fn confirm_many(settings: &Settings, points: &[Proposal]) -> Vec<Verdict> {
+pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) -> Vec<Verdict> {
     let periods: Vec<Vec<(u32, Option<Candidate>)>> = points
         .par_iter()
         .map(|q| {
@@ -113,7 +198,7 @@ pub fn confirm_many(settings: &Settings, points: &[Proposal]) -> Vec<Verdict> {
                 Some((i, Refine::new(it, &start, n)))
             })
             .unzip();
-        let tasks = run_parallel(tasks, |t| u64::from(t.period()));
+        let tasks = decider.refine(settings, tasks);
         for (i, t) in idx.into_iter().zip(tasks) {
             let cand = periods[i][pass].1;
             tried[i].push(t.period());
@@ -149,6 +234,7 @@ pub fn confirm_many(settings: &Settings, points: &[Proposal]) -> Vec<Verdict> {
 /// [`confirm`] for every point of a run (`params(i)` and the detector's `classes[i]` for
 /// `results[i]`), the Newton trials on the lanes ([`confirm_many`]).
 pub fn confirm_all(
+    decider: Decider,
     params: impl Fn(usize) -> Params<f64>,
     settings: &Settings,
     results: &[RunResult],
@@ -168,7 +254,7 @@ pub fn confirm_all(
             skip: skip.get(i).copied().unwrap_or([0; 2]),
         })
         .collect();
-    confirm_many(settings, &points)
+    confirm_many(decider, settings, &points)
 }
 
 /// What a map keeps of one point.
@@ -214,6 +300,7 @@ impl Summary {
     /// [`Summary::new`] of every point of a run (`detected[i]` for `results[i]`), the same
     /// summaries bit for bit, with the Newton trials on the lanes ([`confirm_all`]).
     pub fn many(
+        decider: Decider,
         detected: &[Class],
         results: &[RunResult],
         spec: &RunSpec,
@@ -222,6 +309,7 @@ impl Summary {
         trials: Trials,
     ) -> Vec<Summary> {
         confirm_all(
+            decider,
             |i| points.params(&spec.params, i),
             &spec.settings,
             results,
@@ -279,6 +367,7 @@ impl Summary {
 /// each point's exponent pooled with its earlier windows (`pools`, one per point or empty), its
 /// strict detector's class, then [`Summary::many`] (`skip`: periods tried in vain before).
 pub fn summaries(
+    decider: Decider,
     spec: &RunSpec,
     points: &Points,
     results: &mut [RunResult],
@@ -290,5 +379,5 @@ pub fn summaries(
         r.pool(p);
     }
     let detected: Vec<Class> = results.iter().map(|r| r.class(spec.period_tol)).collect();
-    Summary::many(&detected, results, spec, points, skip, trials)
+    Summary::many(decider, &detected, results, spec, points, skip, trials)
 }

@@ -5,7 +5,7 @@
 //! is decided in [`crate::decide`], and [`crate::adaptive`] combines the two. Nothing else
 //! calls a backend.
 
-use crate::config::Backend;
+use crate::config::{Backend, Decide};
 use crate::gpu::{Gpu, GpuError, Job};
 /// The kernel ladder's rungs ([`Engine::time_rung`]) and the adapters report, for `bench` and
 /// `adapters`.
@@ -74,6 +74,36 @@ impl Engine {
         match self {
             Engine::Gpu(g) => g.has_f64(),
             Engine::Cpu => true,
+        }
+    }
+
+    /// Where Newton's flows run for a run that asks for `decide` ([`Decide`]): the device only
+    /// where it has f64 (the reference arithmetic), with `auto` only where it is not the host's
+    /// own cores and for calls of at least [`DEVICE_MIN_TRIALS`](crate::decide::DEVICE_MIN_TRIALS)
+    /// trials.
+    pub fn decider(&self, decide: Decide) -> crate::decide::Decider<'_> {
+        use crate::decide::{DEVICE_MIN_TRIALS, Decider};
+        match (self, decide) {
+            (Engine::Gpu(gpu), Decide::Device) if gpu.has_f64() => {
+                Decider::Device { gpu, min_trials: 0 }
+            }
+            (Engine::Gpu(gpu), Decide::Auto)
+                if gpu.has_f64() && gpu.info.device_type != wgpu::DeviceType::Cpu =>
+            {
+                Decider::Device {
+                    gpu,
+                    min_trials: DEVICE_MIN_TRIALS,
+                }
+            }
+            _ => Decider::Host,
+        }
+    }
+
+    /// Seconds of Newton's flows on the device so far (0 on the CPU).
+    pub fn decide_seconds(&self) -> f64 {
+        match self {
+            Engine::Gpu(g) => g.decide_seconds(),
+            Engine::Cpu => 0.0,
         }
     }
 

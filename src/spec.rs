@@ -3,7 +3,7 @@
 //! how long. Callers build a [`RunSpec`] from a [`Config`] once instead of cloning and mutating
 //! whole configurations.
 
-use crate::config::{Config, Precision};
+use crate::config::{Config, Decide, Precision};
 use crate::method::Settings;
 use crate::model::{Mode, Param, Params};
 
@@ -22,6 +22,8 @@ pub struct RunSpec {
     /// An undecided point may run this many times the configured periods in all
     /// (`run.horizon`, [`crate::adaptive::extensions`]).
     pub horizon: u32,
+    /// Where Newton's flows run (`run.decide`).
+    pub decide: Decide,
     pub precision: Precision,
 }
 
@@ -35,6 +37,7 @@ impl RunSpec {
             samples: cfg.run.sample_periods,
             period_tol: cfg.run.period_tol,
             horizon: cfg.run.horizon,
+            decide: cfg.run.decide,
             precision: cfg.method.precision,
         }
     }

@@ -336,6 +336,45 @@ fn small_map_classes_agree_with_cpu() {
 }
 
 #[test]
+fn a_map_decided_on_the_device_has_the_classes_decided_on_the_host() {
+    // `run.decide = "device"`: Newton's flows on the adapter's flows kernel (f64), against the
+    // host's lanes on the same kernel evidence. The flows agree to round-off (gpu_kernel.rs),
+    // so the classes must be the same in every cell (a cell whose Newton iteration stops at the
+    // two-iteration rule by a hair could differ; none of these does), the periods too, and the
+    // multipliers of the stable cycles to 1e-6; the device's seconds are in `decide_s`.
+    let Some(engine) = common::gpu_engine() else {
+        return;
+    };
+    let text = common::points::rl_map(128, 300, 100, 14, 10);
+    let mut cfg = rattle::config::Config::from_toml(&text, &[]).unwrap();
+    cfg.method.precision = rattle::config::Precision::F32;
+    let cells = rattle::map::cell_count(&cfg);
+    let mut runs = Vec::new();
+    for decide in [rattle::config::Decide::Host, rattle::config::Decide::Device] {
+        cfg.run.decide = decide;
+        let (cs, t) = rattle::map::compute(&engine, &cfg, 0..cells, 1, &Silent).unwrap();
+        let s: Vec<_> = cs.into_iter().map(|c| c.0).collect();
+        eprintln!(
+            "{decide:?}: host {:.2} s, device deciding {:.2} s",
+            t.host_s, t.decide_s
+        );
+        runs.push((s, t));
+    }
+    let ((host, th), (device, td)) = (&runs[0], &runs[1]);
+    assert_eq!(th.decide_s, 0.0);
+    assert!(td.decide_s > 0.0, "{td:?}");
+    let mut periodic = 0;
+    for (i, (a, b)) in host.iter().zip(device).enumerate() {
+        assert_eq!(a.class, b.class, "cell {i}");
+        if matches!(a.class, Class::Periodic(_)) {
+            periodic += 1;
+            assert!((a.multiplier - b.multiplier).abs() < 1e-6, "cell {i}");
+        }
+    }
+    assert!(periodic >= 40, "{periodic} periodic cells");
+}
+
+#[test]
 fn map_over_all_adapters_equals_the_single_adapter_map() {
     if gpu().is_none() {
         return;

@@ -345,3 +345,70 @@ fn rung_0_the_bare_step_agrees_with_its_cpu_twin() {
         eprintln!("f64 {f64}: rung 0 GPU against CPU twin, largest difference {worst:e}");
     }
 }
+
+#[test]
+fn newton_flows_on_the_device_agree_with_the_cpu_flow() {
+    // The flows kernel (four tangent vectors through the events, every parameter per flow)
+    // against its twin `tangent::flow` in f64: states of Fig. 2 after 200 periods (period-1,
+    // period-2, chaotic and sticking points, Coulomb) and of Fig. 3's Stribeck law, flows of
+    // 1, 2 and 5 periods each (lavapipe: 3.3e-15 in the states, 1.2e-14 of the matrices'
+    // size, 200 events crossed). The bounds leave room for a chaotic point's ulps, which grow
+    // by its exponent over the 5 periods.
+    let Some(g) = gpu() else { return };
+    let g = g.lock().unwrap();
+    if !g.has_f64() {
+        panic!("the flows need an f64 adapter (lavapipe has one)");
+    }
+    let s = Settings::default();
+    let mut stribeck = Params::paper(1.5);
+    (stribeck.fs, stribeck.fk, stribeck.l1, stribeck.l2) = (0.25, 0.05, 1.42, 0.005);
+    let mut flows = Vec::new();
+    for (base, etas) in [
+        (Params::paper(1.5), vec![1.05, 1.2, 1.3, 1.5, 1.75, 1.9]),
+        (stribeck, vec![1.35, 1.45, 1.55]),
+    ] {
+        for eta in etas {
+            let p = Params { eta, ..base };
+            let it = Integrator::<f64>::new(&p, &s);
+            let mut st = it.start([0.0; 4]);
+            for _ in 0..200 {
+                it.period(&mut st);
+            }
+            st.diag = Default::default();
+            for periods in [1, 2, 5] {
+                flows.push(rattle::gpu::Flow {
+                    params: p,
+                    start: st,
+                    periods,
+                });
+            }
+        }
+    }
+    // A start that is not finite fails its flow at once, as on the CPU.
+    let mut bad = flows[0];
+    bad.start.y[0] = f64::NAN;
+    flows.push(bad);
+    let ends = g.flows(&s, &flows).expect("device flows");
+    let (mut dy, mut dm, mut events) = (0.0f64, 0.0f64, 0u64);
+    for (f, e) in flows.iter().zip(&ends) {
+        let (end, tan) = e.as_ref().expect("no flow cut short");
+        let it = Integrator::<f64>::new(&f.params, &s);
+        let (cend, ctan) = rattle::method::tangent::flow(&it, &f.start, f.periods);
+        assert_eq!(
+            end.diag.nonfinite,
+            cend.diag.nonfinite || !f.start.y[0].is_finite()
+        );
+        if end.diag.nonfinite {
+            continue;
+        }
+        assert_eq!(end.mode, cend.mode, "{f:?}");
+        let (m, cm) = (tan.matrix(), ctan.matrix());
+        dy = dy.max(max_diff(&end.y, &cend.y));
+        dm = dm.max((m - cm).amax() / cm.amax().max(1.0));
+        events += ctan.events;
+    }
+    assert!(ends.last().unwrap().as_ref().unwrap().0.diag.nonfinite);
+    eprintln!("flows: max |state| {dy:.2e}, max |matrix| (relative) {dm:.2e}, {events} events");
+    assert!(events > 50, "the flows must cross events ({events})");
+    assert!(dy < 1e-12 && dm < 1e-11, "state {dy:e}, matrix {dm:e}");
+}

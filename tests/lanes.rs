@@ -6,7 +6,7 @@
 
 use rattle::class::Class;
 use rattle::cycles::{Cycle, Refine, refine};
-use rattle::decide::{Proposal, Trials, confirm, confirm_many};
+use rattle::decide::{Decider, Proposal, Trials, confirm, confirm_many};
 use rattle::method::{
     FlowTask, ImpactMethod, Integrator, LANES, PointState, RunResult, Settings, batches, run_flows,
     run_flows_portable, run_lanes, run_lanes_portable,
@@ -297,13 +297,13 @@ fn confirm_many_equals_confirm_point_by_point() {
             skip: [0; 2],
         })
         .collect();
-    let many = confirm_many(&s, &proposals);
+    let many = confirm_many(Decider::Host, &s, &proposals);
     let mut tried = 0;
     for (q, v) in proposals.iter().zip(&many) {
         let one = if q.trials == Trials::All {
             confirm(&q.params, &s, q.run, q.class)
         } else {
-            confirm_many(&s, std::slice::from_ref(q)).remove(0)
+            confirm_many(Decider::Host, &s, std::slice::from_ref(q)).remove(0)
         };
         assert_eq!(one.class, v.class);
         match (&one.cycle, &v.cycle) {

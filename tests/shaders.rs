@@ -32,9 +32,21 @@ fn integrate_f64_validates() {
     validate(&src, Capabilities::FLOAT64).unwrap_or_else(|e| panic!("{e}"));
 }
 
-/// Every piece of WGSL: the kernel's and rung 0's.
+/// Every piece of WGSL: the kernel's, rung 0's and Newton's flows'.
 fn pieces() -> impl Iterator<Item = (&'static str, &'static str)> {
-    rattle::gpu::SHADER.into_iter().chain([BARE_SHADER])
+    rattle::gpu::SHADER
+        .into_iter()
+        .chain([BARE_SHADER, rattle::gpu::FLOWS_SHADER])
+}
+
+#[test]
+fn flows_kernel_validates_in_f32_and_f64() {
+    use rattle::gpu::flows_source;
+    validate(&flows_source(Precision::F32), Capabilities::empty())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let src = flows_source(Precision::F64);
+    assert!(src.contains("const TANGENTS: u32 = 4u;") && !src.contains("fn main("));
+    validate(&src, Capabilities::FLOAT64).unwrap_or_else(|e| panic!("{e}"));
 }
 
 /// Rung 0's constants at the paper's parameters, N = 256.

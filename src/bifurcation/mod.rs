@@ -5,7 +5,7 @@
 use crate::class::Class;
 use crate::config::Config;
 use crate::cycles::Cycle;
-use crate::decide::{Trials, confirm_all};
+use crate::decide::{Decider, Trials, confirm_all};
 use crate::engine::Engine;
 use crate::engine::{EngineError, Timings};
 use crate::error::Result;
@@ -54,7 +54,15 @@ pub fn finish(cfg: &Config, results: Vec<RunResult>) -> Vec<SweepPoint> {
         .iter()
         .map(|r| r.class(cfg.run.period_tol))
         .collect();
-    let verdicts = confirm_all(at, &cfg.settings(), &results, &detected, &[], Trials::All);
+    let verdicts = confirm_all(
+        Decider::Host,
+        at,
+        &cfg.settings(),
+        &results,
+        &detected,
+        &[],
+        Trials::All,
+    );
     values
         .into_iter()
         .zip(results)

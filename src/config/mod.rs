@@ -262,6 +262,23 @@ impl Tangent {
     }
 }
 
+/// Where Newton's method runs the flows that decide a map's or a sweep's cycles (`run.decide`);
+/// both in f64, with the same iteration on the host (docs/stability.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Decide {
+    /// On a GPU adapter with f64 that is a device of its own; on the host where the adapter
+    /// runs on the host's own cores (lavapipe: the host's lanes are faster there, measured in
+    /// docs/performance.md) or has no f64.
+    #[default]
+    Auto,
+    /// On the GPU adapter where it has f64 (the cpu backend and adapters without f64 decide
+    /// on the host).
+    Device,
+    /// On the host's lanes.
+    Host,
+}
+
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RunConfig {
@@ -280,6 +297,8 @@ pub struct RunConfig {
     /// A point still undecided after the configured periods keeps integrating, in doubling
     /// windows, up to this many times the configured periods in all (1: never).
     pub horizon: u32,
+    /// Where Newton's flows run ([`Decide`]).
+    pub decide: Decide,
 }
 
 impl Default for RunConfig {
@@ -292,6 +311,7 @@ impl Default for RunConfig {
             lyapunov_tol: 0.01,
             early_stop: true,
             horizon: 10,
+            decide: Decide::Auto,
         }
     }
 }

@@ -87,9 +87,9 @@ impl Plan {
 /// Buffers shared by every batch of a job: the constants, the control uniform and the
 /// uniform copy of the forcing table.
 pub(super) struct Shared {
-    consts: wgpu::Buffer,
+    pub(super) consts: wgpu::Buffer,
     pub(super) control: wgpu::Buffer,
-    utab: wgpu::Buffer,
+    pub(super) utab: wgpu::Buffer,
 }
 
 impl Shared {
@@ -114,6 +114,32 @@ impl Shared {
                     usage: wgpu::BufferUsages::UNIFORM,
                 }),
         }
+    }
+}
+
+impl Shared {
+    /// The bind group of `pipeline` with the shared buffers and a batch's `[pvals, ys, us,
+    /// samples, ring]`.
+    pub(super) fn bind(
+        &self,
+        gpu: &Gpu,
+        pipeline: &wgpu::ComputePipeline,
+        [pvals, ys, us, samples, ring]: [&wgpu::Buffer; 5],
+    ) -> wgpu::BindGroup {
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("integrate"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                entry(B_CONTROL, &self.control),
+                entry(B_CONSTS, &self.consts),
+                entry(B_PVALS, pvals),
+                entry(B_YS, ys),
+                entry(B_US, us),
+                entry(B_SAMPLES, samples),
+                entry(B_RING, ring),
+                entry(B_UTAB, &self.utab),
+            ],
+        })
     }
 }
 
@@ -255,20 +281,7 @@ impl<F: Real + Pod> Batch<F> {
         let samples = gpu.storage_empty("samples", m as u64 * plan.store_bytes);
         // The ring starts zeroed (wgpu clears new buffers); the detector's count guards it.
         let ring = gpu.storage_empty("ring", m as u64 * R_SLOTS as u64 * fsz);
-        let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("integrate"),
-            layout: &pipeline.get_bind_group_layout(0),
-            entries: &[
-                entry(B_CONTROL, &shared.control),
-                entry(B_CONSTS, &shared.consts),
-                entry(B_PVALS, &pvals),
-                entry(B_YS, &ys),
-                entry(B_US, &us),
-                entry(B_SAMPLES, &samples),
-                entry(B_RING, &ring),
-                entry(B_UTAB, &shared.utab),
-            ],
-        });
+        let bind = shared.bind(gpu, pipeline, [&pvals, &ys, &us, &samples, &ring]);
 
         let (gx, gy) = dispatch_grid(gpu, job, m)?;
         let s = &spec.settings;

@@ -92,40 +92,61 @@ impl Gpu {
             };
             ctl.period0 = done;
             ctl.periods = periods;
-            self.queue
-                .write_buffer(&shared.control, 0, bytemuck::bytes_of(&ctl));
-            let mut enc = self.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("integrate"),
-                    timestamp_writes: timer.as_ref().map(|t| wgpu::ComputePassTimestampWrites {
-                        query_set: &t.set,
-                        beginning_of_pass_write_index: Some(0),
-                        end_of_pass_write_index: Some(1),
-                    }),
-                });
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &batch.bind, &[]);
-                pass.dispatch_workgroups(batch.grid.0, batch.grid.1, 1);
-            }
-            if let Some(t) = &timer {
-                enc.resolve_query_set(&t.set, 0..2, &t.resolve, 0);
-                enc.copy_buffer_to_buffer(&t.resolve, 0, &t.read, 0, 16);
-            }
             let t0 = Instant::now();
-            self.queue.submit([enc.finish()]);
-            self.wait("integration dispatch")?;
+            self.dispatch(
+                pipeline,
+                &batch.bind,
+                batch.grid,
+                shared,
+                &ctl,
+                timer.as_deref_mut(),
+            )?;
             let secs = t0.elapsed().as_secs_f64();
-            if let Some(t) = timer.as_deref_mut() {
-                let ts: Vec<u64> = self.read_buffer(&t.read, 16)?;
-                t.ns +=
-                    ts[1].saturating_sub(ts[0]) as f64 * self.queue.get_timestamp_period() as f64;
-            }
             done += periods;
             timings.dispatches += 1;
             progress.advance(periods as u64 * m as u64);
             let target = DISPATCH_SECONDS / (secs / periods as f64).max(1e-9);
             chunk = (target as u32).clamp(1, chunk.saturating_mul(8)).min(cap);
+        }
+        Ok(())
+    }
+
+    /// One dispatch of `pipeline` over `grid` with the control block `ctl`, waited for; with
+    /// `timer`, its kernel time added.
+    pub(super) fn dispatch(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        bind: &wgpu::BindGroup,
+        grid: (u32, u32),
+        shared: &Shared,
+        ctl: &super::layout::Control,
+        timer: Option<&mut Timer>,
+    ) -> Result<(), GpuError> {
+        self.queue
+            .write_buffer(&shared.control, 0, bytemuck::bytes_of(ctl));
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("integrate"),
+                timestamp_writes: timer.as_ref().map(|t| wgpu::ComputePassTimestampWrites {
+                    query_set: &t.set,
+                    beginning_of_pass_write_index: Some(0),
+                    end_of_pass_write_index: Some(1),
+                }),
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bind, &[]);
+            pass.dispatch_workgroups(grid.0, grid.1, 1);
+        }
+        if let Some(t) = &timer {
+            enc.resolve_query_set(&t.set, 0..2, &t.resolve, 0);
+            enc.copy_buffer_to_buffer(&t.resolve, 0, &t.read, 0, 16);
+        }
+        self.queue.submit([enc.finish()]);
+        self.wait("dispatch")?;
+        if let Some(t) = timer {
+            let ts: Vec<u64> = self.read_buffer(&t.read, 16)?;
+            t.ns += ts[1].saturating_sub(ts[0]) as f64 * self.queue.get_timestamp_period() as f64;
         }
         Ok(())
     }

@@ -19,6 +19,10 @@ pub const SHADER: [(&str, &str); 7] = [
     ("main.wgsl", include_str!("../../shaders/main.wgsl")),
 ];
 
+/// The entry point of Newton's flows (file name, text): it compiles after the pieces of
+/// [`SHADER`] but `main.wgsl`, with four tangent vectors ([`flows_source`]).
+pub const FLOWS_SHADER: (&str, &str) = ("flows.wgsl", include_str!("../../shaders/flows.wgsl"));
+
 /// Rung 0 of the ladder, the bare RK4 step (file name, text); it compiles after the prelude
 /// and the literal block of [`bare_source`].
 pub const BARE_SHADER: (&str, &str) = ("bare.wgsl", include_str!("../../shaders/bare.wgsl"));
@@ -50,8 +54,23 @@ pub fn bare_source(precision: Precision, k: &BareConsts<f64>) -> String {
 /// The kernel source in a precision: the generated contract of `layout`, then the body.
 /// The one way to get the kernel text, for the runner and the tests alike.
 pub fn shader_source(precision: Precision) -> String {
+    source(precision, 1, &SHADER)
+}
+
+/// The source of Newton's flows in a precision: the kernel's pieces with four tangent vectors
+/// and `shaders/flows.wgsl` as the entry point instead of `main.wgsl`.
+pub fn flows_source(precision: Precision) -> String {
+    let mut pieces = SHADER.to_vec();
+    pieces.pop();
+    pieces.push(FLOWS_SHADER);
+    source(precision, 4, &pieces)
+}
+
+/// The prelude, the number of tangent vectors (`TANGENTS`), then the pieces.
+fn source(precision: Precision, tangents: u32, pieces: &[(&str, &str)]) -> String {
     let mut src = layout::prelude(precision);
-    for (name, text) in SHADER {
+    src += &format!("\n// Tangent vectors (tangent.wgsl).\nconst TANGENTS: u32 = {tangents}u;\n");
+    for (name, text) in pieces {
         src += &format!("\n// ---- shaders/{name} ----\n");
         src += text;
     }
@@ -195,6 +214,58 @@ impl Kernels {
         variant: Variant,
     ) -> wgpu::ComputePipeline {
         let precision = spec.precision;
+        if rung == Rung::Bare {
+            let k = BareConsts::new(&spec.params, spec.settings.steps_per_period);
+            // The bare kernel declares none of the overrides.
+            return self.compile(
+                device,
+                (precision, rung, variant),
+                bare_source(precision, &k),
+                "bare",
+                &[],
+            );
+        }
+        self.compile(
+            device,
+            (precision, rung, variant),
+            String::new(),
+            "main",
+            &rung.constants(variant),
+        )
+    }
+
+    /// The pipeline of Newton's flows ([`flows_source`]; the production kernel's pieces, with
+    /// the tangent).
+    pub(super) fn flows(
+        &self,
+        device: &wgpu::Device,
+        precision: Precision,
+        coulomb: bool,
+    ) -> wgpu::ComputePipeline {
+        let variant = Variant {
+            coulomb,
+            tangent: true,
+            uniform_table: false,
+        };
+        self.compile(
+            device,
+            (precision, Rung::Full, variant),
+            flows_source(precision),
+            "flows",
+            &Rung::Full.constants(variant),
+        )
+    }
+
+    /// The cached pipeline of `key` and `source` (empty: the production kernel's), compiled on
+    /// first use with entry point `entry` and the override `constants`.
+    fn compile(
+        &self,
+        device: &wgpu::Device,
+        (precision, rung, variant): (Precision, Rung, Variant),
+        source: String,
+        entry: &str,
+        constants: &[(&str, f64)],
+    ) -> wgpu::ComputePipeline {
         let (_, layout) = self.layout.get_or_init(|| {
             let group = bind_group_layout(device);
             let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -204,12 +275,6 @@ impl Kernels {
             });
             (group, layout)
         });
-        let (source, entry) = if rung == Rung::Bare {
-            let k = BareConsts::new(&spec.params, spec.settings.steps_per_period);
-            (bare_source(precision, &k), "bare")
-        } else {
-            (String::new(), "main")
-        };
         let mut cache = self.pipelines.lock().unwrap();
         cache
             .entry((precision, rung, variant, source.clone()))
@@ -220,18 +285,16 @@ impl Kernels {
                     source
                 };
                 let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("integrate"),
+                    label: Some(entry),
                     source: wgpu::ShaderSource::Wgsl(source.into()),
                 });
-                let constants = rung.constants(variant);
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("integrate"),
+                    label: Some(entry),
                     layout: Some(layout),
                     module: &module,
                     entry_point: Some(entry),
                     compilation_options: wgpu::PipelineCompilationOptions {
-                        // The bare kernel declares none of the overrides.
-                        constants: if rung == Rung::Bare { &[] } else { &constants },
+                        constants,
                         ..Default::default()
                     },
                     cache: None,

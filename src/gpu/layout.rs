@@ -108,7 +108,9 @@ u32_group!(US, "Slots of `us`, u32 per point: us[slot * n_points + i]." {
     U_TAN_BAD = 11;
     /// Steps that ended in slip against the mode's direction (Diagnostics::wrong_slips).
     U_WRONG_SLIPS = 12;
-    U_SLOTS = 13;
+    /// Periods a flow of Newton's method has left (flows.wgsl).
+    U_FLOW_LEFT = 13;
+    U_SLOTS = 14;
 });
 
 // The last TAIL section values sit at slots 0..TAIL (value k at k % TAIL).
@@ -143,6 +145,8 @@ u32_group!(YS, "Slots of `ys`, F per point: state and Lyapunov tangent, STATE_DI
     Y_MAIN = 0;
     Y_TAN = Y_MAIN + STATE_DIM;
     Y_SLOTS = Y_TAN + STATE_DIM;
+    /// A flow of Newton's method (flows.wgsl): the state and the four tangent vectors.
+    Y_FLOW_SLOTS = Y_TAN + 4 * STATE_DIM;
 });
 
 // Base parameters in the order of the kernel's Params, method constants, then the forcing

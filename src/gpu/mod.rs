@@ -13,10 +13,12 @@
 
 mod batch;
 mod dispatch;
+mod flows;
 mod kernel;
 pub mod layout;
 
-pub use kernel::{BARE_SHADER, SHADER, bare_source, shader_source};
+pub use flows::{Flow, FlowEnd};
+pub use kernel::{BARE_SHADER, FLOWS_SHADER, SHADER, bare_source, flows_source, shader_source};
 
 use crate::config::Precision;
 use crate::method::{RunResult, Timings};
@@ -95,6 +97,8 @@ pub struct Gpu {
     limits: wgpu::Limits,
     error: Arc<Mutex<Option<String>>>,
     kernels: Kernels,
+    /// Seconds spent in Newton's flows on this device ([`Gpu::flows`]), for the timings.
+    decide_s: Mutex<f64>,
     /// Longest wait for one dispatch before giving up.
     pub timeout: Duration,
 }
@@ -234,6 +238,7 @@ impl Gpu {
             limits,
             error,
             kernels: Kernels::default(),
+            decide_s: Mutex::new(0.0),
             timeout: Duration::from_secs(120),
         })
     }
@@ -244,6 +249,11 @@ impl Gpu {
 
     pub fn has_timestamps(&self) -> bool {
         self.timestamps
+    }
+
+    /// Seconds spent in Newton's flows on this device so far.
+    pub fn decide_seconds(&self) -> f64 {
+        *self.decide_s.lock().unwrap()
     }
 
     pub fn adapter_name(&self) -> &str {

@@ -165,6 +165,8 @@ pub struct MapSummary {
     pub integration_s: f64,
     /// The host's deciding (`method::Timings::host_s`) and the files' writing.
     pub host_s: f64,
+    /// Newton's flows on the device.
+    pub decide_s: f64,
     pub files_s: f64,
     pub counts: std::collections::BTreeMap<String, usize>,
     pub wall_s: f64,
@@ -184,8 +186,8 @@ impl MapSummary {
             );
         }
         s + &format!(
-            "map: {} x {} cells on {} ({}, {}) in {:.2} s ({:.2} s integration, {:.2} s host \
-             deciding, {:.2} s files); {:?}\n",
+            "map: {} x {} cells on {} ({}, {}) in {:.2} s ({:.2} s integration, {:.2} s device \
+             deciding, {:.2} s host deciding, {:.2} s files); {:?}\n",
             cfg.map.x_points,
             cfg.map.y_points,
             self.backend,
@@ -193,6 +195,7 @@ impl MapSummary {
             cfg.method.precision.name(),
             self.wall_s,
             self.integration_s,
+            self.decide_s,
             self.host_s,
             self.files_s,
             self.counts
@@ -243,6 +246,7 @@ pub fn run(
     let (cfg, fields, parts) = merge(parts)?;
     let secs: f64 = parts.iter().map(|p| p.timings.integration_s).sum();
     let host_s: f64 = parts.iter().map(|p| p.timings.host_s).sum();
+    let decide_s: f64 = parts.iter().map(|p| p.timings.decide_s).sum();
     let periods = periods_integrated(&cfg, &fields);
     let steps = periods as f64 * cfg.method.steps_per_period as f64;
     let mut report = MapReport {
@@ -254,6 +258,7 @@ pub fn run(
         timings: MapTimings {
             integration_s: Some(secs),
             host_s: Some(host_s),
+            device_decide_s: Some(decide_s),
             rk4_steps: Some(steps),
             steps_per_s: Some(steps / secs),
             ..MapTimings::default()
@@ -292,6 +297,7 @@ pub fn run(
         .extend(write_outputs(out, &cfg, &fields, &report)?);
     summary.files_s = t_files.elapsed().as_secs_f64();
     summary.host_s = host_s;
+    summary.decide_s = decide_s;
     if n > 1 {
         for i in 0..n {
             let _ = std::fs::remove_file(part_path(out, i, n));

@@ -90,6 +90,9 @@ pub struct MapTimings {
     /// over the parts.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub host_s: Option<f64>,
+    /// Newton's flows on the device (`run.decide`), summed over the parts.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub device_decide_s: Option<f64>,
     /// Writing the images and NPY files (the JSON, written last, not included).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub files_s: Option<f64>,

@@ -248,6 +248,10 @@ pub struct Timings {
     /// of the live points; zero for a plain run.
     #[serde(default)]
     pub host_s: f64,
+    /// Newton's flows on the device between the engine's runs (`run.decide`; not in
+    /// `host_s`).
+    #[serde(default)]
+    pub decide_s: f64,
 }
 
 impl Timings {
@@ -264,5 +268,6 @@ impl Timings {
         self.dispatches += o.dispatches;
         self.batches += o.batches;
         self.host_s += o.host_s;
+        self.decide_s += o.decide_s;
     }
 }
