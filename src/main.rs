@@ -250,26 +250,14 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
 fn sensitivity_command(a: SensitivityArgs) -> Result<Vec<PathBuf>> {
     let common = &a.common;
     let cfg = common.load_from(&common.config)?;
-    let s = &cfg.sensitivity;
-    let given = if a.uncertain.is_empty() {
-        &s.uncertain
-    } else {
-        &a.uncertain
-    };
-    let o = rattle::sensitivity::Options {
-        uncertain: given
-            .iter()
-            .map(|u| rattle::sensitivity::Uncertain::parse(u))
-            .collect::<Result<_, _>>()?,
-        samples: a.samples.unwrap_or(s.samples) as usize,
-        seed: a.seed.unwrap_or(s.seed),
-    };
-    o.check()?;
-    cfg.check_tangent("`sensitivity`")?;
-    o.check_values(&cfg)?;
+    let o = rattle::sensitivity::Options::from_config(
+        &cfg,
+        (!a.uncertain.is_empty()).then_some(&a.uncertain[..]),
+        a.samples.map(|n| n as usize),
+        a.seed,
+    )?;
     let params: Vec<rattle::model::Param> = o.uncertain.iter().map(|u| u.param).collect();
     common.refuse_varied(&params, "--uncertain")?;
-    rattle::sensitivity::check_memory(&o)?;
     check_prefix(&a.out, &["json", "csv", "png", "svg"])?;
     let engine = Engine::open(cfg.method.backend)?;
     let spec = RunSpec::new(&cfg);

@@ -39,8 +39,26 @@ pub fn save_npy<T: npyz::AutoSerialize + Copy>(
     shape: &[u64],
     data: &[T],
 ) -> std::io::Result<()> {
+    write_npy(
+        std::io::BufWriter::new(std::fs::File::create(path)?),
+        shape,
+        data,
+    )
+}
+
+/// The bytes of the NPY file [`save_npy`] writes (the Python package's arrays).
+pub fn npy_bytes<T: npyz::AutoSerialize + Copy>(shape: &[u64], data: &[T]) -> Vec<u8> {
+    let mut out = std::io::Cursor::new(Vec::new());
+    write_npy(&mut out, shape, data).expect("writing to memory cannot fail");
+    out.into_inner()
+}
+
+fn write_npy<T: npyz::AutoSerialize + Copy>(
+    f: impl std::io::Write,
+    shape: &[u64],
+    data: &[T],
+) -> std::io::Result<()> {
     use npyz::WriterBuilder;
-    let f = std::io::BufWriter::new(std::fs::File::create(path)?);
     let mut w = npyz::WriteOptions::new()
         .default_dtype()
         .shape(shape)

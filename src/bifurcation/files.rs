@@ -353,18 +353,15 @@ fn write_png(staged: &mut Staged, out: &Path, b: &Bifurcation) -> Result<usize> 
     Ok(panels_n)
 }
 
-/// Writes PREFIX.csv (parameter, sample index, state; with the direction of a continuation),
-/// PREFIX.png (density-shaded samples, one panel per chain) and PREFIX.json; all or nothing.
-pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
+/// The diagram's JSON (without its files' list where `files` is empty): the points, the
+/// bifurcation points, the caption for `panels_n` panels, the timings.
+fn json(
+    b: &Bifurcation,
+    files: Vec<String>,
+    panels_n: usize,
+) -> Result<BifurcationJson<'_, Chain<'_>>> {
     let cfg = &b.cfg;
     let cont = b.continuation.is_some();
-    let all: Vec<_> = b.runs.iter().flat_map(|r| &r.1).collect();
-    if all.iter().all(|pt| pt.class == Class::Failed) {
-        return Err(Error::AllFailed { points: all.len() });
-    }
-    let mut staged = Staged::new();
-    write_csv(&mut staged, out, b)?;
-    let panels_n = write_png(&mut staged, out, b)?;
     let mut counts = BTreeMap::<String, usize>::new();
     for (_, points) in &b.runs {
         for pt in points {
@@ -373,9 +370,8 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
     }
     let chain = |d: Direction| b.runs.iter().find(|r| r.0 == Some(d)).map(|r| Chain(&r.1));
     let steps = b.rk4_steps();
-    let json_path = with_ext(out, "json");
-    let j = BifurcationJson {
-        files: staged.manifest(&json_path),
+    Ok(BifurcationJson {
+        files,
         version: env!("CARGO_PKG_VERSION"),
         command: "bifurcation",
         backend: b.backend,
@@ -408,7 +404,27 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         points_up: chain(Direction::Up),
         points_down: chain(Direction::Down),
         hysteresis_values: b.hysteresis(),
-    };
+    })
+}
+
+/// The JSON that [`write_outputs`] writes, without its files (the Python package's report).
+pub fn report_json(b: &Bifurcation) -> Result<String> {
+    let panels_n = b.runs.len().max(1);
+    Ok(serde_json::to_string(&json(b, Vec::new(), panels_n)?)?)
+}
+
+/// Writes PREFIX.csv (parameter, sample index, state; with the direction of a continuation),
+/// PREFIX.png (density-shaded samples, one panel per chain) and PREFIX.json; all or nothing.
+pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
+    let all: Vec<_> = b.runs.iter().flat_map(|r| &r.1).collect();
+    if all.iter().all(|pt| pt.class == Class::Failed) {
+        return Err(Error::AllFailed { points: all.len() });
+    }
+    let mut staged = Staged::new();
+    write_csv(&mut staged, out, b)?;
+    let panels_n = write_png(&mut staged, out, b)?;
+    let json_path = with_ext(out, "json");
+    let j = json(b, staged.manifest(&json_path), panels_n)?;
     let io = |source| OutputError::Io {
         path: json_path.display().to_string(),
         source,

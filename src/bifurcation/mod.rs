@@ -19,7 +19,7 @@ use std::time::Instant;
 mod files;
 mod paper;
 
-pub use files::{title, write_outputs};
+pub use files::{report_json, title, write_outputs};
 pub use paper::{PAPER_CONFIGS, paper_figure};
 
 /// One point of a finished sweep.

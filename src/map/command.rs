@@ -7,7 +7,7 @@ use super::{
     compute, shard_range, write_compare, write_outputs,
 };
 use crate::config::Config;
-use crate::engine::Engine;
+use crate::engine::{Engine, Timings};
 use crate::error::OptionError;
 use crate::progress::Progress;
 use std::path::{Path, PathBuf};
@@ -215,6 +215,79 @@ pub fn work(engine: &Engine, cfg: &Config, o: &MapOptions) -> u64 {
     (cells * o.starts.max(1) as u64 + compare) * per_point
 }
 
+/// A whole map in memory: its config (as merged), its layers and the report its JSON holds.
+pub struct MapResult {
+    pub cfg: Config,
+    pub fields: Fields,
+    pub report: MapReport,
+    /// The parts' timings, summed.
+    pub timings: Timings,
+}
+
+impl MapResult {
+    /// Writes the set [`run`] writes for this map (images, NPY layers, JSON).
+    pub fn write(&self, out: &Path) -> crate::Result<Vec<PathBuf>> {
+        write_outputs(out, &self.cfg, &self.fields, &self.report)
+    }
+}
+
+/// Computes a whole map in memory, as [`run`] does without `--shard`, `--checkpoint` and
+/// `--compare` (which need files), and writes nothing.
+pub fn compute_map(
+    engine: &Engine,
+    cfg: &Config,
+    o: &MapOptions,
+    progress: &dyn Progress,
+) -> crate::Result<MapResult> {
+    o.check(cfg)?;
+    let part = match o.refine {
+        Some(k) => coarse_part(engine, cfg, k, o.clear_chaotic(), o.starts, progress)?,
+        None => compute_part(engine, cfg, (0, 1), o.starts, progress)?,
+    };
+    assemble(engine, o, vec![part])
+}
+
+/// The whole map of `parts`: merged, with its report.
+fn assemble(engine: &Engine, o: &MapOptions, parts: Vec<Part>) -> crate::Result<MapResult> {
+    let (cfg, fields, parts) = merge(parts)?;
+    let cells = cell_count(&cfg);
+    let mut timings = Timings::default();
+    for p in &parts {
+        timings.add(&p.timings);
+    }
+    let (secs, host_s, decide_s) = (timings.integration_s, timings.host_s, timings.decide_s);
+    let periods = periods_integrated(&cfg, &fields);
+    let steps = periods as f64 * cfg.method.steps_per_period as f64;
+    let report = MapReport {
+        command: "map",
+        backend: Some(engine.name().into()),
+        device: Some(engine.device()),
+        precision: Some(cfg.method.precision.name().into()),
+        cells: Some(cells),
+        timings: MapTimings {
+            integration_s: Some(secs),
+            host_s: Some(host_s),
+            device_decide_s: Some(decide_s),
+            rk4_steps: Some(steps),
+            steps_per_s: Some(steps / secs),
+            ..MapTimings::default()
+        },
+        refine: o.refine.map(|k| CoarseReport {
+            spacing: k,
+            chaotic_clear: o.clear_chaotic(),
+            cells_integrated: fields.inferred.iter().filter(|&&v| v == 0).count(),
+            cells_inferred: fields.inferred.iter().filter(|&&v| v == 1).count(),
+        }),
+        ..MapReport::default()
+    };
+    Ok(MapResult {
+        cfg,
+        fields,
+        report,
+        timings,
+    })
+}
+
 /// Computes a map as configured by `o` and writes its files (or, with `o.shard`, its part).
 pub fn run(
     engine: &Engine,
@@ -243,34 +316,13 @@ pub fn run(
     }
     let n = o.checkpoint.unwrap_or(1).max(1);
     let parts = checkpointed_parts(engine, cfg, out, o, &mut summary, progress)?;
-    let (cfg, fields, parts) = merge(parts)?;
-    let secs: f64 = parts.iter().map(|p| p.timings.integration_s).sum();
-    let host_s: f64 = parts.iter().map(|p| p.timings.host_s).sum();
-    let decide_s: f64 = parts.iter().map(|p| p.timings.decide_s).sum();
-    let periods = periods_integrated(&cfg, &fields);
-    let steps = periods as f64 * cfg.method.steps_per_period as f64;
-    let mut report = MapReport {
-        command: "map",
-        backend: Some(engine.name().into()),
-        device: Some(engine.device()),
-        precision: Some(cfg.method.precision.name().into()),
-        cells: Some(cells),
-        timings: MapTimings {
-            integration_s: Some(secs),
-            host_s: Some(host_s),
-            device_decide_s: Some(decide_s),
-            rk4_steps: Some(steps),
-            steps_per_s: Some(steps / secs),
-            ..MapTimings::default()
-        },
-        refine: o.refine.map(|k| CoarseReport {
-            spacing: k,
-            chaotic_clear: o.clear_chaotic(),
-            cells_integrated: fields.inferred.iter().filter(|&&v| v == 0).count(),
-            cells_inferred: fields.inferred.iter().filter(|&&v| v == 1).count(),
-        }),
-        ..MapReport::default()
-    };
+    let MapResult {
+        cfg,
+        fields,
+        mut report,
+        timings,
+    } = assemble(engine, o, parts)?;
+    let (secs, host_s, decide_s) = (timings.integration_s, timings.host_s, timings.decide_s);
     if let Some(other) = o.compare {
         // The grids were checked by `o.check` before computing.
         let (s, _) = compute(engine, other, 0..cells, 1, progress)?;

@@ -99,6 +99,22 @@ macro_rules! map_layers {
                 }),*]
             }
 
+            /// Each layer as the bytes of its NPY file ([`crate::output::npy_bytes`]), in the
+            /// order of [`Fields::layer_list`].
+            pub fn npy_bytes(&self, (ny, nx): (usize, usize)) -> Vec<(&'static str, Vec<u8>)> {
+                let mut out = Vec::new();
+                $({
+                    let v: Vec<_> = self.$name.iter().map(|x| x.npy()).collect();
+                    let shape: Vec<u64> = if $w == 1 {
+                        vec![ny as u64, nx as u64]
+                    } else {
+                        vec![ny as u64, nx as u64, $w]
+                    };
+                    out.push((stringify!($name), crate::output::npy_bytes(&shape, &v)));
+                })*
+                out
+            }
+
             /// Calls `write(name, save)` for each layer, where `save(path)` writes its NPY file
             /// of shape `(ny, nx)` (or `(ny, nx, 2)`).
             pub fn each_npy<E>(

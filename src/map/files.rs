@@ -358,6 +358,23 @@ fn write_npys(
     Ok(())
 }
 
+/// The caption of a map's class image (the JSON's `caption`).
+pub fn map_caption(cfg: &Config, fields: &Fields, report: &MapReport) -> String {
+    let coexisting = fields
+        .classes()
+        .into_iter()
+        .zip(&fields.attractors)
+        .filter(|&(c, &a)| Shown::of(c, a) == Shown::Coexisting)
+        .count();
+    caption(
+        cfg,
+        report,
+        &fields.counts(),
+        &fields.rule_counts(),
+        coexisting,
+    )
+}
+
 /// Writes a map's set: the class image, the exponent, multiplier and risk images, one NPY per
 /// layer, the JSON.
 pub fn write_outputs(
@@ -415,22 +432,12 @@ pub fn write_outputs(
         risk.as_ref().map(|r| &r.0[..]),
         grid,
     )?;
-    let coexisting = cells
-        .iter()
-        .filter(|&&c| c == Shown::Coexisting.code())
-        .count();
     // The time the files took so far (the JSON itself is written last).
     let mut timed = report.clone();
     timed.timings.files_s = Some(t_files.elapsed().as_secs_f64());
     let report = &timed;
     let j = MapJson {
-        caption: caption(
-            cfg,
-            report,
-            &fields.counts(),
-            &fields.rule_counts(),
-            coexisting,
-        ),
+        caption: map_caption(cfg, fields, report),
         caption_lyapunov: lyapunov_caption(cfg, &lyap, lim),
         caption_multiplier: multiplier_caption(cfg, &mult),
         report,

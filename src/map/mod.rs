@@ -12,11 +12,13 @@ mod parts;
 
 pub use caption::{RASTER, compare_caption, title};
 pub use command::{
-    MapOptions, MapSummary, merge_files, parse_shard, run, run_all_adapters, run_shared, work,
+    MapOptions, MapResult, MapSummary, compute_map, merge_files, parse_shard, run,
+    run_all_adapters, run_shared, work,
 };
 pub use fields::{Fields, Layer};
 pub use files::{
-    CoarseReport, CompareReport, MapReport, MapTimings, category, write_compare, write_outputs,
+    CoarseReport, CompareReport, MapReport, MapTimings, category, map_caption, write_compare,
+    write_outputs,
 };
 pub use parts::{Part, compute_part, merge, part_path, read_part, write_part};
 

@@ -56,6 +56,32 @@ pub struct Options {
 }
 
 impl Options {
+    /// The options of `cfg`'s `[sensitivity]` section, with `uncertain`, `samples` and `seed`
+    /// given instead where they are, checked as the command checks them (the options, the
+    /// config's tangent, the draws' values and the memory) before anything runs.
+    pub fn from_config(
+        cfg: &Config,
+        uncertain: Option<&[String]>,
+        samples: Option<usize>,
+        seed: Option<u32>,
+    ) -> Result<Options> {
+        let s = &cfg.sensitivity;
+        let o = Options {
+            uncertain: uncertain
+                .unwrap_or(&s.uncertain)
+                .iter()
+                .map(|u| Uncertain::parse(u))
+                .collect::<std::result::Result<_, _>>()?,
+            samples: samples.unwrap_or(s.samples as usize),
+            seed: seed.unwrap_or(s.seed),
+        };
+        o.check()?;
+        cfg.check_tangent("`sensitivity`")?;
+        o.check_values(cfg)?;
+        check_memory(&o)?;
+        Ok(o)
+    }
+
     /// Refuses what cannot run, before anything is computed.
     /// Refuses uncertain parameters whose nominal value or draws `cfg` would not accept as
     /// its own values ([`Config::check_value`]), before anything runs.

@@ -1,0 +1,386 @@
+"""rattle from Python: the impact oscillator with dry friction, swept on the GPU or the CPU.
+
+The commands of the command line as functions that return numpy arrays, computed by the same
+library (no files unless `.save(prefix)` is called, which writes the command line's files):
+
+    import rattle
+    p = rattle.point("configs/fig2.toml", eta=1.5)        # p.cls == "period-1"
+    m = rattle.map("configs/r_lambda.toml", **{"map.x_points": 64, "map.y_points": 64})
+    m.layers["class"], m.x, m.y                           # numpy arrays
+    b = rattle.bifurcation("configs/fig2.toml")           # b.values, b.y (section samples)
+    s = rattle.sensitivity("configs/sensitivity_fig2.toml", samples=64)
+
+A config is a TOML file's path, a `Config` (from a path or TOML text, with `.set(key, value)`),
+or TOML text through `toml=`; keyword overrides use the keys of the command line's `--set`
+(`eta=1.5`, `**{"method.backend": "cpu"}`). Bad input raises `ConfigError` (a `ValueError`)
+naming the key and its allowed range, a run too large for memory `TooLargeError` (also a
+`MemoryError`) before anything is allocated. The computation releases the interpreter lock;
+Ctrl-C raises `KeyboardInterrupt` within a fraction of a second of the next progress report.
+`progress=` takes a callable `(done, total)`, or `True` for a tqdm bar where tqdm is installed.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import warnings as _warnings
+from typing import Any, Callable, Dict, Optional, Union
+
+import numpy as np
+
+from . import _rattle
+from ._errors import ConfigError, RattleError, TooLargeError
+
+__version__ = _rattle.__version__
+__all__ = [
+    "Config",
+    "ConfigError",
+    "TooLargeError",
+    "RattleError",
+    "point",
+    "bifurcation",
+    "map",
+    "sensitivity",
+    "Point",
+    "Map",
+    "Bifurcation",
+    "Sensitivity",
+]
+
+PathLike = Union[str, "os.PathLike[str]"]
+Progress = Union[None, bool, Callable[[int, int], Any]]
+
+
+def _value(v: Any) -> str:
+    """A Python value as the command line's `--set key=value` writes it."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_item(x) for x in v) + "]"
+    return str(v)
+
+
+def _toml_item(v: Any) -> str:
+    if isinstance(v, str):
+        return json.dumps(v)
+    return _value(v)
+
+
+class Config:
+    """A configuration: a TOML file or TOML text, and `--set` overrides applied in order.
+
+    >>> c = rattle.Config("configs/fig2.toml").set("sweep.points", 200)
+    >>> rattle.bifurcation(c)
+    """
+
+    def __init__(self, path: Optional[PathLike] = None, toml: Optional[str] = None):
+        if path is not None and toml is not None:
+            raise TypeError("give a path or TOML text, not both")
+        self.path = os.fspath(path) if path is not None else None
+        self.toml = toml
+        self.sets: list = []
+
+    def set(self, key: str, value: Any) -> "Config":
+        """Overrides `key` (the command line's `--set` key, e.g. `map.x_points`, or a model key
+        such as `eta`); returns the config."""
+        self.sets.append(f"{key}={_value(value)}")
+        return self
+
+    def _with(self, overrides: Dict[str, Any]) -> "Config":
+        c = Config(self.path, self.toml)
+        c.sets = list(self.sets) + [f"{k}={_value(v)}" for k, v in overrides.items()]
+        return c
+
+    def __repr__(self) -> str:
+        src = f"path={self.path!r}" if self.path is not None else "toml=..."
+        return f"Config({src}, sets={self.sets!r})"
+
+
+def _config(config: Union[None, PathLike, Config], toml: Optional[str], overrides) -> Config:
+    if isinstance(config, Config):
+        if toml is not None:
+            raise TypeError("give a Config or TOML text, not both")
+        return config._with(overrides)
+    return Config(config, toml)._with(overrides)
+
+
+def _progress(progress: Progress, what: str):
+    """The callable the extension calls with (done, total), and what closes it."""
+    if progress is None or progress is False:
+        return None, lambda: None
+    if progress is True:
+        try:
+            from tqdm.auto import tqdm  # type: ignore
+        except ImportError:
+            return None, lambda: None
+        bar = tqdm(total=1, desc=what)
+
+        def update(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+
+        return update, bar.close
+    return progress, lambda: None
+
+
+def _warn(ws) -> None:
+    for w in ws:
+        _warnings.warn(w, RuntimeWarning, stacklevel=3)
+
+
+def _npy(b: bytes) -> np.ndarray:
+    return np.load(io.BytesIO(b), allow_pickle=False)
+
+
+class Point:
+    """One parameter point: its class, period, exponents, multipliers and samples.
+
+    `cls` is the class name (`period-1`, `chaotic`, ...); `samples` the stroboscopic section
+    states (n x 4); `to_dict()` the command line's `rattle point --json` report."""
+
+    def __init__(self, report: dict):
+        self._report = report
+        self.cls: str = report["class"]
+        self.period: Optional[int] = report["period"]
+        self.lyapunov: float = report["lyapunov"]
+        self.lyapunov_se: float = report["lyapunov_se"]
+        self.rule: str = report["rule"]
+        self.samples = np.asarray(report["samples"], dtype=float).reshape(-1, 4)
+        self.impact_speeds = np.asarray(report["impact_speeds"], dtype=float)
+        m = report.get("multipliers")
+        self.multipliers = (
+            None if m is None else np.array([complex(re, im) for re, im in m], dtype=complex)
+        )
+        spectrum = report.get("lyapunov_spectrum")
+        self.lyapunov_spectrum = None if spectrum is None else np.asarray(spectrum, dtype=float)
+
+    @property
+    def caption(self) -> str:
+        r = self._report
+        p = r["params"]
+        return (
+            f"{self.cls} at eta = {p['eta']}, R = {p['restitution']}: largest Lyapunov exponent "
+            f"{self.lyapunov:.4g} +- {self.lyapunov_se:.2g} per unit time, "
+            f"{r['impacts_per_period']:.3g} impacts per period ({r['backend']}, {r['precision']})"
+        )
+
+    def to_dict(self) -> dict:
+        return json.loads(json.dumps(self._report))
+
+    def __repr__(self) -> str:
+        return f"<rattle.Point {self.cls}, exponent {self.lyapunov:.4g}>"
+
+
+class Map:
+    """A map over two parameters: every layer of the command line's NPY files as an array of
+    shape (ny, nx) (or (ny, nx, 2)), rows along `y`, columns along `x`."""
+
+    def __init__(self, data):
+        self._data = data
+        self._json = json.loads(data.report())
+        self.layers: Dict[str, np.ndarray] = {k: _npy(v) for k, v in data.layers().items()}
+        self.x = np.asarray(self._json["x"]["values"], dtype=float)
+        self.y = np.asarray(self._json["y"]["values"], dtype=float)
+        self.x_param: str = self._json["x"]["param"]
+        self.y_param: str = self._json["y"]["param"]
+        self.class_counts: Dict[str, int] = self._json["class_counts"]
+        self.timings: Dict[str, float] = self._json["report"]["timings"]
+
+    @property
+    def caption(self) -> str:
+        return self._json["caption"]
+
+    @property
+    def classes(self) -> np.ndarray:
+        """The class codes (the `class` layer; n > 0: period n)."""
+        return self.layers["class"]
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        layers = self.__dict__.get("layers", {})
+        if name in layers:
+            return layers[name]
+        raise AttributeError(name)
+
+    def to_dict(self) -> dict:
+        d = dict(self._json)
+        d["layers"] = {k: v.tolist() for k, v in self.layers.items()}
+        return d
+
+    def save(self, prefix: PathLike) -> list:
+        """Writes the command line's files (PREFIX.png, PREFIX-*.npy, PREFIX.json, ...)."""
+        return [str(p) for p in self._data.save(os.fspath(prefix))]
+
+    def to_xarray(self):
+        """An `xarray.Dataset` of every 2-D layer on the (y, x) axes (needs xarray)."""
+        import xarray as xr  # type: ignore
+
+        coords = {self.y_param: self.y, self.x_param: self.x}
+        dims = (self.y_param, self.x_param)
+        return xr.Dataset(
+            {k: (dims, v) for k, v in self.layers.items() if v.ndim == 2},
+            coords=coords,
+            attrs={"caption": self.caption},
+        )
+
+    def __repr__(self) -> str:
+        return f"<rattle.Map {len(self.y)} x {len(self.x)} over {self.x_param}, {self.y_param}>"
+
+
+class Bifurcation:
+    """A bifurcation diagram: the section samples as the CSV holds them (`values`, `sample`,
+    `y` with y1..y4 in its columns, `direction` for continuation), the points' classes and the
+    located bifurcation points."""
+
+    def __init__(self, data):
+        self._data = data
+        self._json = json.loads(data.report())
+        d, v, k, y = data.samples()
+        self.direction = np.asarray(d, dtype=str)
+        self.values = np.asarray(v, dtype=float)
+        self.sample = np.asarray(k, dtype=np.int64)
+        self.y = np.asarray(y, dtype=float).reshape(-1, 4)
+        self.param: str = self._json["config"]["sweep"]["param"]
+        points = self._json.get("points") or []
+        self.point_values = np.asarray([p["value"] for p in points], dtype=float)
+        self.point_classes = [p["class"] for p in points]
+        self.bifurcations = self._json["bifurcations"]
+        self.class_counts: Dict[str, int] = self._json["class_counts"]
+
+    @property
+    def caption(self) -> str:
+        return self._json["caption"]
+
+    def to_dict(self) -> dict:
+        return json.loads(json.dumps(self._json))
+
+    def save(self, prefix: PathLike) -> list:
+        """Writes the command line's files (PREFIX.csv, PREFIX.png, PREFIX.json)."""
+        return [str(p) for p in self._data.save(os.fspath(prefix))]
+
+    def to_xarray(self):
+        """An `xarray.Dataset` of the samples, one row per sample (needs xarray)."""
+        import xarray as xr  # type: ignore
+
+        return xr.Dataset(
+            {f"y{i + 1}": ("row", self.y[:, i]) for i in range(4)},
+            coords={self.param: ("row", self.values), "sample": ("row", self.sample)},
+            attrs={"caption": self.caption},
+        )
+
+    def __repr__(self) -> str:
+        return f"<rattle.Bifurcation over {self.param}, {len(self.values)} samples>"
+
+
+class Sensitivity:
+    """A sensitivity study: class probabilities with their 95% intervals, distances to the
+    nearest class change, Sobol indices, and the draws."""
+
+    def __init__(self, data):
+        self._data = data
+        self._json = json.loads(data.report())
+        s = self._json["study"]
+        self.nominal: str = self._json["nominal"]
+        self.probabilities: Dict[str, tuple] = {
+            c["name"]: (c["p"], c["low"], c["high"]) for c in s["classes"]
+        }
+        self.sobol = s["sobol"]
+        self.distances = s["distances"]
+        sets, rows, values, classes, lyap = data.draws()
+        self.draws = {
+            "set": np.asarray(sets, dtype=str),
+            "row": np.asarray(rows, dtype=np.int64),
+            "values": np.asarray(values, dtype=float),
+            "class": np.asarray(classes, dtype=str),
+            "lyapunov": np.asarray(lyap, dtype=float),
+        }
+
+    @property
+    def caption(self) -> str:
+        return self._json["caption"]
+
+    def to_dict(self) -> dict:
+        return json.loads(json.dumps(self._json))
+
+    def save(self, prefix: PathLike) -> list:
+        """Writes the command line's files (PREFIX.json, PREFIX.csv, the figures)."""
+        return [str(p) for p in self._data.save(os.fspath(prefix))]
+
+    def __repr__(self) -> str:
+        return f"<rattle.Sensitivity nominal {self.nominal}>"
+
+
+def _call(fn, what, config, toml, progress, overrides, **extra):
+    c = _config(config, toml, overrides)
+    cb, close = _progress(progress, what)
+    try:
+        return fn(c.path, c.toml, c.sets, progress=cb, **extra)
+    finally:
+        close()
+
+
+def point(
+    config: Union[None, PathLike, Config] = None,
+    *,
+    toml: Optional[str] = None,
+    progress: Progress = None,
+    **overrides: Any,
+) -> Point:
+    """Integrates one parameter point and classifies its motion (`rattle point`)."""
+    report, ws = _call(_rattle.point, "point", config, toml, progress, overrides)
+    _warn(ws)
+    return Point(json.loads(report))
+
+
+def map(
+    config: Union[None, PathLike, Config] = None,
+    *,
+    toml: Optional[str] = None,
+    progress: Progress = None,
+    **overrides: Any,
+) -> Map:
+    """A map of classes, exponents and multipliers over two parameters (`rattle map`)."""
+    data = _call(_rattle.map, "map", config, toml, progress, overrides)
+    _warn(data.warnings)
+    return Map(data)
+
+
+def bifurcation(
+    config: Union[None, PathLike, Config] = None,
+    *,
+    toml: Optional[str] = None,
+    progress: Progress = None,
+    **overrides: Any,
+) -> Bifurcation:
+    """Sweeps one parameter: the bifurcation diagram (`rattle bifurcation`)."""
+    data = _call(_rattle.bifurcation, "bifurcation", config, toml, progress, overrides)
+    _warn(data.warnings)
+    return Bifurcation(data)
+
+
+def sensitivity(
+    config: Union[None, PathLike, Config] = None,
+    *,
+    toml: Optional[str] = None,
+    uncertain: Optional[list] = None,
+    samples: Optional[int] = None,
+    seed: Optional[int] = None,
+    progress: Progress = None,
+    **overrides: Any,
+) -> Sensitivity:
+    """Class probabilities, distances and Sobol indices under parameter uncertainty
+    (`rattle sensitivity`); `uncertain` as the command line's `--uncertain` strings."""
+    data = _call(
+        _rattle.sensitivity,
+        "sensitivity",
+        config,
+        toml,
+        progress,
+        overrides,
+        uncertain=uncertain,
+        samples=samples,
+        seed=seed,
+    )
+    _warn(data.warnings)
+    return Sensitivity(data)

@@ -1,0 +1,464 @@
+//! `rattle._rattle`: the library's commands for the Python package (`rattle/__init__.py` wraps
+//! them). Every computation runs on a thread of its own while the interpreter lock is released;
+//! the calling thread waits on it, reports progress and watches for Ctrl-C (an interrupt ends
+//! the computation at its next progress report). Results cross as JSON (reports) and NPY bytes
+//! (arrays, the bytes the command line's files hold); errors as the package's exceptions.
+
+use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
+use rattle::config::{Backend, Config, ConfigError};
+use rattle::engine::Engine;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Duration;
+
+/// The payload that unwinds a computation interrupted from Python.
+struct Cancelled;
+
+/// Where a config comes from: a TOML file or TOML text, with `--set` overrides.
+#[derive(Clone)]
+struct Source {
+    path: Option<String>,
+    text: Option<String>,
+    sets: Vec<String>,
+}
+
+impl Source {
+    fn load(&self) -> rattle::Result<Config> {
+        Ok(match (&self.path, &self.text) {
+            (Some(p), _) => Config::load(Path::new(p), &self.sets)?,
+            (None, Some(t)) => Config::from_toml(t, &self.sets)?,
+            (None, None) => Config::from_toml("", &self.sets)?,
+        })
+    }
+}
+
+/// The package's exception for an error of the library: a config or option outside its range
+/// is `ConfigError` (a `ValueError`), one too large for memory `TooLargeError` (also a
+/// `MemoryError`), anything else `RattleError` (a `RuntimeError`).
+fn to_py(py: Python, e: rattle::Error) -> PyErr {
+    use rattle::Error as E;
+    let kind = match &e {
+        E::Config(ConfigError::Range { value, .. }) if value.contains("in memory") => {
+            "TooLargeError"
+        }
+        E::Option(o) if o.to_string().contains("in memory") => "TooLargeError",
+        E::Config(_) | E::Option(_) | E::Param(_) => "ConfigError",
+        _ => "RattleError",
+    };
+    let msg = match &e {
+        E::Option(o) => o.render(&|name| format!("`{name}`")),
+        _ => e.to_string(),
+    };
+    match py
+        .import("rattle._errors")
+        .and_then(|m| m.getattr(kind))
+        .and_then(|c| c.call1((msg.clone(),)))
+    {
+        Ok(exc) => PyErr::from_value(exc),
+        Err(err) => err,
+    }
+}
+
+/// Runs `work` off the interpreter lock on a thread of its own; `progress(done, total)` is
+/// called from the calling thread (with the lock) about ten times a second; Ctrl-C raises
+/// `KeyboardInterrupt` once the computation has stopped. A panic becomes `RattleError`.
+fn detached<T: Send + 'static>(
+    py: Python,
+    total: u64,
+    progress: Option<Py<PyAny>>,
+    work: impl FnOnce(&(dyn Fn(u64) + Sync)) -> rattle::Result<T> + Send + 'static,
+) -> PyResult<T> {
+    quiet_cancel_panics();
+    let done = Arc::new(AtomicU64::new(0));
+    let cancel = Arc::new(AtomicBool::new(false));
+    let (tx, rx) = std::sync::mpsc::channel();
+    {
+        let (done, cancel) = (done.clone(), cancel.clone());
+        std::thread::spawn(move || {
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                work(&|n| {
+                    if cancel.load(Ordering::Relaxed) {
+                        std::panic::panic_any(Cancelled);
+                    }
+                    done.fetch_add(n, Ordering::Relaxed);
+                })
+            }));
+            let _ = tx.send(r);
+        });
+    }
+    let rx = std::sync::Mutex::new(rx);
+    let mut interrupted = None;
+    loop {
+        let got = py.detach(|| {
+            rx.lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .recv_timeout(Duration::from_millis(100))
+        });
+        match got {
+            Ok(r) => {
+                if let Some(e) = interrupted {
+                    return Err(e);
+                }
+                return match r {
+                    Ok(Ok(v)) => Ok(v),
+                    Ok(Err(e)) => Err(to_py(py, e)),
+                    Err(p) if p.is::<Cancelled>() => Err(PyKeyboardInterrupt::new_err(())),
+                    Err(p) => Err(PyRuntimeError::new_err(format!(
+                        "rattle failed: {}",
+                        p.downcast_ref::<String>()
+                            .cloned()
+                            .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                            .unwrap_or_default()
+                    ))),
+                };
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                return Err(PyRuntimeError::new_err("rattle's computation thread ended"));
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                if interrupted.is_none() {
+                    if let Err(e) = py.check_signals() {
+                        // Stop the work at its next report, then raise.
+                        cancel.store(true, Ordering::Relaxed);
+                        interrupted = Some(e);
+                        continue;
+                    }
+                    if let Some(cb) = &progress {
+                        cb.call1(py, (done.load(Ordering::Relaxed), total))?;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The default panic message is not printed for an interrupted computation.
+fn quiet_cancel_panics() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !info.payload().is::<Cancelled>() {
+                previous(info);
+            }
+        }));
+    });
+}
+
+/// The engine of `cfg`, and the warning of a GPU request that fell back to the CPU.
+fn engine(cfg: &Config) -> rattle::Result<(Engine, Vec<String>)> {
+    let engine = Engine::open(cfg.method.backend)?;
+    let mut warnings = Vec::new();
+    if cfg.method.backend == Backend::Gpu && matches!(engine, Engine::Cpu) {
+        warnings.push(
+            "no GPU adapter: falling back to the cpu backend (set method.backend = \"cpu\" to \
+             silence this)"
+                .to_string(),
+        );
+    }
+    Ok((engine, warnings))
+}
+
+fn source(path: Option<String>, text: Option<String>, sets: Vec<String>) -> Source {
+    Source { path, text, sets }
+}
+
+/// `rattle point`: the report's JSON, and warnings.
+#[pyfunction]
+#[pyo3(signature = (path, text, sets, progress=None))]
+fn point(
+    py: Python,
+    path: Option<String>,
+    text: Option<String>,
+    sets: Vec<String>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<(String, Vec<String>)> {
+    let src = source(path, text, sets);
+    let cfg = src.load().map_err(|e| to_py(py, e))?;
+    detached(py, 1, progress, move |p| {
+        let (engine, warnings) = engine(&cfg)?;
+        let r = rattle::point::run(&engine, &cfg, &p)?;
+        Ok((serde_json::to_string(&r)?, warnings))
+    })
+}
+
+/// A computed map: its layers as NPY bytes, its report, and its files on request.
+#[pyclass(frozen)]
+struct MapData {
+    result: rattle::map::MapResult,
+    warnings: Vec<String>,
+}
+
+#[pymethods]
+impl MapData {
+    /// Layer name -> the bytes of its NPY file.
+    fn layers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let m = &self.result.cfg.map;
+        let d = PyDict::new(py);
+        for (name, bytes) in self
+            .result
+            .fields
+            .npy_bytes((m.y_points as usize, m.x_points as usize))
+        {
+            d.set_item(name, PyBytes::new(py, &bytes))?;
+        }
+        Ok(d)
+    }
+
+    /// The report (backend, device, precision, cells, timings) with the caption, the config,
+    /// the class counts and the axes' values, as JSON.
+    fn report(&self) -> PyResult<String> {
+        let r = &self.result;
+        let m = &r.cfg.map;
+        let j = serde_json::json!({
+            "report": r.report,
+            "caption": rattle::map::map_caption(&r.cfg, &r.fields, &r.report),
+            "config": r.cfg,
+            "class_counts": r.fields.counts(),
+            "rule_counts": r.fields.rule_counts(),
+            "x": { "param": m.x.name(), "values": axis(m.x_from, m.x_to, m.x_points) },
+            "y": { "param": m.y.name(), "values": axis(m.y_from, m.y_to, m.y_points) },
+        });
+        Ok(j.to_string())
+    }
+
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
+    }
+
+    /// Writes the command line's files under `prefix`; returns their paths.
+    fn save(&self, py: Python, prefix: PathBuf) -> PyResult<Vec<PathBuf>> {
+        rattle::output::check_prefix(&prefix, &["png", "json"]).map_err(|e| to_py(py, e.into()))?;
+        py.detach(|| self.result.write(&prefix))
+            .map_err(|e| to_py(py, e))
+    }
+}
+
+/// The values of a map axis, as the map's cells take them.
+fn axis(from: f64, to: f64, n: u32) -> Vec<f64> {
+    Config::map_axis(from, to, n)
+}
+
+#[pyfunction]
+#[pyo3(signature = (path, text, sets, progress=None))]
+fn map(
+    py: Python,
+    path: Option<String>,
+    text: Option<String>,
+    sets: Vec<String>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<MapData> {
+    let src = source(path, text, sets);
+    let cfg = src.load().map_err(|e| to_py(py, e))?;
+    cfg.check_map().map_err(|e| to_py(py, e.into()))?;
+    let o = rattle::map::MapOptions::default();
+    o.check(&cfg).map_err(|e| to_py(py, e))?;
+    let cells = rattle::map::cell_count(&cfg) as u64;
+    let mut warnings = cfg.without_effect(&[cfg.map.x, cfg.map.y]);
+    let (result, w) = detached(py, cells, progress, move |p| {
+        let (engine, warnings) = engine(&cfg)?;
+        let per = engine
+            .progress_per_point(&rattle::spec::RunSpec::new(&cfg))
+            .max(1);
+        let scaled = |n: u64| p(n / per);
+        Ok((
+            rattle::map::compute_map(&engine, &cfg, &o, &scaled)?,
+            warnings,
+        ))
+    })?;
+    warnings.extend(w);
+    Ok(MapData { result, warnings })
+}
+
+/// A computed bifurcation diagram.
+#[pyclass(frozen)]
+struct BifurcationData {
+    b: rattle::bifurcation::Bifurcation,
+    warnings: Vec<String>,
+}
+
+#[pymethods]
+impl BifurcationData {
+    /// The section samples as the CSV holds them: (direction or "", parameter value, sample
+    /// index, y1, y2, y3, y4) per row, as columns.
+    fn samples(&self) -> (Vec<String>, Vec<f64>, Vec<u32>, Vec<[f64; 4]>) {
+        let (mut d, mut v, mut k, mut y) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for (dir, points) in &self.b.runs {
+            for pt in points {
+                for (i, s) in pt.result.samples.iter().enumerate() {
+                    d.push(dir.map_or(String::new(), |x| x.name().to_string()));
+                    v.push(pt.value);
+                    k.push(i as u32);
+                    y.push(*s);
+                }
+            }
+        }
+        (d, v, k, y)
+    }
+
+    /// The points (value, class, periods integrated) and the located bifurcation points of
+    /// each chain, the timings and the caption, as JSON.
+    fn report(&self) -> PyResult<String> {
+        rattle::bifurcation::report_json(&self.b)
+            .map_err(|e| PyRuntimeError::new_err(e.to_string()))
+    }
+
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
+    }
+
+    fn save(&self, py: Python, prefix: PathBuf) -> PyResult<Vec<PathBuf>> {
+        rattle::output::check_prefix(&prefix, &["csv", "png", "json"])
+            .map_err(|e| to_py(py, e.into()))?;
+        py.detach(|| rattle::bifurcation::write_outputs(&prefix, &self.b))
+            .map_err(|e| to_py(py, e))
+    }
+}
+
+#[pyfunction]
+#[pyo3(signature = (path, text, sets, progress=None))]
+fn bifurcation(
+    py: Python,
+    path: Option<String>,
+    text: Option<String>,
+    sets: Vec<String>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<BifurcationData> {
+    let src = source(path, text, sets);
+    let cfg = src.load().map_err(|e| to_py(py, e))?;
+    cfg.check_sweep().map_err(|e| to_py(py, e.into()))?;
+    let mut warnings = cfg.without_effect(&[cfg.sweep.param]);
+    let total = cfg.sweep.points as u64;
+    let (b, w) = detached(py, total, progress, move |p| {
+        let (engine, warnings) = engine(&cfg)?;
+        let per = engine
+            .progress_per_point(&rattle::spec::RunSpec::new(&cfg))
+            .max(1);
+        let scaled = |n: u64| p(n / per);
+        Ok((
+            rattle::bifurcation::run(&engine, &cfg, None, &scaled)?,
+            warnings,
+        ))
+    })?;
+    warnings.extend(w);
+    Ok(BifurcationData { b, warnings })
+}
+
+/// The draws' columns: set, row, the uncertain parameters' values, class name, exponent.
+type Draws = (Vec<String>, Vec<u32>, Vec<Vec<f64>>, Vec<String>, Vec<f64>);
+
+/// A finished sensitivity study.
+#[pyclass(frozen)]
+struct SensitivityData {
+    study: rattle::sensitivity::Study,
+    cfg: Config,
+    backend: String,
+    device: String,
+    warnings: Vec<String>,
+}
+
+#[pymethods]
+impl SensitivityData {
+    /// The study (probabilities with intervals, distances, Sobol indices) and its caption,
+    /// as JSON.
+    fn report(&self) -> PyResult<String> {
+        let j = serde_json::json!({
+            "study": self.study,
+            "nominal": self.study.nominal.name(),
+            "caption": rattle::sensitivity::caption(&self.study),
+            "backend": self.backend,
+            "device": self.device,
+        });
+        Ok(j.to_string())
+    }
+
+    /// The draws as the CSV holds them: the set and row, the uncertain parameters' values,
+    /// the class name and the exponent of each draw.
+    fn draws(&self) -> Draws {
+        let s = &self.study;
+        let mut out = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for d in &s.draws {
+            out.0.push(d.set.clone());
+            out.1.push(d.row as u32);
+            out.2.push(d.values.clone());
+            out.3.push(d.class.name());
+            out.4.push(d.lyapunov);
+        }
+        out
+    }
+
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
+    }
+
+    fn save(&self, py: Python, prefix: PathBuf) -> PyResult<Vec<PathBuf>> {
+        rattle::output::check_prefix(&prefix, &["json", "csv", "png", "svg"])
+            .map_err(|e| to_py(py, e.into()))?;
+        py.detach(|| {
+            rattle::sensitivity::write_outputs(
+                &prefix,
+                &self.cfg,
+                &self.study,
+                &self.backend,
+                &self.device,
+            )
+        })
+        .map_err(|e| to_py(py, e))
+    }
+}
+
+#[pyfunction]
+#[pyo3(signature = (path, text, sets, uncertain=None, samples=None, seed=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn sensitivity(
+    py: Python,
+    path: Option<String>,
+    text: Option<String>,
+    sets: Vec<String>,
+    uncertain: Option<Vec<String>>,
+    samples: Option<usize>,
+    seed: Option<u32>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<SensitivityData> {
+    let src = source(path, text, sets);
+    let cfg = src.load().map_err(|e| to_py(py, e))?;
+    let o = rattle::sensitivity::Options::from_config(&cfg, uncertain.as_deref(), samples, seed)
+        .map_err(|e| to_py(py, e))?;
+    let total = rattle::sensitivity::points(&o) as u64;
+    let c = cfg.clone();
+    let (study, backend, device, warnings) = detached(py, total, progress, move |p| {
+        let (engine, warnings) = engine(&c)?;
+        let per = engine
+            .progress_per_point(&rattle::spec::RunSpec::new(&c))
+            .max(1);
+        let scaled = |n: u64| p(n / per);
+        let study = rattle::sensitivity::run(&engine, &c, &o, &scaled)?;
+        Ok((study, engine.name().to_string(), engine.device(), warnings))
+    })?;
+    Ok(SensitivityData {
+        study,
+        cfg,
+        backend,
+        device,
+        warnings,
+    })
+}
+
+#[pymodule]
+fn _rattle(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(point, m)?)?;
+    m.add_function(wrap_pyfunction!(map, m)?)?;
+    m.add_function(wrap_pyfunction!(bifurcation, m)?)?;
+    m.add_function(wrap_pyfunction!(sensitivity, m)?)?;
+    m.add_class::<MapData>()?;
+    m.add_class::<BifurcationData>()?;
+    m.add_class::<SensitivityData>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

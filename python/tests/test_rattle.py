@@ -1,0 +1,207 @@
+"""rattle from Python against the command line: the same configs give the same numbers, bad
+input the same errors, and the calls behave as a Python user expects (no files unless asked,
+the interpreter lock released, Ctrl-C, progress). Run from the repository root after `cargo
+build --release` (the command line's binary is the reference) and `pip install ./python`."""
+
+import csv
+import json
+import os
+import subprocess
+import threading
+import time
+import _thread
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import rattle
+
+ROOT = Path(__file__).resolve().parents[2]
+BIN = Path(os.environ.get("RATTLE_BIN", ROOT / "target" / "release" / "rattle"))
+FIG2 = str(ROOT / "configs" / "fig2.toml")
+RL = str(ROOT / "configs" / "r_lambda.toml")
+# A 32 x 32 map on the CPU in f64 (the same numbers on any machine), short runs.
+SMALL = {
+    "map.x_points": 32,
+    "map.y_points": 32,
+    "method.backend": "cpu",
+    "method.precision": "f64",
+    "run.transient_periods": 200,
+    "run.sample_periods": 100,
+}
+
+
+def cli(*args, cwd=None):
+    assert BIN.exists(), f"build the command line first: {BIN}"
+    r = subprocess.run([str(BIN), *args], capture_output=True, text=True, cwd=cwd)
+    return r
+
+
+def sets(d):
+    out = []
+    for k, v in d.items():
+        out += ["--set", f"{k}={v}"]
+    return out
+
+
+def test_point_prints_the_papers_period_1_and_matches_the_command_line():
+    p = rattle.point(FIG2, eta=1.5)
+    assert p.cls == "period-1"
+    r = cli("point", "--config", FIG2, "--eta", "1.5", "--json")
+    assert r.returncode == 0, r.stderr
+    j = json.loads(r.stdout)
+    assert j["class"] == p.cls and j["period"] == p.period == 1
+    assert j["multipliers"] is not None and p.multipliers is not None
+    assert abs(p.multipliers).max() < 1.0
+    np.testing.assert_array_equal(np.asarray(j["samples"]), p.samples)
+    assert p.to_dict()["class"] == "period-1" and "period-1" in p.caption
+
+
+def test_map_layers_are_the_command_lines_files_byte_for_byte(tmp_path):
+    m = rattle.map(RL, **SMALL)
+    r = cli("map", "--config", RL, *sets(SMALL), "--out", str(tmp_path / "cli"))
+    assert r.returncode == 0, r.stderr
+    saved = m.save(tmp_path / "py")
+    npys = sorted(p for p in os.listdir(tmp_path) if p.startswith("cli-") and p.endswith(".npy"))
+    assert len(npys) >= 20 and len(npys) == len(m.layers), (npys, list(m.layers))
+    for f in npys:
+        name = f[len("cli-") : -len(".npy")]
+        a = np.load(tmp_path / f)
+        b = m.layers[name]
+        assert a.dtype == b.dtype and a.shape == b.shape == (32, 32) + a.shape[2:], name
+        np.testing.assert_array_equal(a, b, err_msg=name)
+        # .save writes the command line's file, byte for byte.
+        assert (tmp_path / f).read_bytes() == (tmp_path / f"py-{name}.npy").read_bytes(), name
+    assert str(tmp_path / "py.json") in saved and str(tmp_path / "py.png") in saved
+    cj = json.loads((tmp_path / "cli.json").read_text())
+    assert cj["class_counts"] == m.class_counts
+    assert m.x.shape == (32,) and m.y.shape == (32,) and m.x_param == "R"
+    assert m.x[0] > 0.5 and m.x[-1] < 0.7 and np.all(np.diff(m.x) > 0)
+    assert "32 x 32" in m.caption
+
+
+def test_bifurcation_samples_are_the_command_lines_csv(tmp_path):
+    o = {"sweep.points": 64, "method.backend": "cpu"}
+    b = rattle.bifurcation(FIG2, **o)
+    r = cli("bifurcation", "--config", FIG2, *sets(o), "--out", str(tmp_path / "f"))
+    assert r.returncode == 0, r.stderr
+    with open(tmp_path / "f.csv") as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == ["eta", "sample", "y1", "y2", "y3", "y4"]
+    rows = rows[1:]
+    assert len(rows) == len(b.values) > 64
+    np.testing.assert_array_equal(np.array([float(x[0]) for x in rows]), b.values)
+    np.testing.assert_array_equal(np.array([int(x[1]) for x in rows]), b.sample)
+    np.testing.assert_array_equal(np.array([[float(v) for v in x[2:]] for x in rows]), b.y)
+    cj = json.loads((tmp_path / "f.json").read_text())
+    assert cj["class_counts"] == b.class_counts
+    assert [p["class"] for p in cj["points"]] == b.point_classes
+    assert cj["caption"] == b.caption
+
+
+def test_sensitivity_probabilities_are_the_command_lines(tmp_path):
+    o = {"method.backend": "cpu", "run.transient_periods": 100, "run.sample_periods": 64}
+    unc = ["R=0.60+-0.02", "lambda=0.020+-0.005"]
+    s = rattle.sensitivity(RL, uncertain=unc, samples=16, seed=3, **o)
+    args = ["sensitivity", "--config", RL, *sets(o), "--samples", "16", "--seed", "3"]
+    for u in unc:
+        args += ["--uncertain", u]
+    r = cli(*args, "--out", str(tmp_path / "s"))
+    assert r.returncode == 0, r.stderr
+    cj = json.loads((tmp_path / "s.json").read_text())
+    got = {c["name"]: (c["p"], c["low"], c["high"]) for c in cj["classes"]}
+    assert got == s.probabilities and sum(p for p, _, _ in got.values()) == pytest.approx(1)
+    assert s.draws["values"].shape == (16 * 4, 2)
+    assert s.nominal in ("chaotic",) or s.nominal.startswith("period-"), s.nominal
+    assert cj["nominal"] == s.to_dict()["study"]["nominal"]
+
+
+def test_bad_input_names_the_key_and_range_and_writes_nothing(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(rattle.ConfigError) as e:
+        rattle.map(RL, **{"map.x_points": 0})
+    assert "map.x_points" in str(e.value) and "[1, 65536]" in str(e.value)
+    assert isinstance(e.value, ValueError)
+    r = cli("map", "--config", RL, "--set", "map.x_points=0", "--out", "m")
+    assert r.returncode == 2 and "[1, 65536]" in r.stderr
+    with pytest.raises(rattle.ConfigError, match="R"):
+        rattle.point(FIG2, R=1.5)
+    with pytest.raises(rattle.ConfigError, match="run.decide"):
+        rattle.point(FIG2, **{"run.decide": "elsewhere"})
+    with pytest.raises(rattle.ConfigError):
+        rattle.point(toml="[model]\nno_such_key = 1\n")
+    # Too large for the memory (here 64 MiB, RATTLE_MEMORY_LIMIT, so that no machine would
+    # start it): refused before anything is allocated.
+    monkeypatch.setenv("RATTLE_MEMORY_LIMIT", str(64 << 20))
+    with pytest.raises(MemoryError) as e:
+        rattle.map(RL, **{"map.x_points": 2048, "map.y_points": 2048})
+    assert isinstance(e.value, rattle.ConfigError) and "map.x_points" in str(e.value)
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_config_object_and_toml_text_give_the_same_point():
+    c = rattle.Config(FIG2).set("eta", 1.5)
+    a = rattle.point(c)
+    b = rattle.point(toml=Path(FIG2).read_text(), eta=1.5)
+    assert a.cls == b.cls == "period-1"
+    np.testing.assert_array_equal(a.samples, b.samples)
+
+
+def test_no_files_unless_asked(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    rattle.map(RL, **SMALL)
+    rattle.bifurcation(FIG2, **{"sweep.points": 16, "method.backend": "cpu"})
+    assert os.listdir(tmp_path) == []
+
+
+def test_the_interpreter_lock_is_released_and_progress_reported():
+    ticks = []
+    stop = threading.Event()
+
+    def count():
+        while not stop.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.01)
+
+    seen = []
+    t = threading.Thread(target=count)
+    t.start()
+    t0 = time.perf_counter()
+    try:
+        o = dict(SMALL, **{"map.x_points": 48, "map.y_points": 48})
+        rattle.map(RL, progress=lambda done, total: seen.append((done, total)), **o)
+    finally:
+        stop.set()
+        t.join()
+    wall = time.perf_counter() - t0
+    during = [x for x in ticks if x - t0 < wall]
+    # The other thread ran all along (about every 10 ms, not once at the end).
+    assert wall > 0.3 and len(during) > 0.5 * wall / 0.01, (wall, len(during))
+    assert seen and all(total == 48 * 48 for _, total in seen)
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+
+
+def test_ctrl_c_raises_keyboard_interrupt_within_a_block_and_writes_nothing(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    o = dict(SMALL, **{"map.x_points": 256, "map.y_points": 256})
+    timer = threading.Timer(0.5, _thread.interrupt_main)
+    t0 = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        rattle.map(RL, **o)
+    took = time.perf_counter() - t0
+    timer.cancel()
+    # A 256 x 256 map takes a minute here; it stopped at the next report after the interrupt.
+    assert took < 10, took
+    assert os.listdir(tmp_path) == []
+    # The package still works afterwards.
+    assert rattle.point(FIG2, eta=1.5).cls == "period-1"
+
+
+def test_to_xarray_where_xarray_is_installed():
+    xr = pytest.importorskip("xarray")
+    m = rattle.map(RL, **dict(SMALL, **{"map.x_points": 8, "map.y_points": 6}))
+    ds = m.to_xarray()
+    assert isinstance(ds, xr.Dataset) and ds["class"].shape == (6, 8)
+    np.testing.assert_array_equal(ds["R"].values, m.x)
