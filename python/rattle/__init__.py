@@ -42,7 +42,9 @@ __all__ = [
     "bifurcation",
     "map",
     "sensitivity",
+    "basin",
     "Point",
+    "Basin",
     "Map",
     "Bifurcation",
     "Sensitivity",
@@ -311,6 +313,40 @@ class Sensitivity:
         return f"<rattle.Sensitivity nominal {self.nominal}>"
 
 
+class Basin:
+    """Basins of attraction at one parameter point: `ids` (ny, nx) gives each initial state's
+    attractor (1, 2, ... by size; -1 where the run failed) on the axes `x`, `y` (state
+    coordinates `x_coord`, `y_coord`); `attractors` describes each (class, period, section
+    points, multipliers)."""
+
+    def __init__(self, data):
+        self._data = data
+        self._json = json.loads(data.report())
+        self.ids = _npy(data.ids())
+        g = self._json["grid"]
+        self.x = np.asarray(g["x_values"], dtype=float)
+        self.y = np.asarray(g["y_values"], dtype=float)
+        self.x_coord: str = str(g["x"])
+        self.y_coord: str = str(g["y"])
+        self.attractors = self._json["attractors"]
+
+    @property
+    def caption(self) -> str:
+        return self._json["caption"]
+
+    def to_dict(self) -> dict:
+        d = dict(self._json)
+        d["ids"] = self.ids.tolist()
+        return d
+
+    def save(self, prefix: PathLike) -> list:
+        """Writes the command line's files (PREFIX.png, PREFIX.npy, PREFIX.json)."""
+        return [str(p) for p in self._data.save(os.fspath(prefix))]
+
+    def __repr__(self) -> str:
+        return f"<rattle.Basin {len(self.y)} x {len(self.x)}, {len(self.attractors)} attractors>"
+
+
 def _call(fn, what, config, toml, progress, overrides, **extra):
     c = _config(config, toml, overrides)
     cb, close = _progress(progress, what)
@@ -384,3 +420,16 @@ def sensitivity(
     )
     _warn(data.warnings)
     return Sensitivity(data)
+
+
+def basin(
+    config: Union[None, PathLike, Config] = None,
+    *,
+    toml: Optional[str] = None,
+    progress: Progress = None,
+    **overrides: Any,
+) -> Basin:
+    """Basins of attraction over a grid of initial states (`rattle basin`)."""
+    data = _call(_rattle.basin, "basin", config, toml, progress, overrides)
+    _warn(data.warnings)
+    return Basin(data)

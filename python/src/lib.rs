@@ -17,6 +17,42 @@ use std::time::Duration;
 /// The payload that unwinds a computation interrupted from Python.
 struct Cancelled;
 
+/// The library's progress, counted for the waiting thread: units done of `units` (the
+/// engine's units, set by the work once its engine is open), and the interrupt flag.
+#[derive(Default)]
+struct Reporter {
+    done: AtomicU64,
+    units: AtomicU64,
+    cancel: AtomicBool,
+}
+
+impl Reporter {
+    fn set_units(&self, n: u64) {
+        self.units.store(n.max(1), Ordering::Relaxed);
+    }
+
+    /// Progress in the caller's units (cells, points) of `total`.
+    fn scaled(&self, total: u64) -> u64 {
+        let (d, u) = (
+            self.done.load(Ordering::Relaxed),
+            self.units.load(Ordering::Relaxed),
+        );
+        if u == 0 {
+            return 0;
+        }
+        ((d as u128 * total as u128 / u as u128) as u64).min(total)
+    }
+}
+
+impl rattle::progress::Progress for Reporter {
+    fn advance(&self, n: u64) {
+        if self.cancel.load(Ordering::Relaxed) {
+            std::panic::panic_any(Cancelled);
+        }
+        self.done.fetch_add(n, Ordering::Relaxed);
+    }
+}
+
 /// Where a config comes from: a TOML file or TOML text, with `--set` overrides.
 #[derive(Clone)]
 struct Source {
@@ -69,23 +105,15 @@ fn detached<T: Send + 'static>(
     py: Python,
     total: u64,
     progress: Option<Py<PyAny>>,
-    work: impl FnOnce(&(dyn Fn(u64) + Sync)) -> rattle::Result<T> + Send + 'static,
+    work: impl FnOnce(&Reporter) -> rattle::Result<T> + Send + 'static,
 ) -> PyResult<T> {
     quiet_cancel_panics();
-    let done = Arc::new(AtomicU64::new(0));
-    let cancel = Arc::new(AtomicBool::new(false));
+    let reporter = Arc::new(Reporter::default());
     let (tx, rx) = std::sync::mpsc::channel();
     {
-        let (done, cancel) = (done.clone(), cancel.clone());
+        let reporter = reporter.clone();
         std::thread::spawn(move || {
-            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                work(&|n| {
-                    if cancel.load(Ordering::Relaxed) {
-                        std::panic::panic_any(Cancelled);
-                    }
-                    done.fetch_add(n, Ordering::Relaxed);
-                })
-            }));
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(&reporter)));
             let _ = tx.send(r);
         });
     }
@@ -122,12 +150,12 @@ fn detached<T: Send + 'static>(
                 if interrupted.is_none() {
                     if let Err(e) = py.check_signals() {
                         // Stop the work at its next report, then raise.
-                        cancel.store(true, Ordering::Relaxed);
+                        reporter.cancel.store(true, Ordering::Relaxed);
                         interrupted = Some(e);
                         continue;
                     }
                     if let Some(cb) = &progress {
-                        cb.call1(py, (done.load(Ordering::Relaxed), total))?;
+                        cb.call1(py, (reporter.scaled(total), total))?;
                     }
                 }
             }
@@ -180,7 +208,8 @@ fn point(
     let cfg = src.load().map_err(|e| to_py(py, e))?;
     detached(py, 1, progress, move |p| {
         let (engine, warnings) = engine(&cfg)?;
-        let r = rattle::point::run(&engine, &cfg, &p)?;
+        p.set_units(1);
+        let r = rattle::point::run(&engine, &cfg, p)?;
         Ok((serde_json::to_string(&r)?, warnings))
     })
 }
@@ -261,14 +290,8 @@ fn map(
     let mut warnings = cfg.without_effect(&[cfg.map.x, cfg.map.y]);
     let (result, w) = detached(py, cells, progress, move |p| {
         let (engine, warnings) = engine(&cfg)?;
-        let per = engine
-            .progress_per_point(&rattle::spec::RunSpec::new(&cfg))
-            .max(1);
-        let scaled = |n: u64| p(n / per);
-        Ok((
-            rattle::map::compute_map(&engine, &cfg, &o, &scaled)?,
-            warnings,
-        ))
+        p.set_units(rattle::map::work(&engine, &cfg, &o));
+        Ok((rattle::map::compute_map(&engine, &cfg, &o, p)?, warnings))
     })?;
     warnings.extend(w);
     Ok(MapData { result, warnings })
@@ -336,14 +359,8 @@ fn bifurcation(
     let total = cfg.sweep.points as u64;
     let (b, w) = detached(py, total, progress, move |p| {
         let (engine, warnings) = engine(&cfg)?;
-        let per = engine
-            .progress_per_point(&rattle::spec::RunSpec::new(&cfg))
-            .max(1);
-        let scaled = |n: u64| p(n / per);
-        Ok((
-            rattle::bifurcation::run(&engine, &cfg, None, &scaled)?,
-            warnings,
-        ))
+        p.set_units(rattle::bifurcation::work(&engine, &cfg, None));
+        Ok((rattle::bifurcation::run(&engine, &cfg, None, p)?, warnings))
     })?;
     warnings.extend(w);
     Ok(BifurcationData { b, warnings })
@@ -434,11 +451,9 @@ fn sensitivity(
     let c = cfg.clone();
     let (study, backend, device, warnings) = detached(py, total, progress, move |p| {
         let (engine, warnings) = engine(&c)?;
-        let per = engine
-            .progress_per_point(&rattle::spec::RunSpec::new(&c))
-            .max(1);
-        let scaled = |n: u64| p(n / per);
-        let study = rattle::sensitivity::run(&engine, &c, &o, &scaled)?;
+        let spec = rattle::spec::RunSpec::new(&c);
+        p.set_units(rattle::sensitivity::points(&o) as u64 * engine.progress_per_point(&spec));
+        let study = rattle::sensitivity::run(&engine, &c, &o, p)?;
         Ok((study, engine.name().to_string(), engine.device(), warnings))
     })?;
     Ok(SensitivityData {
@@ -450,13 +465,83 @@ fn sensitivity(
     })
 }
 
+/// Computed basins of attraction.
+#[pyclass(frozen)]
+struct BasinData {
+    b: rattle::basin::Basin,
+    cfg: Config,
+    warnings: Vec<String>,
+}
+
+#[pymethods]
+impl BasinData {
+    /// The attractor id of every cell as the bytes of the command line's NPY file.
+    fn ids(&self) -> Vec<u8> {
+        let g = &self.b.grid;
+        let shape = [g.y_values.len() as u64, g.x_values.len() as u64];
+        rattle::output::npy_bytes(&shape, &self.b.ids)
+    }
+
+    /// The grid, the attractors (class, period, section points, multipliers), the failed
+    /// cells, the timings and the caption, as JSON.
+    fn report(&self) -> PyResult<String> {
+        let b = &self.b;
+        let j = serde_json::json!({
+            "grid": b.grid,
+            "attractors": b.attractors,
+            "failed": b.failed,
+            "backend": b.backend,
+            "device": b.device,
+            "timings": b.timings,
+            "caption": rattle::basin::caption(&self.cfg, b),
+        });
+        Ok(j.to_string())
+    }
+
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
+    }
+
+    fn save(&self, py: Python, prefix: PathBuf) -> PyResult<Vec<PathBuf>> {
+        rattle::output::check_prefix(&prefix, &["png", "npy", "json"])
+            .map_err(|e| to_py(py, e.into()))?;
+        py.detach(|| rattle::basin::write_outputs(&prefix, &self.cfg, &self.b))
+            .map_err(|e| to_py(py, e))
+    }
+}
+
+#[pyfunction]
+#[pyo3(signature = (path, text, sets, progress=None))]
+fn basin(
+    py: Python,
+    path: Option<String>,
+    text: Option<String>,
+    sets: Vec<String>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<BasinData> {
+    let src = source(path, text, sets);
+    let cfg = src.load().map_err(|e| to_py(py, e))?;
+    cfg.check_basin().map_err(|e| to_py(py, e.into()))?;
+    let cells = u64::from(cfg.basin.x_points) * u64::from(cfg.basin.y_points);
+    let c = cfg.clone();
+    let (b, warnings) = detached(py, cells, progress, move |p| {
+        let (engine, warnings) = engine(&c)?;
+        p.set_units(rattle::basin::work(&engine, &c));
+        Ok((rattle::basin::compute(&engine, &c, p)?, warnings))
+    })?;
+    Ok(BasinData { b, cfg, warnings })
+}
+
 #[pymodule]
 fn _rattle(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(point, m)?)?;
     m.add_function(wrap_pyfunction!(map, m)?)?;
     m.add_function(wrap_pyfunction!(bifurcation, m)?)?;
     m.add_function(wrap_pyfunction!(sensitivity, m)?)?;
+    m.add_function(wrap_pyfunction!(basin, m)?)?;
     m.add_class::<MapData>()?;
+    m.add_class::<BasinData>()?;
     m.add_class::<BifurcationData>()?;
     m.add_class::<SensitivityData>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -117,6 +117,21 @@ def test_sensitivity_probabilities_are_the_command_lines(tmp_path):
     assert cj["nominal"] == s.to_dict()["study"]["nominal"]
 
 
+def test_basin_ids_are_the_command_lines_file(tmp_path):
+    cfg = str(ROOT / "configs" / "basin.toml")
+    o = {"basin.x_points": 24, "basin.y_points": 16, "method.backend": "cpu"}
+    b = rattle.basin(cfg, **o)
+    r = cli("basin", "--config", cfg, *sets(o), "--out", str(tmp_path / "b"))
+    assert r.returncode == 0, r.stderr
+    a = np.load(tmp_path / "b.npy")
+    assert a.dtype == b.ids.dtype and a.shape == b.ids.shape == (16, 24)
+    np.testing.assert_array_equal(a, b.ids)
+    cj = json.loads((tmp_path / "b.json").read_text())
+    assert [x["class"] for x in cj["attractors"]] == [x["class"] for x in b.attractors]
+    assert b.ids.max() == len(b.attractors) >= 1
+    assert len(b.x) == 24 and len(b.y) == 16
+
+
 def test_bad_input_names_the_key_and_range_and_writes_nothing(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(rattle.ConfigError) as e:
