@@ -43,6 +43,8 @@ __all__ = [
     "map",
     "sensitivity",
     "basin",
+    "bench",
+    "validate",
     "Point",
     "Basin",
     "Map",
@@ -433,3 +435,32 @@ def basin(
     data = _call(_rattle.basin, "basin", config, toml, progress, overrides)
     _warn(data.warnings)
     return Basin(data)
+
+
+def bench(
+    config: Union[None, PathLike, Config] = None,
+    *,
+    toml: Optional[str] = None,
+    points: int = 2000,
+    periods: int = 100,
+    backends: Optional[list] = None,
+    **overrides: Any,
+) -> list:
+    """RK4 steps per second of every backend (`"gpu"`, `"cpu"`) and precision
+    (`rattle bench`): one dict per row (`backend`, `precision`, `steps_per_s`, `timings`, ...;
+    `{"error": ...}` for a row that could not be measured)."""
+    c = _config(config, toml, overrides)
+    return json.loads(_rattle.bench(c.path, c.toml, c.sets, points, periods, backends))
+
+
+def validate(
+    config: Union[None, PathLike, Config] = None,
+    *,
+    toml: Optional[str] = None,
+    state_points: int = 64,
+    **overrides: Any,
+) -> str:
+    """The same points on GPU and CPU (`rattle validate`): the agreement table, as text.
+    Needs a GPU adapter (`RattleError` without one)."""
+    c = _config(config, toml, overrides)
+    return _rattle.validate(c.path, c.toml, c.sets, state_points)

@@ -56,3 +56,15 @@ class BasinData:
 def basin(
     path: Optional[str], text: Optional[str], sets: List[str], progress: _Progress = None
 ) -> BasinData: ...
+
+def bench(
+    path: Optional[str],
+    text: Optional[str],
+    sets: List[str],
+    points: int = 2000,
+    periods: int = 100,
+    backends: Optional[List[str]] = None,
+) -> str: ...
+def validate(
+    path: Optional[str], text: Optional[str], sets: List[str], state_points: int = 64
+) -> str: ...

@@ -163,6 +163,19 @@ fn detached<T: Send + 'static>(
     }
 }
 
+/// Runs `f` off the interpreter lock on the calling thread; a panic comes back as
+/// `RattleError`, never as a crash or a `PanicException`.
+fn guarded<T: Send>(py: Python, f: impl FnOnce() -> rattle::Result<T> + Send) -> PyResult<T> {
+    match py.detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(f))) {
+        Ok(Ok(v)) => Ok(v),
+        Ok(Err(e)) => Err(to_py(py, e)),
+        Err(_) => Err(to_py(
+            py,
+            rattle::Error::Merge("rattle failed while writing files".into()),
+        )),
+    }
+}
+
 /// The default panic message is not printed for an interrupted computation.
 fn quiet_cancel_panics() {
     static ONCE: std::sync::Once = std::sync::Once::new();
@@ -262,8 +275,7 @@ impl MapData {
     /// Writes the command line's files under `prefix`; returns their paths.
     fn save(&self, py: Python, prefix: PathBuf) -> PyResult<Vec<PathBuf>> {
         rattle::output::check_prefix(&prefix, &["png", "json"]).map_err(|e| to_py(py, e.into()))?;
-        py.detach(|| self.result.write(&prefix))
-            .map_err(|e| to_py(py, e))
+        guarded(py, || self.result.write(&prefix))
     }
 }
 
@@ -338,8 +350,7 @@ impl BifurcationData {
     fn save(&self, py: Python, prefix: PathBuf) -> PyResult<Vec<PathBuf>> {
         rattle::output::check_prefix(&prefix, &["csv", "png", "json"])
             .map_err(|e| to_py(py, e.into()))?;
-        py.detach(|| rattle::bifurcation::write_outputs(&prefix, &self.b))
-            .map_err(|e| to_py(py, e))
+        guarded(py, || rattle::bifurcation::write_outputs(&prefix, &self.b))
     }
 }
 
@@ -417,7 +428,7 @@ impl SensitivityData {
     fn save(&self, py: Python, prefix: PathBuf) -> PyResult<Vec<PathBuf>> {
         rattle::output::check_prefix(&prefix, &["json", "csv", "png", "svg"])
             .map_err(|e| to_py(py, e.into()))?;
-        py.detach(|| {
+        guarded(py, || {
             rattle::sensitivity::write_outputs(
                 &prefix,
                 &self.cfg,
@@ -426,7 +437,6 @@ impl SensitivityData {
                 &self.device,
             )
         })
-        .map_err(|e| to_py(py, e))
     }
 }
 
@@ -506,8 +516,9 @@ impl BasinData {
     fn save(&self, py: Python, prefix: PathBuf) -> PyResult<Vec<PathBuf>> {
         rattle::output::check_prefix(&prefix, &["png", "npy", "json"])
             .map_err(|e| to_py(py, e.into()))?;
-        py.detach(|| rattle::basin::write_outputs(&prefix, &self.cfg, &self.b))
-            .map_err(|e| to_py(py, e))
+        guarded(py, || {
+            rattle::basin::write_outputs(&prefix, &self.cfg, &self.b)
+        })
     }
 }
 
@@ -533,6 +544,58 @@ fn basin(
     Ok(BasinData { b, cfg, warnings })
 }
 
+/// `rattle bench`: the rows of every backend and precision (JSON list; a row that could not be
+/// measured is `{"error": ...}`).
+#[pyfunction]
+#[pyo3(name = "bench", signature = (path, text, sets, points=2000, periods=100, backends=None))]
+fn bench_rows(
+    py: Python,
+    path: Option<String>,
+    text: Option<String>,
+    sets: Vec<String>,
+    points: usize,
+    periods: u32,
+    backends: Option<Vec<String>>,
+) -> PyResult<String> {
+    let cfg = source(path, text, sets).load().map_err(|e| to_py(py, e))?;
+    let backends: Vec<Backend> = match backends {
+        None => Backend::ALL.to_vec(),
+        Some(b) => b
+            .iter()
+            .map(|n| n.parse::<Backend>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| to_py(py, ConfigError::Parse(format!("backends: {e}")).into()))?,
+    };
+    detached(py, 1, None, move |_| {
+        let rows = rattle::bench::bench(&cfg, points, periods, &backends, false)?;
+        let rows: Vec<serde_json::Value> = rows
+            .into_iter()
+            .map(|r| match r {
+                Ok(row) => serde_json::to_value(row).unwrap_or_default(),
+                Err(e) => serde_json::json!({ "error": e.to_string() }),
+            })
+            .collect();
+        Ok(serde_json::to_string(&rows)?)
+    })
+}
+
+/// `rattle validate`: the agreement table of GPU and CPU, as text.
+#[pyfunction]
+#[pyo3(signature = (path, text, sets, state_points=64))]
+fn validate(
+    py: Python,
+    path: Option<String>,
+    text: Option<String>,
+    sets: Vec<String>,
+    state_points: usize,
+) -> PyResult<String> {
+    let cfg = source(path, text, sets).load().map_err(|e| to_py(py, e))?;
+    cfg.check_sweep().map_err(|e| to_py(py, e.into()))?;
+    detached(py, 1, None, move |_| {
+        rattle::validate::validate(&cfg, state_points)
+    })
+}
+
 #[pymodule]
 fn _rattle(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(point, m)?)?;
@@ -540,6 +603,8 @@ fn _rattle(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(bifurcation, m)?)?;
     m.add_function(wrap_pyfunction!(sensitivity, m)?)?;
     m.add_function(wrap_pyfunction!(basin, m)?)?;
+    m.add_function(wrap_pyfunction!(bench_rows, m)?)?;
+    m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_class::<MapData>()?;
     m.add_class::<BasinData>()?;
     m.add_class::<BifurcationData>()?;

@@ -132,6 +132,17 @@ def test_basin_ids_are_the_command_lines_file(tmp_path):
     assert len(b.x) == 24 and len(b.y) == 16
 
 
+def test_bench_rows_and_validate_table():
+    rows = rattle.bench(FIG2, points=200, periods=5, backends=["cpu"])
+    got = {(r["backend"], r["schedule"], r["precision"]) for r in rows}
+    assert ("cpu", "batched", "f32") in got and ("cpu", "bare", "f64") in got
+    assert all(r["steps_per_s"] > 0 for r in rows)
+    with pytest.raises(rattle.ConfigError, match="backends"):
+        rattle.bench(FIG2, backends=["tpu"])
+    table = rattle.validate(FIG2, state_points=8, **{"sweep.points": 40})
+    assert "f64 GPU vs f64 CPU" in table and "classification over the sweep" in table
+
+
 def test_bad_input_names_the_key_and_range_and_writes_nothing(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(rattle.ConfigError) as e:
