@@ -242,9 +242,9 @@ class Bifurcation:
         self._json = json.loads(data.report())
         d, v, k, y = data.samples()
         self.direction = np.asarray(d, dtype=str)
-        self.values = np.asarray(v, dtype=float)
-        self.sample = np.asarray(k, dtype=np.int64)
-        self.y = np.asarray(y, dtype=float).reshape(-1, 4)
+        self.values: np.ndarray = v
+        self.sample: np.ndarray = k
+        self.y: np.ndarray = y
         self.param: str = self._json["config"]["sweep"]["param"]
         points = self._json.get("points") or []
         self.point_values = np.asarray([p["value"] for p in points], dtype=float)

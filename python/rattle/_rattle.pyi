@@ -1,6 +1,7 @@
 """Type stubs of the extension module (the package's `__init__.py` wraps it)."""
 
 from os import PathLike
+import numpy
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 _Progress = Optional[Callable[[int, int], Any]]
@@ -23,7 +24,7 @@ def map(
 
 class BifurcationData:
     warnings: List[str]
-    def samples(self) -> Tuple[List[str], List[float], List[int], List[Tuple[float, float, float, float]]]: ...
+    def samples(self) -> Tuple[List[str], "numpy.ndarray", "numpy.ndarray", "numpy.ndarray"]: ...
     def report(self) -> str: ...
     def save(self, prefix: "str | PathLike[str]") -> List[str]: ...
 

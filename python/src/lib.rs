@@ -4,6 +4,7 @@
 //! the computation at its next progress report). Results cross as JSON (reports) and NPY bytes
 //! (arrays, the bytes the command line's files hold); errors as the package's exceptions.
 
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
@@ -318,21 +319,32 @@ struct BifurcationData {
 
 #[pymethods]
 impl BifurcationData {
-    /// The section samples as the CSV holds them: (direction or "", parameter value, sample
-    /// index, y1, y2, y3, y4) per row, as columns.
-    fn samples(&self) -> (Vec<String>, Vec<f64>, Vec<u32>, Vec<[f64; 4]>) {
+    /// The section samples as the CSV holds them: the direction ("" without continuation),
+    /// the parameter value, the sample index and the state (n x 4), one row per sample.
+    #[allow(clippy::type_complexity)]
+    fn samples<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(
+        Vec<String>,
+        Bound<'py, PyArray1<f64>>,
+        Bound<'py, PyArray1<i64>>,
+        Bound<'py, PyArray2<f64>>,
+    )> {
         let (mut d, mut v, mut k, mut y) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for (dir, points) in &self.b.runs {
             for pt in points {
                 for (i, s) in pt.result.samples.iter().enumerate() {
                     d.push(dir.map_or(String::new(), |x| x.name().to_string()));
                     v.push(pt.value);
-                    k.push(i as u32);
-                    y.push(*s);
+                    k.push(i as i64);
+                    y.extend_from_slice(s);
                 }
             }
         }
-        (d, v, k, y)
+        let rows = v.len();
+        let y = PyArray1::from_vec(py, y).reshape([rows, 4])?;
+        Ok((d, PyArray1::from_vec(py, v), PyArray1::from_vec(py, k), y))
     }
 
     /// The points (value, class, periods integrated) and the located bifurcation points of
