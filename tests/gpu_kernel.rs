@@ -352,8 +352,8 @@ fn newton_flows_on_the_device_agree_with_the_cpu_flow() {
     // against its twin `tangent::flow` in f64: states of Fig. 2 after 200 periods (period-1,
     // period-2, chaotic and sticking points, Coulomb) and of Fig. 3's Stribeck law, flows of
     // 1, 2 and 5 periods each, 12 at three periodic points (lavapipe: 3.3e-15 in the states,
-    // 1.2e-14 of the matrices' size, 272 events crossed). The bounds leave room for a chaotic point's ulps, which grow
-    // by its exponent over the 5 periods.
+    // 1.2e-14 of the matrices' size, 272 events crossed). The bounds leave room for a chaotic
+    // point's ulps, which grow by its exponent over the 5 periods.
     let Some(g) = gpu() else { return };
     let g = g.lock().unwrap();
     if !g.has_f64() {
