@@ -155,8 +155,12 @@ fn detached<T: Send + 'static>(
                         interrupted = Some(e);
                         continue;
                     }
-                    if let Some(cb) = &progress {
-                        cb.call1(py, (reporter.scaled(total), total))?;
+                    if let Some(cb) = &progress
+                        && let Err(e) = cb.call1(py, (reporter.scaled(total), total))
+                    {
+                        // A callback that raises ends the computation as an interrupt does.
+                        reporter.cancel.store(true, Ordering::Relaxed);
+                        interrupted = Some(e);
                     }
                 }
             }

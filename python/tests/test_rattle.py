@@ -225,6 +225,23 @@ def test_ctrl_c_raises_keyboard_interrupt_within_a_block_and_writes_nothing(tmp_
     assert rattle.point(FIG2, eta=1.5).cls == "period-1"
 
 
+def test_a_progress_callback_that_raises_ends_the_run_with_its_error(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+
+    class Stop(Exception):
+        pass
+
+    def progress(done, total):
+        raise Stop(done)
+
+    o = dict(SMALL, **{"map.x_points": 256, "map.y_points": 256})
+    t0 = time.perf_counter()
+    with pytest.raises(Stop):
+        rattle.map(RL, progress=progress, **o)
+    assert time.perf_counter() - t0 < 10
+    assert os.listdir(tmp_path) == []
+
+
 def test_to_xarray_where_xarray_is_installed():
     xr = pytest.importorskip("xarray")
     m = rattle.map(RL, **dict(SMALL, **{"map.x_points": 8, "map.y_points": 6}))
