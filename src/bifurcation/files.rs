@@ -219,8 +219,13 @@ struct PointJson {
 #[derive(Serialize)]
 struct TimingsJson {
     integration_s: f64,
-    /// Newton confirmation of the classes (CPU, f64).
+    /// Newton confirmation of the classes (f64; with its flows on the device where
+    /// `run.decide` puts them there).
     newton_s: f64,
+    /// Of the adaptive run's time: Newton's flows on the device, and the host's deciding and
+    /// bookkeeping (`method::Timings`; null for brute force and continuation).
+    device_decide_s: Option<f64>,
+    host_s: Option<f64>,
     /// Search for the bifurcation points (CPU, f64).
     bifurcations_s: f64,
     kernel_s: Option<f64>,
@@ -392,6 +397,8 @@ fn json(
             setup_s: b.timings.map(|t| t.setup_s),
             integration_s: b.integration_s,
             newton_s: b.newton_s,
+            device_decide_s: b.timings.filter(|_| b.cfg.run.early_stop).map(|t| t.decide_s),
+            host_s: b.timings.filter(|_| b.cfg.run.early_stop).map(|t| t.host_s),
             bifurcations_s: b.bifurcations_s,
             readback_s: b.timings.map(|t| t.readback_s),
             kernel_s: b.timings.and_then(|t| t.kernel_s),
