@@ -393,6 +393,13 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
             }
         }
     }
+    s + &ratio_lines(rows)
+}
+
+/// The lines under the table: GPU against CPU, the CPU against the adapter's bare step,
+/// Newton's trials per second, the exponent's extra cost.
+fn ratio_lines(rows: &[Result<BenchRow>]) -> String {
+    let mut s = String::new();
     let row = |b: &str, p: &str, l: bool| {
         rows.iter()
             .flatten()
