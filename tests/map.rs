@@ -690,6 +690,18 @@ fn map_timings_split_integration_deciding_and_files() {
         integration + host + files < wall,
         "{t} against {wall} s wall"
     );
+    // The run's own wall time up to the files holds the integration and the deciding, and
+    // with the files fits in the command's.
+    let run_wall = part("wall_s");
+    assert!(
+        integration + host <= run_wall && run_wall + files < wall,
+        "{t}"
+    );
+    assert_eq!(
+        part("device_decide_s"),
+        0.0,
+        "the CPU backend has no device"
+    );
     // The summary line says the same.
     assert!(
         line.contains("s host deciding") && line.contains("s files)"),

@@ -239,12 +239,15 @@ pub fn compute_map(
     o: &MapOptions,
     progress: &dyn Progress,
 ) -> crate::Result<MapResult> {
+    let t = std::time::Instant::now();
     o.check(cfg)?;
     let part = match o.refine {
         Some(k) => coarse_part(engine, cfg, k, o.clear_chaotic(), o.starts, progress)?,
         None => compute_part(engine, cfg, (0, 1), o.starts, progress)?,
     };
-    assemble(engine, o, vec![part])
+    let mut m = assemble(engine, o, vec![part])?;
+    m.report.timings.wall_s = Some(t.elapsed().as_secs_f64());
+    Ok(m)
 }
 
 /// The whole map of `parts`: merged, with its report.
@@ -343,6 +346,7 @@ pub fn run(
             .extend(write_compare(Path::new(&p), &cfg, other, &a, &b)?);
         summary.changed = Some((changed, cells));
     }
+    report.timings.wall_s = Some(t.elapsed().as_secs_f64());
     let t_files = std::time::Instant::now();
     summary
         .files

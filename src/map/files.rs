@@ -103,6 +103,8 @@ pub struct MapTimings {
     /// Sum over the merged parts.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub integration_s_sum: Option<f64>,
+    /// The run's wall time up to its files (`files_s` is theirs): the computation, with the
+    /// adapter's start, the engine's setup and the parts' merge.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wall_s: Option<f64>,
 }
