@@ -7,7 +7,7 @@ use rattle::class::Class;
 use rattle::classify::{
     Birkhoff, CHAOS_MARGIN, Evidence, Exponent, Growth, Rule, TORUS_DIGITS, conclude,
 };
-use rattle::config::{Config, Precision};
+use rattle::config::{Config, Decide, Precision};
 use rattle::decide::Summary;
 use rattle::engine::Engine;
 use rattle::progress::Silent;
@@ -204,8 +204,20 @@ fn classes_of(
     precision: Precision,
     cells: &[usize],
 ) -> Vec<Summary> {
+    classes_decided(config, engine, precision, Decide::Auto, cells)
+}
+
+/// [`classes_of`] with Newton's flows where `decide` puts them.
+fn classes_decided(
+    config: &str,
+    engine: &Engine,
+    precision: Precision,
+    decide: Decide,
+    cells: &[usize],
+) -> Vec<Summary> {
     let mut cfg = load(config);
     cfg.method.precision = precision;
+    cfg.run.decide = decide;
     rattle::map::compute_cells(engine, &cfg, cells.iter().copied(), 1, &Silent)
         .unwrap()
         .0
@@ -318,16 +330,35 @@ fn check(
     right: f64,
     wrong: f64,
 ) {
+    check_decided(
+        config,
+        prefix,
+        engine,
+        (precision, Decide::Auto),
+        right,
+        wrong,
+    )
+}
+
+/// [`check`] with Newton's flows where `decide` puts them.
+fn check_decided(
+    config: &str,
+    prefix: &str,
+    engine: &Engine,
+    (precision, decide): (Precision, Decide),
+    right: f64,
+    wrong: f64,
+) {
     let nx = load(config).map.x_points as usize;
     let mut missed = Vec::new();
     for name in ["uniform", "strata"].map(|s| format!("{prefix}_judged_{s}.csv")) {
         let judged = fixture(&name, nx);
         let cells: Vec<usize> = judged.iter().map(|j| j.cell).collect();
-        let got = classes_of(config, engine, precision, &cells);
+        let got = classes_decided(config, engine, precision, decide, &cells);
         let (r, w, u) = score(&judged, &got);
         let n = judged.len() as f64;
         eprintln!(
-            "{name} on {} {}: {} judged, right {r}, wrong {w}, undecided {u}",
+            "{name} on {} {} (decide {decide:?}): {} judged, right {r}, wrong {w}, undecided {u}",
             engine.name(),
             precision.name(),
             judged.len()
@@ -389,4 +420,17 @@ fn stick_slip_map_classes_agree_with_the_judge_on_the_gpu() {
     // target is missed there (docs/classes.md).
     let f32 = Precision::F32;
     check(ETA_LAMBDA, "eta_lambda", &engine, f32, 0.90, 0.05);
+}
+
+#[test]
+fn map_classes_decided_on_the_device_agree_with_the_judge() {
+    // Newton's flows on the adapter's f64 flows kernel (`run.decide = "device"`), scored on the
+    // three maps' fixtures with the targets of the host's decisions above.
+    let Some(engine) = common::gpu_engine() else {
+        return;
+    };
+    let device = (Precision::F32, Decide::Device);
+    check_decided(R_LAMBDA, "r_lambda", &engine, device, 0.85, 0.15);
+    check_decided(STRIBECK, "stribeck", &engine, device, 0.90, 0.03);
+    check_decided(ETA_LAMBDA, "eta_lambda", &engine, device, 0.90, 0.05);
 }

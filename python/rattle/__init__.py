@@ -131,7 +131,7 @@ def _progress(progress: Progress, what: str):
 
 def _warn(ws) -> None:
     for w in ws:
-        _warnings.warn(w, RuntimeWarning, stacklevel=3)
+        _warnings.warn(w, RuntimeWarning, stacklevel=4)
 
 
 def _npy(b: bytes) -> np.ndarray:
@@ -350,12 +350,19 @@ class Basin:
 
 
 def _call(fn, what, config, toml, progress, overrides, **extra):
+    """Runs the extension's `fn` on the config; its warnings go to `warnings`."""
     c = _config(config, toml, overrides)
     cb, close = _progress(progress, what)
     try:
-        return fn(c.path, c.toml, c.sets, progress=cb, **extra)
+        out = fn(c.path, c.toml, c.sets, progress=cb, **extra)
     finally:
         close()
+    if isinstance(out, tuple):  # point: (report, warnings)
+        out, ws = out
+    else:
+        ws = out.warnings
+    _warn(ws)
+    return out
 
 
 def point(
@@ -366,9 +373,7 @@ def point(
     **overrides: Any,
 ) -> Point:
     """Integrates one parameter point and classifies its motion (`rattle point`)."""
-    report, ws = _call(_rattle.point, "point", config, toml, progress, overrides)
-    _warn(ws)
-    return Point(json.loads(report))
+    return Point(json.loads(_call(_rattle.point, "point", config, toml, progress, overrides)))
 
 
 def map(
@@ -379,9 +384,7 @@ def map(
     **overrides: Any,
 ) -> Map:
     """A map of classes, exponents and multipliers over two parameters (`rattle map`)."""
-    data = _call(_rattle.map, "map", config, toml, progress, overrides)
-    _warn(data.warnings)
-    return Map(data)
+    return Map(_call(_rattle.map, "map", config, toml, progress, overrides))
 
 
 def bifurcation(
@@ -392,9 +395,7 @@ def bifurcation(
     **overrides: Any,
 ) -> Bifurcation:
     """Sweeps one parameter: the bifurcation diagram (`rattle bifurcation`)."""
-    data = _call(_rattle.bifurcation, "bifurcation", config, toml, progress, overrides)
-    _warn(data.warnings)
-    return Bifurcation(data)
+    return Bifurcation(_call(_rattle.bifurcation, "bifurcation", config, toml, progress, overrides))
 
 
 def sensitivity(
@@ -409,19 +410,19 @@ def sensitivity(
 ) -> Sensitivity:
     """Class probabilities, distances and Sobol indices under parameter uncertainty
     (`rattle sensitivity`); `uncertain` as the command line's `--uncertain` strings."""
-    data = _call(
-        _rattle.sensitivity,
-        "sensitivity",
-        config,
-        toml,
-        progress,
-        overrides,
-        uncertain=uncertain,
-        samples=samples,
-        seed=seed,
+    return Sensitivity(
+        _call(
+            _rattle.sensitivity,
+            "sensitivity",
+            config,
+            toml,
+            progress,
+            overrides,
+            uncertain=uncertain,
+            samples=samples,
+            seed=seed,
+        )
     )
-    _warn(data.warnings)
-    return Sensitivity(data)
 
 
 def basin(
@@ -432,9 +433,7 @@ def basin(
     **overrides: Any,
 ) -> Basin:
     """Basins of attraction over a grid of initial states (`rattle basin`)."""
-    data = _call(_rattle.basin, "basin", config, toml, progress, overrides)
-    _warn(data.warnings)
-    return Basin(data)
+    return Basin(_call(_rattle.basin, "basin", config, toml, progress, overrides))
 
 
 def bench(

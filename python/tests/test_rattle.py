@@ -166,6 +166,13 @@ def test_bad_input_names_the_key_and_range_and_writes_nothing(tmp_path, monkeypa
     assert os.listdir(tmp_path) == []
 
 
+def test_the_command_lines_warnings_come_through_pythons_warnings():
+    o = dict(SMALL, **{"map.x_points": 4, "map.y_points": 4, "map.y": "l1", "map.y_to": 2})
+    with pytest.warns(RuntimeWarning, match="l1 has no effect") as w:
+        rattle.map(RL, **o)
+    assert w[0].filename == __file__
+
+
 def test_a_config_object_and_toml_text_give_the_same_point():
     c = rattle.Config(FIG2).set("eta", 1.5)
     a = rattle.point(c)

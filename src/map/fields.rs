@@ -105,11 +105,7 @@ macro_rules! map_layers {
                 let mut out = Vec::new();
                 $({
                     let v: Vec<_> = self.$name.iter().map(|x| x.npy()).collect();
-                    let shape: Vec<u64> = if $w == 1 {
-                        vec![ny as u64, nx as u64]
-                    } else {
-                        vec![ny as u64, nx as u64, $w]
-                    };
+                    let shape = layer_shape((ny, nx), $w);
                     out.push((stringify!($name), crate::output::npy_bytes(&shape, &v)));
                 })*
                 out
@@ -124,17 +120,22 @@ macro_rules! map_layers {
             ) -> Result<(), E> {
                 $({
                     let v: Vec<_> = self.$name.iter().map(|x| x.npy()).collect();
-                    let shape: Vec<u64> = if $w == 1 {
-                        vec![ny as u64, nx as u64]
-                    } else {
-                        vec![ny as u64, nx as u64, $w]
-                    };
+                    let shape = layer_shape((ny, nx), $w);
                     write(stringify!($name), &|p| crate::output::save_npy(p, &shape, &v))?;
                 })*
                 Ok(())
             }
         }
     };
+}
+
+/// A layer's NPY shape: `(ny, nx)`, or `(ny, nx, w)` for `w` values per cell.
+fn layer_shape((ny, nx): (usize, usize), w: u64) -> Vec<u64> {
+    if w == 1 {
+        vec![ny as u64, nx as u64]
+    } else {
+        vec![ny as u64, nx as u64, w]
+    }
 }
 
 map_layers! {
