@@ -17,18 +17,7 @@ fn flows(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (left == 0u || us[U_NONFINITE * n + i] != 0u || us[U_TRUNCATED * n + i] != 0u) {
         return;
     }
-    prm = load_params();
-    for (var c = 0u; c < ctl.n_vary; c++) {
-        set_param(c, pvals[i * ctl.n_vary + c]);
-    }
-    derive_constants();
-    st.y = load_y(Y_MAIN, i);
-    st.mode = us[U_MODE * n + i];
-    for (var v = 0u; v < TANGENTS; v++) {
-        tvec[v] = load_y(Y_TAN + v * STATE_DIM, i);
-    }
-    tan_on = true;
-    observing = false;
+    flow_load(i);
     let periods = min(left, ctl.periods);
     var q = 0u;
     for (; q < periods; q++) {
@@ -41,11 +30,36 @@ fn flows(@builtin(global_invocation_id) gid: vec3<u32>) {
             break;
         }
     }
+    flow_store(i);
+    us[U_FLOW_LEFT * n + i] = left - q;
+}
+
+// shader-only: buffer access (the host side is src/gpu/flows.rs).
+// A flow's parameters (all per flow), state, mode and vectors, as the dispatch before left them.
+fn flow_load(i: u32) {
+    let n = ctl.n_points;
+    prm = load_params();
+    for (var c = 0u; c < ctl.n_vary; c++) {
+        set_param(c, pvals[i * ctl.n_vary + c]);
+    }
+    derive_constants();
+    st.y = load_y(Y_MAIN, i);
+    st.mode = us[U_MODE * n + i];
+    st.nonfinite = us[U_NONFINITE * n + i];
+    for (var v = 0u; v < TANGENTS; v++) {
+        tvec[v] = load_y(Y_TAN + v * STATE_DIM, i);
+    }
+    tan_on = true;
+    observing = false;
+}
+
+// shader-only: buffer access.
+fn flow_store(i: u32) {
+    let n = ctl.n_points;
     store_y(Y_MAIN, i, st.y);
     for (var v = 0u; v < TANGENTS; v++) {
         store_y(Y_TAN + v * STATE_DIM, i, tvec[v]);
     }
     us[U_MODE * n + i] = st.mode;
     us[U_NONFINITE * n + i] = st.nonfinite;
-    us[U_FLOW_LEFT * n + i] = left - q;
 }

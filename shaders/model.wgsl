@@ -94,3 +94,20 @@ fn mode_at_rest(stop: i32, tn: F) -> u32 {
     }
     return slip(tn);
 }
+
+// model.rs `initial_mode`: the mode of a state, from its slip velocity, or at rest from the
+// stop it touches and the force it needs (c: forcing at its time).
+fn initial_mode(y: vec4<F>, c: F) -> u32 {
+    let v = y.y - y.w;
+    if (v != F(0.0)) {
+        return slip(v);
+    }
+    let z = y.z - y.x;
+    var stop = 0;
+    if (z >= clearance()) {
+        stop = 1;
+    } else if (z <= -clearance()) {
+        stop = -1;
+    }
+    return mode_at_rest(stop, needed_force(y, c));
+}

@@ -275,8 +275,8 @@ fn bare_row(engine: &Engine, spec: &RunSpec, values: &[f64], prec: Precision) ->
 }
 
 /// The decide row on `engine`: a Newton trial of period 1 from each of the `ends` of the
-/// bench sweep (eta `values`), its flows where `run.decide = "device"` runs them on this
-/// engine (the device's flows kernel, the host's lanes on the CPU), timed as a whole.
+/// bench sweep (eta `values`), where `run.decide = "device"` runs Newton on this engine (the
+/// device's Newton kernel, the host's lanes on the CPU), timed as a whole.
 fn decide_row(
     engine: &Engine,
     spec: &RunSpec,

@@ -77,6 +77,18 @@ pub fn refine(it: &Integrator<f64>, start: &PointState<f64>, n: u32) -> Cycle {
     r.out
 }
 
+/// Newton's iteration between two flows ([`Refine::iterate`]): the iterate (state and mode)
+/// the next flow starts from, the period, the iterations done, the last residual and the one
+/// before it.
+#[derive(Clone, Copy, Debug)]
+pub struct Iterate {
+    pub st: PointState<f64>,
+    pub period: u32,
+    pub iterations: u32,
+    pub residual: f64,
+    pub before: f64,
+}
+
 /// Newton's method of [`refine`], one flow of `n` periods per iteration.
 #[derive(Clone, Debug)]
 pub struct Refine {
@@ -126,6 +138,32 @@ impl Refine {
     /// Flows of periods one iteration integrates.
     pub fn period(&self) -> u32 {
         self.n
+    }
+
+    /// Where the iteration stands, `None` once it is done: what the device's Newton
+    /// (`shaders/newton.wgsl`) iterates from.
+    pub fn iterate(&self) -> Option<Iterate> {
+        (!self.done).then_some(Iterate {
+            st: self.st,
+            period: self.n,
+            iterations: self.out.iterations,
+            residual: self.out.residual,
+            before: self.before,
+        })
+    }
+
+    /// Goes on from where the device's Newton left the iteration (`at`, the iterate before its
+    /// next flow), then takes `ended`, that flow's end, where the device handed it back: the
+    /// step that ends the iteration is this one's.
+    pub fn resume(&mut self, at: &Iterate, ended: Option<(&PointState<f64>, &Tangent<f64>)>) {
+        debug_assert_eq!(at.period, self.n);
+        self.st = at.st;
+        self.out.iterations = at.iterations;
+        self.out.residual = at.residual;
+        self.before = at.before;
+        if let Some((end, tan)) = ended {
+            FlowTask::ended(self, end, tan);
+        }
     }
 
     /// The iteration after the flow from the current iterate: false where it stops.

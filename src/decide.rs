@@ -11,29 +11,26 @@
 use crate::class::Class;
 use crate::classify::{Candidate, Exponent, Pool, Rule, approaches, conclude, proposals};
 use crate::cycles::{Cycle, Refine, run_parallel};
-use crate::gpu::{Flow, Gpu};
-use crate::method::tangent::{Tangent, flow};
+use crate::gpu::{Gpu, NewtonEnd};
 use crate::method::{Diagnostics, FlowTask, Integrator, PointState, RunResult, Settings};
 use crate::model::{Mode, Params};
 use crate::spec::{Points, RunSpec};
 use rayon::prelude::*;
 
-/// Where the flows of Newton's method run ([`confirm_many`]): both in f64, with the same
-/// iteration on the host (each iteration's 4 x 4 algebra, the least period of a converged
-/// cycle), so that the same evidence gives the same class up to round-off of the flows.
+/// Where Newton's method runs ([`confirm_many`]): in f64 either way, each trial ended by the
+/// host's step (its least period and multipliers), so that the same evidence gives the same
+/// class up to round-off of the flows.
 #[derive(Clone, Copy)]
 pub enum Decider<'a> {
     /// The host's lanes ([`run_parallel`]).
     Host,
-    /// The device's flows kernel (`shaders/flows.wgsl`), one round of flows per iteration,
-    /// for calls of at least `min_trials` trials (fewer go to the host, whose lanes answer a
-    /// small call before the device's rounds have paid their latency).
+    /// The device's Newton kernel (`shaders/newton.wgsl`: flows, solves and updates until a
+    /// trial's last step), for calls of at least `min_trials` trials (fewer go to the host,
+    /// whose lanes answer a small call before the device has paid its latency).
     Device { gpu: &'a Gpu, min_trials: usize },
 }
 
-/// Trials of one call below which `run.decide = "auto"` leaves Newton on the host: on an H200
-/// Fig. 2's 2000 points took 1.07 s of Newton on the device against 0.15 s on 16 host cores,
-/// a 512 x 512 map's calls (blocks of up to 131,072 points) 5.7 s against 11.5 s
+/// Trials of one call below which `run.decide = "auto"` leaves Newton on the host
 /// (docs/performance.md).
 pub const DEVICE_MIN_TRIALS: usize = 8192;
 
@@ -42,62 +39,64 @@ impl Decider<'_> {
     pub fn refine(self, settings: &Settings, mut tasks: Vec<Refine>) -> Vec<Refine> {
         if let Decider::Device { gpu, min_trials } = self
             && tasks.len() >= min_trials
+            && let Err(e) = refine_on_device(gpu, settings, &mut tasks)
         {
-            match run_on_device(gpu, settings, &mut tasks) {
-                Ok(()) => return tasks,
-                // The trials go on from where the device left them.
-                Err(e) => eprintln!(
-                    "warning: Newton's flows on the device failed ({e}); the host finishes them"
-                ),
-            }
+            eprintln!("warning: Newton's method on the device failed ({e}); the host runs it");
         }
+        // What the device left open (a flow cut short), or all of it.
         run_parallel(tasks, |t| u64::from(t.period()))
     }
 }
 
-/// [`FlowTask`]s run to their end with their flows on the device: each round gathers the flow
-/// every unfinished task asks for, runs them all at once, and hands each task its end (the
-/// tasks' own work after a flow, in parallel on the host). A flow the driver cut short
-/// (llvmpipe's loop limit) is computed on the host.
-pub fn run_on_device<T: FlowTask + Send>(
+/// Iterations of Newton's method per call on `gpu`: on a CPU adapter one (the host gathers
+/// the trials still open after each, so that no SIMD lane idles behind a trial that has ended:
+/// with four per call the 20,000 period-1 trials of `rattle bench` took 1.34 s on lavapipe
+/// against 0.98 s); on a GPU all of them, so that no trial waits for a round trip.
+fn iterations_per_call(gpu: &Gpu) -> u32 {
+    if gpu.info.device_type == wgpu::DeviceType::Cpu {
+        1
+    } else {
+        crate::cycles::NEWTON_ITERS
+    }
+}
+
+/// Newton's iterations of the open `tasks` on the device ([`Gpu::newton`]), call by call,
+/// each trial handed back to its task where the device stopped: the step that ends a trial is
+/// the host's (`Refine::resume`), in parallel; a trial whose flow the driver cut short is left
+/// to the host.
+pub fn refine_on_device(
     gpu: &Gpu,
     settings: &Settings,
-    tasks: &mut [T],
+    tasks: &mut [Refine],
 ) -> Result<(), crate::gpu::GpuError> {
-    loop {
-        let mut want: Vec<Option<Flow>> = vec![None; tasks.len()];
-        for (t, w) in tasks.iter_mut().zip(want.iter_mut()) {
-            while let Some((st, n)) = t.flow() {
-                if n == 0 {
-                    t.ended(&st, &Tangent::identity(4));
-                    continue;
-                }
-                *w = Some(Flow {
-                    params: t.integrator().p,
-                    start: st,
-                    periods: n,
-                });
-                break;
-            }
-        }
-        let flows: Vec<Flow> = want.iter().flatten().copied().collect();
-        if flows.is_empty() {
-            return Ok(());
-        }
-        let mut ends = gpu.flows(settings, &flows)?.into_iter();
-        let ends: Vec<_> = want
+    let mut open: Vec<usize> = (0..tasks.len())
+        .filter(|&i| tasks[i].iterate().is_some())
+        .collect();
+    while !open.is_empty() {
+        let trials: Vec<_> = open
             .iter()
-            .map(|w| w.map(|f| (f, ends.next().flatten())))
+            .map(|&i| (tasks[i].integrator().p, tasks[i].iterate().unwrap()))
             .collect();
-        tasks.par_iter_mut().zip(ends).for_each(|(t, e)| match e {
-            Some((_, Some((end, tan)))) => t.ended(&end, &tan),
-            Some((f, None)) => {
-                let (end, tan) = flow(t.integrator(), &f.start, f.periods);
-                t.ended(&end, &tan)
+        let ends = gpu.newton(settings, &trials, iterations_per_call(gpu))?;
+        let mut by_task: Vec<Option<NewtonEnd>> = vec![None; tasks.len()];
+        let mut next = Vec::new();
+        for (i, e) in open.into_iter().zip(ends) {
+            if let NewtonEnd::Paused(_) = e {
+                next.push(i);
             }
-            None => {}
-        });
+            by_task[i] = Some(e);
+        }
+        tasks
+            .par_iter_mut()
+            .zip(by_task)
+            .for_each(|(t, e)| match e {
+                Some(NewtonEnd::Handed(at, end)) => t.resume(&at, Some((&end.0, &end.1))),
+                Some(NewtonEnd::Paused(at) | NewtonEnd::Cut(at)) => t.resume(&at, None),
+                None => {}
+            });
+        open = next;
     }
+    Ok(())
 }
 
 /// A point's class after the multipliers had their say, and the cycle behind it.

@@ -360,30 +360,16 @@ fn newton_flows_on_the_device_agree_with_the_cpu_flow() {
         panic!("the flows need an f64 adapter (lavapipe has one)");
     }
     let s = Settings::default();
-    let mut stribeck = Params::paper(1.5);
-    (stribeck.fs, stribeck.fk, stribeck.l1, stribeck.l2) = (0.25, 0.05, 1.42, 0.005);
     let mut flows = Vec::new();
-    for (base, etas) in [
-        (Params::paper(1.5), vec![1.05, 1.2, 1.3, 1.5, 1.75, 1.9]),
-        (stribeck, vec![1.35, 1.45, 1.55]),
-    ] {
-        for eta in etas {
-            let p = Params { eta, ..base };
-            let it = Integrator::<f64>::new(&p, &s);
-            let mut st = it.start([0.0; 4]);
-            for _ in 0..200 {
-                it.period(&mut st);
-            }
-            st.diag = Default::default();
-            // 12 periods: more than one llvmpipe dispatch holds (7), so the flow resumes.
-            let long = [1.5, 1.9, 1.45].contains(&eta);
-            for periods in [1, 2, 5, 12].into_iter().filter(|&n| n < 12 || long) {
-                flows.push(rattle::gpu::Flow {
-                    params: p,
-                    start: st,
-                    periods,
-                });
-            }
+    for (p, st) in settled_starts(&s) {
+        // 12 periods: more than one llvmpipe dispatch holds (7), so the flow resumes.
+        let long = [1.5, 1.9, 1.45].contains(&p.eta);
+        for periods in [1, 2, 5, 12].into_iter().filter(|&n| n < 12 || long) {
+            flows.push(rattle::gpu::Flow {
+                params: p,
+                start: st,
+                periods,
+            });
         }
     }
     // A start that is not finite fails its flow at once, as on the CPU.
@@ -413,4 +399,90 @@ fn newton_flows_on_the_device_agree_with_the_cpu_flow() {
     eprintln!("flows: max |state| {dy:.2e}, max |matrix| (relative) {dm:.2e}, {events} events");
     assert!(events > 50, "the flows must cross events ({events})");
     assert!(dy < 1e-12 && dm < 1e-11, "state {dy:e}, matrix {dm:e}");
+}
+
+#[test]
+fn newton_on_the_device_ends_each_trial_as_the_host_does() {
+    // The Newton kernel (flows, 4 x 4 solves and updates on the device until a step would end
+    // the trial, that step the host's) against `cycles::Refine` run by the host alone, in f64:
+    // trials of periods 1, 2, 3, 5 and 12 from the settled states of the flows' test, a
+    // non-finite start and a start far from any cycle. Converged or not, period, iterations
+    // and mode must agree; the cycle point and multipliers to round-off of the flows
+    // (lavapipe: see the printed figures).
+    use rattle::cycles::Refine;
+    use rattle::decide::Decider;
+    let Some(g) = gpu() else { return };
+    let g = g.lock().unwrap();
+    if !g.has_f64() {
+        panic!("Newton on the device needs an f64 adapter (lavapipe has one)");
+    }
+    let s = Settings::default();
+    let mut tasks = Vec::new();
+    for (p, st) in settled_starts(&s) {
+        let it = Integrator::<f64>::new(&p, &s);
+        // 12 periods: a flow longer than one llvmpipe dispatch (7), so it resumes.
+        let long = [1.5, 1.9, 1.45].contains(&p.eta);
+        for n in [1, 2, 3, 5, 12].into_iter().filter(|&n| n < 12 || long) {
+            tasks.push(Refine::new(it.clone(), &st, n));
+        }
+        if p.eta == 1.5 && p.is_coulomb() {
+            let mut far = st;
+            far.y = [3.0, -2.0, 3.5, 1.0];
+            tasks.push(Refine::new(it.clone(), &far, 1));
+            let mut bad = st;
+            bad.y[1] = f64::NAN;
+            tasks.push(Refine::new(it.clone(), &bad, 1));
+        }
+    }
+    let device = Decider::Device {
+        gpu: &g,
+        min_trials: 0,
+    };
+    let on_device = device.refine(&s, tasks.clone());
+    let on_host = Decider::Host.refine(&s, tasks);
+    let (mut dx, mut dm, mut converged) = (0.0f64, 0.0f64, 0);
+    for (d, h) in on_device.into_iter().zip(on_host) {
+        let (d, h) = (d.cycle(), h.cycle());
+        assert_eq!(
+            (d.converged, d.period, d.iterations, d.mode),
+            (h.converged, h.period, h.iterations, h.mode),
+            "device {d:?}\nhost {h:?}"
+        );
+        if !h.converged {
+            continue;
+        }
+        converged += 1;
+        dx = dx.max(max_diff(&d.point, &h.point));
+        assert_eq!(d.multipliers.len(), h.multipliers.len());
+        for (a, b) in d.multipliers.iter().zip(&h.multipliers) {
+            dm = dm.max((a[0] - b[0]).hypot(a[1] - b[1]));
+        }
+    }
+    eprintln!("newton: {converged} converged, cycle points {dx:.2e}, multipliers {dm:.2e}");
+    assert!(converged >= 10, "too few cycles to compare ({converged})");
+    assert!(dx < 1e-10 && dm < 1e-7, "points {dx:e}, multipliers {dm:e}");
+}
+
+/// States of Fig. 2 after 200 periods (period-1, period-2, chaotic and sticking points, Coulomb)
+/// and of Fig. 3's Stribeck law, with their parameters: where Newton's flows start.
+fn settled_starts(s: &Settings) -> Vec<(Params<f64>, rattle::method::PointState<f64>)> {
+    let mut stribeck = Params::paper(1.5);
+    (stribeck.fs, stribeck.fk, stribeck.l1, stribeck.l2) = (0.25, 0.05, 1.42, 0.005);
+    let mut out = Vec::new();
+    for (base, etas) in [
+        (Params::paper(1.5), vec![1.05, 1.2, 1.3, 1.5, 1.75, 1.9]),
+        (stribeck, vec![1.35, 1.45, 1.55]),
+    ] {
+        for eta in etas {
+            let p = Params { eta, ..base };
+            let it = Integrator::<f64>::new(&p, s);
+            let mut st = it.start([0.0; 4]);
+            for _ in 0..200 {
+                it.period(&mut st);
+            }
+            st.diag = Default::default();
+            out.push((p, st));
+        }
+    }
+    out
 }

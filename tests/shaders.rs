@@ -32,11 +32,12 @@ fn integrate_f64_validates() {
     validate(&src, Capabilities::FLOAT64).unwrap_or_else(|e| panic!("{e}"));
 }
 
-/// Every piece of WGSL: the kernel's, rung 0's and Newton's flows'.
+/// Every piece of WGSL: the kernel's, rung 0's and Newton's.
 fn pieces() -> impl Iterator<Item = (&'static str, &'static str)> {
     rattle::gpu::SHADER
         .into_iter()
-        .chain([BARE_SHADER, rattle::gpu::FLOWS_SHADER])
+        .chain([BARE_SHADER])
+        .chain(rattle::gpu::FLOWS_SHADER)
 }
 
 #[test]
@@ -46,6 +47,7 @@ fn flows_kernel_validates_in_f32_and_f64() {
         .unwrap_or_else(|e| panic!("{e}"));
     let src = flows_source(Precision::F64);
     assert!(src.contains("const TANGENTS: u32 = 4u;") && !src.contains("fn main("));
+    assert!(src.contains("fn flows(") && src.contains("fn newton("));
     validate(&src, Capabilities::FLOAT64).unwrap_or_else(|e| panic!("{e}"));
 }
 
@@ -175,7 +177,7 @@ fn slots_are_distinct_and_inside_their_buffers() {
         let total = constants.iter().find(|c| c.0 == count).unwrap().1;
         let mut slots: Vec<u32> = constants
             .iter()
-            .filter(|c| c.0.starts_with(prefix) && c.0 != count)
+            .filter(|c| c.0.starts_with(prefix) && c.0 != count && !c.0.ends_with("_SLOTS"))
             .map(|c| c.1)
             .collect();
         slots.sort();
@@ -184,7 +186,11 @@ fn slots_are_distinct_and_inside_their_buffers() {
         assert_eq!(slots.len(), n, "{prefix}* slots repeat");
         assert!(slots.iter().all(|&s| s < total), "{prefix}* beyond {count}");
     };
-    group("U_", "U_SLOTS");
+    // Newton's slots (newton.wgsl) follow the kernel's, which its buffers hold.
+    group("U_", "U_NEWTON_SLOTS");
+    group("Y_", "Y_NEWTON_SLOTS");
+    assert_eq!(layout::U_NEWTON_PERIOD, layout::U_SLOTS);
+    assert_eq!(layout::Y_ITER, layout::Y_FLOW_SLOTS);
     group("R_", "R_SLOTS");
     group("C_", "C_TABLE");
     group("VARY_", "VARY_NONE");

@@ -1,15 +1,18 @@
-//! Newton's flows on the device (`shaders/flows.wgsl`, the twin of `method::tangent::flow`):
-//! many flows of the state with the four tangent vectors from the identity, each with its own
-//! parameters, start and periods, in f64. The host's Newton iterations ask for them
-//! (`decide`), one round of flows per iteration.
+//! Newton's method on the device, in f64: its flows (`shaders/flows.wgsl`, the twin of
+//! `method::tangent::flow`: many flows of the state with the four tangent vectors from the
+//! identity, each with its own parameters, start and periods) and its iteration
+//! (`shaders/newton.wgsl`, the twin of `cycles::Refine`: the flows, the 4 x 4 solve and the
+//! update on the device, until a step would end the trial, which the host then takes).
 
 use super::batch::Shared;
 use super::layout::{
-    Control, U_FLOW_LEFT, U_MODE, U_NONFINITE, U_SLOTS, U_TRUNCATED, WORKGROUP, Y_FLOW_SLOTS,
-    Y_MAIN, Y_TAN, at,
+    Control, U_FLOW_LEFT, U_ITER_MODE, U_MODE, U_NEWTON_DONE, U_NEWTON_ITERS, U_NEWTON_PAUSE,
+    U_NEWTON_PERIOD, U_NEWTON_SLOTS, U_NONFINITE, U_SLOTS, U_TRUNCATED, WORKGROUP, Y_BEFORE,
+    Y_FLOW_SLOTS, Y_ITER, Y_MAIN, Y_NEWTON_SLOTS, Y_RESIDUAL, Y_TAN, at,
 };
 use super::{Gpu, GpuError};
 use crate::config::Precision;
+use crate::cycles::{Iterate, NEWTON_ITERS};
 use crate::method::tangent::Tangent;
 use crate::method::{ImpactMethod, PointState, Settings};
 use crate::model::{Mode, N_PARAMS, Params};
@@ -29,39 +32,209 @@ pub struct Flow {
 /// loop limit): that flow must be computed elsewhere.
 pub type FlowEnd = Option<(PointState<f64>, Tangent<f64>)>;
 
+/// Where the device left a Newton trial, with the iterate it reached.
+#[derive(Clone, Debug)]
+pub enum NewtonEnd {
+    /// The next step ends the trial: the end of the flow from the iterate, for the host's
+    /// step (`Refine::resume`).
+    Handed(Iterate, Box<(PointState<f64>, Tangent<f64>)>),
+    /// Paused after the call's iterations: a next call goes on from the iterate.
+    Paused(Iterate),
+    /// A flow cut short (llvmpipe's loop limit): the host goes on from the iterate.
+    Cut(Iterate),
+}
+
 /// Loop iterations llvmpipe counts per RK4 step of the flows (the kernel's figure, with room
 /// for the four vectors' events).
 const LLVMPIPE_ITERS_PER_STEP: u32 = 32;
+
+/// A batch of flows on the device: its pipeline, buffers and dispatch grid.
+struct Batch {
+    pipeline: wgpu::ComputePipeline,
+    shared: Shared,
+    ys: wgpu::Buffer,
+    us: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+    grid: (u32, u32),
+    ctl: Control,
+    /// Periods one dispatch may integrate per invocation.
+    chunk: u32,
+    y_slots: u32,
+    u_slots: u32,
+}
 
 impl Gpu {
     /// Runs `flows` with the integrator of `settings` (located impacts; the naive method has
     /// no flows kernel). Their ends come back in their order.
     pub fn flows(&self, settings: &Settings, flows: &[Flow]) -> Result<Vec<FlowEnd>, GpuError> {
-        if !self.has_f64 {
-            return Err(GpuError::NoF64(self.info.name.clone()));
-        }
-        if settings.impacts != ImpactMethod::Located {
-            return Err(GpuError::Job("the flows kernel locates every event".into()));
-        }
         let t0 = Instant::now();
         let mut out = Vec::with_capacity(flows.len());
-        // Each binding below the adapter's limit: the state and vectors are the largest.
-        let max_bind = self
-            .limits
-            .max_storage_buffer_binding_size
-            .min(self.limits.max_buffer_size);
-        let batch = ((max_bind / (u64::from(Y_FLOW_SLOTS) * 8)) as usize).max(1);
-        for chunk in flows.chunks(batch) {
+        for chunk in flows.chunks(self.flows_per_batch(Y_FLOW_SLOTS)) {
             out.extend(self.flows_batch(settings, chunk)?);
         }
         *self.decide_s.lock().unwrap() += t0.elapsed().as_secs_f64();
         Ok(out)
     }
 
+    /// Runs Newton's iteration of each trial (its parameters and where it stands) on the
+    /// device until a step would end it or it has done `iterations` more, in one dispatch on
+    /// GPUs (a few periods per dispatch on CPU adapters, for llvmpipe's loop limit). Their
+    /// ends come back in their order.
+    pub fn newton(
+        &self,
+        settings: &Settings,
+        trials: &[(Params<f64>, Iterate)],
+        iterations: u32,
+    ) -> Result<Vec<NewtonEnd>, GpuError> {
+        let t0 = Instant::now();
+        let mut out = Vec::with_capacity(trials.len());
+        for chunk in trials.chunks(self.flows_per_batch(Y_NEWTON_SLOTS)) {
+            out.extend(self.newton_batch(settings, chunk, iterations.max(1))?);
+        }
+        *self.decide_s.lock().unwrap() += t0.elapsed().as_secs_f64();
+        Ok(out)
+    }
+
+    /// Flows per batch: each binding below the adapter's limit (the state and vectors, `ys`
+    /// with `y_slots` per flow, are the largest).
+    fn flows_per_batch(&self, y_slots: u32) -> usize {
+        let max_bind = self
+            .limits
+            .max_storage_buffer_binding_size
+            .min(self.limits.max_buffer_size);
+        ((max_bind / (u64::from(y_slots) * 8)) as usize).max(1)
+    }
+
     fn flows_batch(&self, settings: &Settings, flows: &[Flow]) -> Result<Vec<FlowEnd>, GpuError> {
         let m = flows.len();
+        let b = self.upload(
+            settings,
+            "flows",
+            flows,
+            Y_FLOW_SLOTS,
+            U_SLOTS,
+            |_, _, _| {},
+        )?;
+        let longest = flows.iter().map(|f| f.periods).max().unwrap_or(0);
+        let mut ctl = b.ctl;
+        let mut done = 0u32;
+        while done < longest {
+            ctl.periods = b.chunk.min(longest - done);
+            self.dispatch(&b.pipeline, &b.bind, b.grid, &b.shared, &ctl, None)?;
+            done += ctl.periods;
+        }
+        let (ys, us) = self.read_back(&b, m)?;
+        Ok((0..m)
+            .map(|i| flow_end(&flows[i], &ys, &us, m, i))
+            .collect())
+    }
+
+    fn newton_batch(
+        &self,
+        settings: &Settings,
+        trials: &[(Params<f64>, Iterate)],
+        iterations: u32,
+    ) -> Result<Vec<NewtonEnd>, GpuError> {
+        let m = trials.len();
+        // Each trial's first flow starts from its iterate.
+        let flows: Vec<Flow> = trials
+            .iter()
+            .map(|(p, it)| Flow {
+                params: *p,
+                start: it.st,
+                periods: it.period,
+            })
+            .collect();
+        let b = self.upload(
+            settings,
+            "newton",
+            &flows,
+            Y_NEWTON_SLOTS,
+            U_NEWTON_SLOTS,
+            |i, ys, us| {
+                let it = &trials[i].1;
+                for c in 0..4 {
+                    ys[at(Y_ITER + c, m, i)] = it.st.y[c as usize];
+                }
+                ys[at(Y_RESIDUAL, m, i)] = it.residual;
+                ys[at(Y_BEFORE, m, i)] = it.before;
+                us[at(U_ITER_MODE, m, i)] = it.st.mode as u32;
+                us[at(U_NEWTON_ITERS, m, i)] = it.iterations;
+                us[at(U_NEWTON_PERIOD, m, i)] = it.period;
+                us[at(U_NEWTON_PAUSE, m, i)] = it.iterations.saturating_add(iterations);
+            },
+        )?;
+        // Every trial ends or pauses within `iterations` flows of its period; on CPU adapters
+        // the states are read every longest flow to stop once all have.
+        let longest = flows.iter().map(|f| f.periods).max().unwrap_or(0).max(1);
+        let total = longest.saturating_mul(iterations.min(NEWTON_ITERS) + 1);
+        let mut ctl = b.ctl;
+        let mut done = 0u32;
+        let mut since_check = 0u32;
+        while done < total {
+            ctl.periods = b.chunk.min(total - done);
+            self.dispatch(&b.pipeline, &b.bind, b.grid, &b.shared, &ctl, None)?;
+            done += ctl.periods;
+            since_check += ctl.periods;
+            if since_check >= longest && done < total {
+                since_check = 0;
+                let us: Vec<u32> = self.read_storage(&b.us, b.u_slots as u64 * m as u64 * 4)?;
+                let open = |i| {
+                    us[at(U_NEWTON_DONE, m, i)] == 0
+                        && us[at(U_TRUNCATED, m, i)] == 0
+                        && us[at(U_NEWTON_ITERS, m, i)] < us[at(U_NEWTON_PAUSE, m, i)]
+                };
+                if !(0..m).any(open) {
+                    break;
+                }
+            }
+        }
+        let (ys, us) = self.read_back(&b, m)?;
+        Ok((0..m)
+            .map(|i| {
+                let it = &trials[i].1;
+                let mut st = it.st;
+                st.y = [0, 1, 2, 3].map(|c| ys[at(Y_ITER + c, m, i)]);
+                st.mode = Mode::from_u32(us[at(U_ITER_MODE, m, i)]);
+                let at_now = Iterate {
+                    st,
+                    period: it.period,
+                    iterations: us[at(U_NEWTON_ITERS, m, i)],
+                    residual: ys[at(Y_RESIDUAL, m, i)],
+                    before: ys[at(Y_BEFORE, m, i)],
+                };
+                match flow_end(&flows[i], &ys, &us, m, i) {
+                    None => NewtonEnd::Cut(at_now),
+                    Some(_) if us[at(U_NEWTON_DONE, m, i)] == 0 => NewtonEnd::Paused(at_now),
+                    Some(end) => NewtonEnd::Handed(at_now, Box::new(end)),
+                }
+            })
+            .collect())
+    }
+
+    /// The buffers of a batch of `flows` for the entry point `entry`: every parameter per
+    /// flow, its start with the vectors at the identity and its periods, in `ys` and `us` of
+    /// `y_slots` and `u_slots` per flow; `fill(i, ys, us)` sets the entry point's own slots.
+    fn upload(
+        &self,
+        settings: &Settings,
+        entry: &str,
+        flows: &[Flow],
+        y_slots: u32,
+        u_slots: u32,
+        fill: impl Fn(usize, &mut [f64], &mut [u32]),
+    ) -> Result<Batch, GpuError> {
+        if !self.has_f64 {
+            return Err(GpuError::NoF64(self.info.name.clone()));
+        }
+        if settings.impacts != ImpactMethod::Located {
+            return Err(GpuError::Job("the flows kernel locates every event".into()));
+        }
+        let m = flows.len();
         let coulomb = flows.iter().all(|f| f.params.is_coulomb());
-        let pipeline = self.kernels.flows(&self.device, Precision::F64, coulomb);
+        let pipeline = self
+            .kernels
+            .flows(&self.device, Precision::F64, coulomb, entry);
         self.check_error()?;
         let spec = RunSpec {
             params: flows[0].params,
@@ -75,8 +248,8 @@ impl Gpu {
             precision: Precision::F64,
         };
         let shared = Shared::new::<f64>(self, &spec);
-        let mut ys = vec![0.0f64; Y_FLOW_SLOTS as usize * m];
-        let mut us = vec![0u32; U_SLOTS as usize * m];
+        let mut ys = vec![0.0f64; y_slots as usize * m];
+        let mut us = vec![0u32; u_slots as usize * m];
         let mut pv = Vec::with_capacity(N_PARAMS * m);
         for (i, f) in flows.iter().enumerate() {
             for c in 0..4 {
@@ -89,6 +262,7 @@ impl Gpu {
             let finite = f.params.is_finite() && f.start.y.iter().all(|v| v.is_finite());
             us[at(U_NONFINITE, m, i)] = u32::from(!finite);
             pv.extend(f.params.values());
+            fill(i, &mut ys, &mut us);
         }
         let ys_buf = self.storage_init("flows ys", bytemuck::cast_slice(&ys));
         let us_buf = self.storage_init("flows us", bytemuck::cast_slice(&us));
@@ -110,8 +284,7 @@ impl Gpu {
         } else {
             u32::MAX
         };
-        let longest = flows.iter().map(|f| f.periods).max().unwrap_or(0);
-        let mut ctl = Control {
+        let ctl = Control {
             n_points: m as u32,
             steps: nsteps,
             max_events: settings.max_events,
@@ -119,29 +292,39 @@ impl Gpu {
             row: gx * WORKGROUP,
             ..Control::default()
         };
-        let mut done = 0u32;
-        while done < longest {
-            ctl.periods = chunk.min(longest - done);
-            self.dispatch(&pipeline, &bind, (gx, gy), &shared, &ctl, None)?;
-            done += ctl.periods;
-        }
-        let ys: Vec<f64> = self.read_storage(&ys_buf, Y_FLOW_SLOTS as u64 * m as u64 * 8)?;
-        let us: Vec<u32> = self.read_storage(&us_buf, U_SLOTS as u64 * m as u64 * 4)?;
-        Ok((0..m)
-            .map(|i| {
-                if us[at(U_TRUNCATED, m, i)] != 0 {
-                    return None;
-                }
-                let mut end = flows[i].start;
-                end.y = [0, 1, 2, 3].map(|c| ys[at(Y_MAIN + c, m, i)]);
-                end.mode = Mode::from_u32(us[at(U_MODE, m, i)]);
-                end.diag.nonfinite = us[at(U_NONFINITE, m, i)] != 0;
-                let mut tan = Tangent::identity(4);
-                for (v, x) in tan.v.iter_mut().enumerate() {
-                    *x = [0, 1, 2, 3].map(|c| ys[at(Y_TAN + 4 * v as u32 + c, m, i)]);
-                }
-                Some((end, tan))
-            })
-            .collect())
+        Ok(Batch {
+            pipeline,
+            shared,
+            ys: ys_buf,
+            us: us_buf,
+            bind,
+            grid: (gx, gy),
+            ctl,
+            chunk,
+            y_slots,
+            u_slots,
+        })
     }
+
+    fn read_back(&self, b: &Batch, m: usize) -> Result<(Vec<f64>, Vec<u32>), GpuError> {
+        let ys = self.read_storage(&b.ys, b.y_slots as u64 * m as u64 * 8)?;
+        let us = self.read_storage(&b.us, b.u_slots as u64 * m as u64 * 4)?;
+        Ok((ys, us))
+    }
+}
+
+/// Flow `i` of `m` as the device left it in `ys` and `us` (`None` where it was cut short).
+fn flow_end(f: &Flow, ys: &[f64], us: &[u32], m: usize, i: usize) -> FlowEnd {
+    if us[at(U_TRUNCATED, m, i)] != 0 {
+        return None;
+    }
+    let mut end = f.start;
+    end.y = [0, 1, 2, 3].map(|c| ys[at(Y_MAIN + c, m, i)]);
+    end.mode = Mode::from_u32(us[at(U_MODE, m, i)]);
+    end.diag.nonfinite = us[at(U_NONFINITE, m, i)] != 0;
+    let mut tan = Tangent::identity(4);
+    for (v, x) in tan.v.iter_mut().enumerate() {
+        *x = [0, 1, 2, 3].map(|c| ys[at(Y_TAN + 4 * v as u32 + c, m, i)]);
+    }
+    Some((end, tan))
 }

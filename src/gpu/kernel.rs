@@ -19,9 +19,13 @@ pub const SHADER: [(&str, &str); 7] = [
     ("main.wgsl", include_str!("../../shaders/main.wgsl")),
 ];
 
-/// The entry point of Newton's flows (file name, text): it compiles after the pieces of
-/// [`SHADER`] but `main.wgsl`, with four tangent vectors ([`flows_source`]).
-pub const FLOWS_SHADER: (&str, &str) = ("flows.wgsl", include_str!("../../shaders/flows.wgsl"));
+/// The entry points of Newton's method (file name, text): its flows (`flows`) and its
+/// iteration (`newton`). They compile after the pieces of [`SHADER`] but `main.wgsl`, with four
+/// tangent vectors ([`flows_source`]).
+pub const FLOWS_SHADER: [(&str, &str); 2] = [
+    ("flows.wgsl", include_str!("../../shaders/flows.wgsl")),
+    ("newton.wgsl", include_str!("../../shaders/newton.wgsl")),
+];
 
 /// Rung 0 of the ladder, the bare RK4 step (file name, text); it compiles after the prelude
 /// and the literal block of [`bare_source`].
@@ -57,12 +61,12 @@ pub fn shader_source(precision: Precision) -> String {
     source(precision, 1, &SHADER)
 }
 
-/// The source of Newton's flows in a precision: the kernel's pieces with four tangent vectors
-/// and `shaders/flows.wgsl` as the entry point instead of `main.wgsl`.
+/// The source of Newton's method in a precision: the kernel's pieces with four tangent vectors
+/// and the entry points of [`FLOWS_SHADER`] instead of `main.wgsl`.
 pub fn flows_source(precision: Precision) -> String {
     let mut pieces = SHADER.to_vec();
     pieces.pop();
-    pieces.push(FLOWS_SHADER);
+    pieces.extend(FLOWS_SHADER);
     source(precision, 4, &pieces)
 }
 
@@ -161,12 +165,16 @@ pub(super) struct Variant {
     pub(super) uniform_table: bool,
 }
 
+/// A compiled pipeline's precision, rung, variant, source (empty: the production kernel's) and
+/// entry point.
+type PipelineKey = (Precision, Rung, Variant, String, String);
+
 /// Compiled kernels per precision, rung and variant, built on first use
 /// (continuation runs many small jobs and compiles once; a run that never asks for f64 never
 /// compiles it).
 #[derive(Default)]
 pub(super) struct Kernels {
-    pipelines: Mutex<HashMap<(Precision, Rung, Variant, String), wgpu::ComputePipeline>>,
+    pipelines: Mutex<HashMap<PipelineKey, wgpu::ComputePipeline>>,
     /// One bind group layout for every pipeline (an automatic layout belongs to its pipeline
     /// alone), so that a batch's bind group serves the kernel with the tangent and the one
     /// without it, which runs the transient.
@@ -234,13 +242,14 @@ impl Kernels {
         )
     }
 
-    /// The pipeline of Newton's flows ([`flows_source`]; the production kernel's pieces, with
-    /// the tangent).
+    /// The pipeline of Newton's entry point `entry` (`flows` or `newton`, [`flows_source`]; the
+    /// production kernel's pieces, with the tangent).
     pub(super) fn flows(
         &self,
         device: &wgpu::Device,
         precision: Precision,
         coulomb: bool,
+        entry: &str,
     ) -> wgpu::ComputePipeline {
         let variant = Variant {
             coulomb,
@@ -251,7 +260,7 @@ impl Kernels {
             device,
             (precision, Rung::Full, variant),
             flows_source(precision),
-            "flows",
+            entry,
             &Rung::Full.constants(variant),
         )
     }
@@ -277,7 +286,7 @@ impl Kernels {
         });
         let mut cache = self.pipelines.lock().unwrap();
         cache
-            .entry((precision, rung, variant, source.clone()))
+            .entry((precision, rung, variant, source.clone(), entry.to_string()))
             .or_insert_with(|| {
                 let source = if source.is_empty() {
                     shader_source(precision)

@@ -86,6 +86,8 @@ u32_group!(LIMITS, "Limits shared with the CPU twin." {
     TAIL = classify::TAIL as u32;
     /// Components of a state (y1..y4, one vec4).
     STATE_DIM = 4;
+    /// Newton iterations at most (cycles::NEWTON_ITERS).
+    NEWTON_ITERS = crate::cycles::NEWTON_ITERS;
 });
 
 u32_group!(US, "Slots of `us`, u32 per point: us[slot * n_points + i]." {
@@ -111,6 +113,16 @@ u32_group!(US, "Slots of `us`, u32 per point: us[slot * n_points + i]." {
     /// Periods a flow of Newton's method has left (flows.wgsl).
     U_FLOW_LEFT = 13;
     U_SLOTS = 14;
+    /// Newton's method on the device (newton.wgsl), beyond the kernel's slots: the period of
+    /// the cycle sought, the iterations done, the iterate's mode, 1 once the iteration is
+    /// handed back to the host (its next step ends it: cycles.rs `Refine::step` decides), and
+    /// the iterations after which this call pauses it.
+    U_NEWTON_PERIOD = U_SLOTS;
+    U_NEWTON_ITERS = U_SLOTS + 1;
+    U_ITER_MODE = U_SLOTS + 2;
+    U_NEWTON_DONE = U_SLOTS + 3;
+    U_NEWTON_PAUSE = U_SLOTS + 4;
+    U_NEWTON_SLOTS = U_SLOTS + 5;
 });
 
 // The last TAIL section values sit at slots 0..TAIL (value k at k % TAIL).
@@ -147,6 +159,12 @@ u32_group!(YS, "Slots of `ys`, F per point: state and Lyapunov tangent, STATE_DI
     Y_SLOTS = Y_TAN + STATE_DIM;
     /// A flow of Newton's method (flows.wgsl): the state and the four tangent vectors.
     Y_FLOW_SLOTS = Y_TAN + 4 * STATE_DIM;
+    /// Newton's method (newton.wgsl): the flow, then the iterate, the residual of the last
+    /// iteration and the one before it (cycles.rs `Refine`'s `st`, `out.residual`, `before`).
+    Y_ITER = Y_FLOW_SLOTS;
+    Y_RESIDUAL = Y_ITER + STATE_DIM;
+    Y_BEFORE = Y_RESIDUAL + 1;
+    Y_NEWTON_SLOTS = Y_BEFORE + 1;
 });
 
 // Base parameters in the order of the kernel's Params, method constants, then the forcing
@@ -313,6 +331,15 @@ fn write_contract(s: &mut String, precision: Precision) -> std::fmt::Result {
         writeln!(s, "const {}: u32 = {}u;", vary_name(p), p.code())?;
     }
     writeln!(s, "const VARY_NONE: u32 = {VARY_NONE}u;")?;
+    writeln!(
+        s,
+        "\n// Newton's convergence: max |P^n(x) - x| below this times max(1, |x|) (cycles.rs)."
+    )?;
+    writeln!(
+        s,
+        "const NEWTON_TOL: F = F({:e});",
+        crate::cycles::NEWTON_TOL
+    )?;
     writeln!(s, "\n// Uniform control block of one dispatch.")?;
     writeln!(s, "struct Control {{")?;
     for (name, _) in Control::MEMBERS {

@@ -17,7 +17,7 @@ mod flows;
 mod kernel;
 pub mod layout;
 
-pub use flows::{Flow, FlowEnd};
+pub use flows::{Flow, FlowEnd, NewtonEnd};
 pub use kernel::{BARE_SHADER, FLOWS_SHADER, SHADER, bare_source, flows_source, shader_source};
 
 use crate::config::Precision;
