@@ -3,11 +3,14 @@
 // each trial, its flows those of flows.wgsl (resumable across dispatches), until a step would
 // end the iteration (converged, diverging, stalled, singular, out of iterations): that step is
 // the host's (`Refine::resume`), from the state before it, so that the host's arithmetic ends
-// every trial (its least period and multipliers) and the device only iterates. A trial pauses
-// after the iterations of one call (U_NEWTON_PAUSE), between two flows.
+// every trial (its multipliers) and the device only iterates and integrates. A converged
+// iterate first gets the least-period pass (`least_return`) here: where it returns after a
+// proper divisor d of the period, the trial starts again at period d (as `step` does with
+// `refine`). A trial pauses after the iterations of one call (U_NEWTON_PAUSE), between two
+// flows.
 
 // The trial's iteration: cycles.rs `Refine`'s iterate `st`, `out.iterations`, `out.residual`
-// and `before`.
+// and `before` (the last two meaningless while `iters` is below 1 and 2: the host's NaN).
 struct Newton {
     x: vec4<F>,
     mode: u32,
@@ -17,6 +20,11 @@ struct Newton {
 }
 var<private> nt: Newton;
 
+// What a step of the iteration says (`newton_step`).
+const STEP_ON: u32 = 0u;
+const STEP_ENDS: u32 = 1u;
+const STEP_CONVERGED: u32 = 2u;
+
 // twin: refine
 @compute @workgroup_size(WORKGROUP)
 fn newton(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -25,16 +33,55 @@ fn newton(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (i >= n) {
         return;
     }
-    if (us[U_NEWTON_DONE * n + i] != 0u || us[U_TRUNCATED * n + i] != 0u) {
+    if (us[U_NEWTON_DONE * n + i] != NEWTON_OPEN || us[U_TRUNCATED * n + i] != 0u) {
         return;
     }
     flow_load(i);
-    let periods = us[U_NEWTON_PERIOD * n + i];
+    var periods = us[U_NEWTON_PERIOD * n + i];
     var left = us[U_FLOW_LEFT * n + i];
+    var phase = us[U_NEWTON_PHASE * n + i];
+    var least = us[U_LEAST_DONE * n + i];
+    if (phase == PHASE_LEAST) {
+        // The pass runs in `st`; the flow's end waits in the buffers for the host.
+        newton_load(i);
+        st.y = load_y(Y_LEAST, i);
+        st.mode = us[U_LEAST_MODE * n + i];
+        st.nonfinite = 0u;
+        tan_on = false;
+    }
     // Periods this dispatch may still integrate (llvmpipe's loop limit), over every flow.
     var budget = ctl.periods;
-    var handed = 0u;
+    var handed = NEWTON_OPEN;
     loop {
+        if (phase == PHASE_LEAST) {
+            if (budget == 0u) {
+                break;
+            }
+            budget -= 1u;
+            let done = period();
+            if (!done && st.nonfinite == 0u) {
+                us[U_TRUNCATED * n + i] = 1u;
+                break;
+            }
+            least += 1u;
+            if (least_return(periods, least)) {
+                // A cycle of period `least`: Newton again at that period from the iterate
+                // (`*out = refine(it, st, d)`).
+                periods = least;
+                nt.iters = 0u;
+                newton_store(i);
+                phase = PHASE_FLOW;
+                tan_on = true;
+                left = newton_flow(periods);
+                continue;
+            }
+            // A non-finite pass never returns (the host's comparisons with NaN fail).
+            if (least >= periods / 2u || st.nonfinite != 0u) {
+                handed = NEWTON_NO_DIVISOR;
+                break;
+            }
+            continue;
+        }
         // The flow's periods, as flows.wgsl runs them, as many as the dispatch has left.
         let todo = min(left, budget);
         var q = 0u;
@@ -61,26 +108,57 @@ fn newton(@builtin(global_invocation_id) gid: vec3<u32>) {
         // The flow ended (or failed): the iteration's step, on the iteration as `ys` and `us`
         // hold it (nothing of it is live across the flows).
         newton_load(i);
-        if (!newton_step()) {
-            handed = 1u;
+        let said = newton_step();
+        if (said == STEP_ENDS) {
+            handed = NEWTON_HANDED;
             break;
         }
-        newton_store(i);
-        st.y = nt.x;
-        st.mode = nt.mode;
-        for (var v = 0u; v < TANGENTS; v++) {
-            tvec[v] = unit(v);
+        if (said == STEP_CONVERGED) {
+            if (periods < 2u) {
+                handed = NEWTON_NO_DIVISOR;
+                break;
+            }
+            // The least-period pass from the iterate; the flow's end stays in the buffers.
+            flow_store(i);
+            phase = PHASE_LEAST;
+            least = 0u;
+            st.y = nt.x;
+            st.mode = nt.mode;
+            tan_on = false;
+            continue;
         }
-        left = periods;
+        newton_store(i);
+        left = newton_flow(periods);
         // The call's iterations are done: the host gathers the trials still open for the
         // next (a lane whose trial has ended waits for the others of its SIMD group).
         if (nt.iters >= us[U_NEWTON_PAUSE * n + i]) {
             break;
         }
     }
-    flow_store(i);
-    us[U_FLOW_LEFT * n + i] = left;
+    if (phase == PHASE_FLOW) {
+        flow_store(i);
+        us[U_FLOW_LEFT * n + i] = left;
+    } else if (handed == NEWTON_OPEN) {
+        store_y(Y_LEAST, i, st.y);
+        us[U_LEAST_MODE * n + i] = st.mode;
+    }
+    us[U_NEWTON_PERIOD * n + i] = periods;
+    us[U_NEWTON_PHASE * n + i] = phase;
+    us[U_LEAST_DONE * n + i] = least;
     us[U_NEWTON_DONE * n + i] = handed;
+}
+
+// shader-only: the host's Refine starts each flow from its iterate (`FlowTask::flow`).
+// The next flow of the iteration: from the iterate, the vectors at the identity; returns its
+// periods.
+fn newton_flow(periods: u32) -> u32 {
+    st.y = nt.x;
+    st.mode = nt.mode;
+    st.nonfinite = 0u;
+    for (var v = 0u; v < TANGENTS; v++) {
+        tvec[v] = unit(v);
+    }
+    return periods;
 }
 
 // shader-only: buffer access (the host side is src/gpu/flows.rs).
@@ -106,28 +184,37 @@ fn unit(v: u32) -> vec4<F> {
                    select(F(0.0), F(1.0), v == 2u), select(F(0.0), F(1.0), v == 3u));
 }
 
+// shader-only: the host's `scale`, max(1, |x|) over the components.
+fn newton_scale(x: vec4<F>) -> F {
+    return fmax(F(1.0), fmax(fmax(fabs(x.x), fabs(x.y)), fmax(fabs(x.z), fabs(x.w))));
+}
+
 // twin: step
-// `Refine::step` after the flow from nt.x ended at `st` with the vectors `tvec`: true with the
-// next iterate in `nt`; false, `nt` untouched, where the host's step would end the iteration.
-fn newton_step() -> bool {
+// `Refine::step` after the flow from nt.x ended at `st` with the vectors `tvec`: STEP_ON with
+// the next iterate in `nt`; otherwise `nt` untouched: STEP_CONVERGED where the step converges
+// (the least-period pass comes next), STEP_ENDS where it ends the iteration otherwise.
+fn newton_step() -> u32 {
     if (st.nonfinite != 0u) {
-        return false;
+        return STEP_ENDS;
     }
     for (var v = 0u; v < TANGENTS; v++) {
         if (!finite4(tvec[v])) {
-            return false;
+            return STEP_ENDS;
         }
     }
     let r = st.y - nt.x;
     let residual = fmax(fmax(fabs(r.x), fabs(r.y)), fmax(fabs(r.z), fabs(r.w)));
-    // Against NaN (the first iteration) every comparison is false, as on the host.
-    if (residual > F(1e3) * nt.residual) {
-        return false;
+    // The host's residual before the first iteration, and the one two back before the
+    // second, are NaN: no comparison with them holds.
+    if (nt.iters >= 1u && residual > F(1e3) * nt.residual) {
+        return STEP_ENDS;
     }
     let x = nt.x;
-    let scale = fmax(F(1.0), fmax(fmax(fabs(x.x), fabs(x.y)), fmax(fabs(x.z), fabs(x.w))));
-    if (residual <= NEWTON_TOL * scale || residual >= nt.before) {
-        return false;
+    if (residual <= NEWTON_TOL * newton_scale(x)) {
+        return STEP_CONVERGED;
+    }
+    if (nt.iters >= 2u && residual >= nt.before) {
+        return STEP_ENDS;
     }
     // (M - I) dx = -r, M's columns the vectors.
     var a: array<vec4<F>, 4>;
@@ -135,7 +222,7 @@ fn newton_step() -> bool {
         a[row] = vec4<F>(tvec[0][row], tvec[1][row], tvec[2][row], tvec[3][row]) - unit(row);
     }
     if (!lu_solve(a, -r) || !finite4(lu_x) || nt.iters + 1u >= NEWTON_ITERS) {
-        return false;
+        return STEP_ENDS;
     }
     nt.before = nt.residual;
     nt.residual = residual;
@@ -145,7 +232,7 @@ fn newton_step() -> bool {
     if (!is_slip(nt.mode)) {
         nt.x = co_move(nt.x);
     }
-    return true;
+    return STEP_ON;
 }
 
 // The solution of the last `lu_solve`.
@@ -189,6 +276,18 @@ fn lu_solve(m: array<vec4<F>, 4>, rhs: vec4<F>) -> bool {
         lu_x[c] = s / a[c][c];
     }
     return true;
+}
+
+// One period of the pass from the converged iterate nt.x, `d` periods done (in `st`): true
+// where d divides the period `periods` and the pass is back at nt.x within the Newton
+// tolerance.
+fn least_return(periods: u32, d: u32) -> bool {
+    if (st.nonfinite != 0u || periods % d != 0u || d > periods / 2u) {
+        return false;
+    }
+    let e = st.y - nt.x;
+    let bound = F(1e3) * NEWTON_TOL * newton_scale(nt.x);
+    return fmax(fmax(fabs(e.x), fabs(e.y)), fmax(fabs(e.z), fabs(e.w))) <= bound;
 }
 
 // twin: mode_after_update

@@ -100,6 +100,8 @@ pub struct Refine {
     /// The residual two iterations back (NaN at first).
     before: f64,
     done: bool,
+    /// A converged iterate returns after no proper divisor of `n` (the device looked).
+    no_divisor: bool,
 }
 
 impl Refine {
@@ -121,6 +123,7 @@ impl Refine {
             },
             before: f64::NAN,
             done: NEWTON_ITERS == 0,
+            no_divisor: false,
         }
     }
 
@@ -153,15 +156,21 @@ impl Refine {
     }
 
     /// Goes on from where the device's Newton left the iteration (`at`, the iterate before its
-    /// next flow), then takes `ended`, that flow's end, where the device handed it back: the
-    /// step that ends the iteration is this one's.
-    pub fn resume(&mut self, at: &Iterate, ended: Option<(&PointState<f64>, &Tangent<f64>)>) {
-        debug_assert_eq!(at.period, self.n);
+    /// next flow; at another period where the device found the cycle to be one of a divisor
+    /// and started again there, as `step` does), then takes `ended`, that flow's end, where
+    /// the device handed it back: the step that ends the iteration is this one's. With
+    /// `no_divisor` the device's least-period pass (`least_return`, shaders/newton.wgsl) found
+    /// that a converged iterate returns after no proper divisor, so the step does not look.
+    pub fn resume(&mut self, at: &Iterate, ended: Option<(&PointState<f64>, &Tangent<f64>, bool)>) {
+        if at.period != self.n {
+            *self = Refine::new(self.it.clone(), &at.st, at.period);
+        }
         self.st = at.st;
         self.out.iterations = at.iterations;
         self.out.residual = at.residual;
         self.before = at.before;
-        if let Some((end, tan)) = ended {
+        if let Some((end, tan, no_divisor)) = ended {
+            self.no_divisor = no_divisor;
             FlowTask::ended(self, end, tan);
         }
     }
@@ -171,6 +180,7 @@ impl Refine {
         let (it, out) = (&self.it, &mut self.out);
         let st = &mut self.st;
         let n = self.n;
+        let no_divisor = self.no_divisor;
         out.iterations += 1;
         if end.diag.nonfinite || !tan.is_finite() {
             return false;
@@ -188,7 +198,12 @@ impl Refine {
         let m = tan.matrix();
         if out.residual <= NEWTON_TOL * scale {
             // A fixed point of P^n may be a cycle of a divisor of n: report the least period.
-            if let Some(d) = least_return(it, st, n, scale) {
+            let least = if no_divisor {
+                None
+            } else {
+                least_return(it, st, n, scale)
+            };
+            if let Some(d) = least {
                 *out = refine(it, st, d);
                 return false;
             }

@@ -90,7 +90,11 @@ pub fn refine_on_device(
             .par_iter_mut()
             .zip(by_task)
             .for_each(|(t, e)| match e {
-                Some(NewtonEnd::Handed(at, end)) => t.resume(&at, Some((&end.0, &end.1))),
+                Some(NewtonEnd::Handed {
+                    at,
+                    end,
+                    no_divisor,
+                }) => t.resume(&at, Some((&end.0, &end.1, no_divisor))),
                 Some(NewtonEnd::Paused(at) | NewtonEnd::Cut(at)) => t.resume(&at, None),
                 None => {}
             });
@@ -199,8 +203,8 @@ pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) 
             .unzip();
         let tasks = decider.refine(settings, tasks);
         for (i, t) in idx.into_iter().zip(tasks) {
-            let cand = periods[i][pass].1;
-            tried[i].push(t.period());
+            let (n, cand) = periods[i][pass];
+            tried[i].push(n);
             let c = t.cycle();
             let r = points[i].run;
             let on_it = |cand: &Candidate| {

@@ -406,9 +406,10 @@ fn newton_on_the_device_ends_each_trial_as_the_host_does() {
     // The Newton kernel (flows, 4 x 4 solves and updates on the device until a step would end
     // the trial, that step the host's) against `cycles::Refine` run by the host alone, in f64:
     // trials of periods 1, 2, 3, 5 and 12 from the settled states of the flows' test, a
-    // non-finite start and a start far from any cycle. Converged or not, period, iterations
-    // and mode must agree; the cycle point and multipliers to round-off of the flows
-    // (lavapipe: see the printed figures).
+    // non-finite start and a start far from any cycle (41 trials). Converged or not, period,
+    // iterations and mode must agree; the cycle point and multipliers to round-off of the
+    // flows (lavapipe: see the printed figures). Periods 2-12 at period-1 points converge to
+    // the period-1 cycle, whose least period the device's pass finds.
     use rattle::cycles::Refine;
     use rattle::decide::Decider;
     let Some(g) = gpu() else { return };
@@ -438,11 +439,15 @@ fn newton_on_the_device_ends_each_trial_as_the_host_does() {
         gpu: &g,
         min_trials: 0,
     };
+    let asked: Vec<u32> = tasks.iter().map(|t| t.period()).collect();
     let on_device = device.refine(&s, tasks.clone());
     let on_host = Decider::Host.refine(&s, tasks);
-    let (mut dx, mut dm, mut converged) = (0.0f64, 0.0f64, 0);
-    for (d, h) in on_device.into_iter().zip(on_host) {
+    let (mut dx, mut dm, mut converged, mut divisors) = (0.0f64, 0.0f64, 0, 0);
+    for ((d, h), n) in on_device.into_iter().zip(on_host).zip(asked) {
         let (d, h) = (d.cycle(), h.cycle());
+        // A cycle of a proper divisor of the period asked for: found by the device's
+        // least-period pass, then refined at that period on the device.
+        divisors += usize::from(h.converged && h.period < n);
         assert_eq!(
             (d.converged, d.period, d.iterations, d.mode),
             (h.converged, h.period, h.iterations, h.mode),
@@ -458,8 +463,15 @@ fn newton_on_the_device_ends_each_trial_as_the_host_does() {
             dm = dm.max((a[0] - b[0]).hypot(a[1] - b[1]));
         }
     }
-    eprintln!("newton: {converged} converged, cycle points {dx:.2e}, multipliers {dm:.2e}");
+    eprintln!(
+        "newton: {converged} converged ({divisors} at a divisor of the period asked for), \
+         cycle points {dx:.2e}, multipliers {dm:.2e}"
+    );
     assert!(converged >= 10, "too few cycles to compare ({converged})");
+    assert!(
+        divisors >= 5,
+        "too few least-period passes that found a divisor ({divisors})"
+    );
     assert!(dx < 1e-10 && dm < 1e-7, "points {dx:e}, multipliers {dm:e}");
 }
 

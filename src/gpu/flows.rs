@@ -10,6 +10,7 @@ use super::layout::{
     U_NEWTON_PERIOD, U_NEWTON_SLOTS, U_NONFINITE, U_SLOTS, U_TRUNCATED, WORKGROUP, Y_BEFORE,
     Y_FLOW_SLOTS, Y_ITER, Y_MAIN, Y_NEWTON_SLOTS, Y_RESIDUAL, Y_TAN, at,
 };
+use super::layout::{NEWTON_NO_DIVISOR, NEWTON_OPEN};
 use super::{Gpu, GpuError};
 use crate::config::Precision;
 use crate::cycles::{Iterate, NEWTON_ITERS};
@@ -32,12 +33,18 @@ pub struct Flow {
 /// loop limit): that flow must be computed elsewhere.
 pub type FlowEnd = Option<(PointState<f64>, Tangent<f64>)>;
 
-/// Where the device left a Newton trial, with the iterate it reached.
+/// Where the device left a Newton trial, with the iterate it reached (its period that of a
+/// divisor where the device started the trial again there, as `Refine::step` does).
 #[derive(Clone, Debug)]
 pub enum NewtonEnd {
     /// The next step ends the trial: the end of the flow from the iterate, for the host's
-    /// step (`Refine::resume`).
-    Handed(Iterate, Box<(PointState<f64>, Tangent<f64>)>),
+    /// step (`Refine::resume`); `no_divisor`: the iterate converged and the device's
+    /// least-period pass found no proper divisor of the period it returns after.
+    Handed {
+        at: Iterate,
+        end: Box<(PointState<f64>, Tangent<f64>)>,
+        no_divisor: bool,
+    },
     /// Paused after the call's iterations: a next call goes on from the iterate.
     Paused(Iterate),
     /// A flow cut short (llvmpipe's loop limit): the host goes on from the iterate.
@@ -164,10 +171,11 @@ impl Gpu {
                 us[at(U_NEWTON_PAUSE, m, i)] = it.iterations.saturating_add(iterations);
             },
         )?;
-        // Every trial ends or pauses within `iterations` flows of its period; on CPU adapters
-        // the states are read every longest flow to stop once all have.
+        // Every trial ends or pauses within `iterations` flows of its period and a least-period
+        // pass of half of it (one where it starts again at a divisor may pause); on CPU
+        // adapters the states are read every longest flow to stop once all have.
         let longest = flows.iter().map(|f| f.periods).max().unwrap_or(0).max(1);
-        let total = longest.saturating_mul(iterations.min(NEWTON_ITERS) + 1);
+        let total = longest.saturating_mul(iterations.min(NEWTON_ITERS) + 2);
         let mut ctl = b.ctl;
         let mut done = 0u32;
         let mut since_check = 0u32;
@@ -180,7 +188,7 @@ impl Gpu {
                 since_check = 0;
                 let us: Vec<u32> = self.read_storage(&b.us, b.u_slots as u64 * m as u64 * 4)?;
                 let open = |i| {
-                    us[at(U_NEWTON_DONE, m, i)] == 0
+                    us[at(U_NEWTON_DONE, m, i)] == NEWTON_OPEN
                         && us[at(U_TRUNCATED, m, i)] == 0
                         && us[at(U_NEWTON_ITERS, m, i)] < us[at(U_NEWTON_PAUSE, m, i)]
                 };
@@ -196,17 +204,33 @@ impl Gpu {
                 let mut st = it.st;
                 st.y = [0, 1, 2, 3].map(|c| ys[at(Y_ITER + c, m, i)]);
                 st.mode = Mode::from_u32(us[at(U_ITER_MODE, m, i)]);
+                // The device keeps no NaN: the host's residual before the first iteration,
+                // and the one two back before the second, are.
+                let iterations = us[at(U_NEWTON_ITERS, m, i)];
                 let at_now = Iterate {
                     st,
-                    period: it.period,
-                    iterations: us[at(U_NEWTON_ITERS, m, i)],
-                    residual: ys[at(Y_RESIDUAL, m, i)],
-                    before: ys[at(Y_BEFORE, m, i)],
+                    period: us[at(U_NEWTON_PERIOD, m, i)],
+                    iterations,
+                    residual: if iterations >= 1 {
+                        ys[at(Y_RESIDUAL, m, i)]
+                    } else {
+                        f64::NAN
+                    },
+                    before: if iterations >= 2 {
+                        ys[at(Y_BEFORE, m, i)]
+                    } else {
+                        f64::NAN
+                    },
                 };
+                let done = us[at(U_NEWTON_DONE, m, i)];
                 match flow_end(&flows[i], &ys, &us, m, i) {
                     None => NewtonEnd::Cut(at_now),
-                    Some(_) if us[at(U_NEWTON_DONE, m, i)] == 0 => NewtonEnd::Paused(at_now),
-                    Some(end) => NewtonEnd::Handed(at_now, Box::new(end)),
+                    Some(_) if done == NEWTON_OPEN => NewtonEnd::Paused(at_now),
+                    Some(end) => NewtonEnd::Handed {
+                        at: at_now,
+                        end: Box::new(end),
+                        no_divisor: done == NEWTON_NO_DIVISOR,
+                    },
                 }
             })
             .collect())

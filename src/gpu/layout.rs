@@ -90,6 +90,19 @@ u32_group!(LIMITS, "Limits shared with the CPU twin." {
     NEWTON_ITERS = crate::cycles::NEWTON_ITERS;
 });
 
+u32_group!(NEWTON, "Newton's method on the device (newton.wgsl): U_NEWTON_DONE, U_NEWTON_PHASE." {
+    /// Still iterating (or paused, or cut short: U_TRUNCATED).
+    NEWTON_OPEN = 0;
+    /// The next step ends the trial; the host's step decides it.
+    NEWTON_HANDED = 1;
+    /// As NEWTON_HANDED, the iterate converged and returns to itself after no proper divisor
+    /// of the period (cycles.rs `least_return` found none): the host need not look again.
+    NEWTON_NO_DIVISOR = 2;
+    /// Phases: a flow of the iteration, or the least-period pass of a converged iterate.
+    PHASE_FLOW = 0;
+    PHASE_LEAST = 1;
+});
+
 u32_group!(US, "Slots of `us`, u32 per point: us[slot * n_points + i]." {
     U_MODE = 0;
     U_IMPACTS = 1;
@@ -114,15 +127,19 @@ u32_group!(US, "Slots of `us`, u32 per point: us[slot * n_points + i]." {
     U_FLOW_LEFT = 13;
     U_SLOTS = 14;
     /// Newton's method on the device (newton.wgsl), beyond the kernel's slots: the period of
-    /// the cycle sought, the iterations done, the iterate's mode, 1 once the iteration is
-    /// handed back to the host (its next step ends it: cycles.rs `Refine::step` decides), and
-    /// the iterations after which this call pauses it.
+    /// the cycle sought, the iterations done, the iterate's mode, NEWTON_* once the iteration
+    /// is handed back to the host (its next step ends it: cycles.rs `Refine::step` decides),
+    /// the iterations after which this call pauses it, the phase (a flow, or the least-period
+    /// pass of a converged iterate), and the pass's periods done and mode.
     U_NEWTON_PERIOD = U_SLOTS;
     U_NEWTON_ITERS = U_SLOTS + 1;
     U_ITER_MODE = U_SLOTS + 2;
     U_NEWTON_DONE = U_SLOTS + 3;
     U_NEWTON_PAUSE = U_SLOTS + 4;
-    U_NEWTON_SLOTS = U_SLOTS + 5;
+    U_NEWTON_PHASE = U_SLOTS + 5;
+    U_LEAST_DONE = U_SLOTS + 6;
+    U_LEAST_MODE = U_SLOTS + 7;
+    U_NEWTON_SLOTS = U_SLOTS + 8;
 });
 
 // The last TAIL section values sit at slots 0..TAIL (value k at k % TAIL).
@@ -164,7 +181,9 @@ u32_group!(YS, "Slots of `ys`, F per point: state and Lyapunov tangent, STATE_DI
     Y_ITER = Y_FLOW_SLOTS;
     Y_RESIDUAL = Y_ITER + STATE_DIM;
     Y_BEFORE = Y_RESIDUAL + 1;
-    Y_NEWTON_SLOTS = Y_BEFORE + 1;
+    /// The least-period pass's state (newton.wgsl).
+    Y_LEAST = Y_BEFORE + 1;
+    Y_NEWTON_SLOTS = Y_LEAST + STATE_DIM;
 });
 
 // Base parameters in the order of the kernel's Params, method constants, then the forcing
@@ -211,7 +230,9 @@ fn vary_name(p: Param) -> String {
     format!("VARY_{}", p.field().unwrap_or("lambda").to_uppercase())
 }
 
-const GROUPS: [Group; 8] = [DISPATCH, MODES, EVENTS, LIMITS, US, RING, YS, CONSTS];
+const GROUPS: [Group; 9] = [
+    DISPATCH, MODES, EVENTS, LIMITS, NEWTON, US, RING, YS, CONSTS,
+];
 
 /// Declares the `Control` uniform (u32 members only, so repr(C) and the WGSL uniform layout
 /// agree member by member) and the list of its members for the prelude and the tests.
