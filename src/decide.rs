@@ -186,8 +186,10 @@ pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) 
     let mut tried: Vec<Vec<u32>> = vec![Vec::new(); points.len()];
     let passes = periods.iter().map(Vec::len).max().unwrap_or(0);
     for pass in 0..passes {
+        // In parallel: each task's integrator tabulates the forcing (a 512 x 512 map has a
+        // quarter of a million of them).
         let (idx, tasks): (Vec<usize>, Vec<Refine>) = points
-            .iter()
+            .par_iter()
             .enumerate()
             .filter(|&(i, _)| stable[i].is_none())
             .filter_map(|(i, q)| {
@@ -202,15 +204,23 @@ pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) 
             })
             .unzip();
         let tasks = decider.refine(settings, tasks);
-        for (i, t) in idx.into_iter().zip(tasks) {
-            let (n, cand) = periods[i][pass];
-            tried[i].push(n);
-            let c = t.cycle();
-            let r = points[i].run;
-            let on_it = |cand: &Candidate| {
-                approaches(&r.tail, &r.final_y, cand, &c.point, c.leading_modulus())
-            };
-            if c.is_stable() && cand.as_ref().is_none_or(on_it) {
+        let found: Vec<(Cycle, bool)> = idx
+            .par_iter()
+            .zip(tasks)
+            .map(|(&i, t)| {
+                let cand = periods[i][pass].1;
+                let c = t.cycle();
+                let r = points[i].run;
+                let on_it = |cand: &Candidate| {
+                    approaches(&r.tail, &r.final_y, cand, &c.point, c.leading_modulus())
+                };
+                let stable = c.is_stable() && cand.as_ref().is_none_or(on_it);
+                (c, stable)
+            })
+            .collect();
+        for (i, (c, is_stable)) in idx.into_iter().zip(found) {
+            tried[i].push(periods[i][pass].0);
+            if is_stable {
                 stable[i] = Some(c);
             } else if first[i].is_none() {
                 first[i] = Some(c);
@@ -218,17 +228,18 @@ pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) 
         }
     }
     points
-        .iter()
-        .enumerate()
-        .map(|(i, q)| {
-            let found = stable[i].take();
+        .par_iter()
+        .zip(stable)
+        .zip(first)
+        .zip(tried)
+        .map(|(((q, found), first), tried)| {
             let (class, rule) =
                 conclude(&q.run.evidence(q.class), found.as_ref().map(|c| c.period));
             Verdict {
                 class,
-                cycle: found.or(first[i].take()),
+                cycle: found.or(first),
                 rule,
-                tried: std::mem::take(&mut tried[i]),
+                tried,
             }
         })
         .collect()
