@@ -112,6 +112,18 @@ fn bifurcation_writes_png_csv_json() {
         serde_json::from_str(&std::fs::read_to_string(dir.join("b.json")).unwrap()).unwrap();
     assert_eq!(j["points"].as_array().unwrap().len(), 8);
     assert_eq!(j["config"]["sweep"]["points"], 8);
+    // The timings split the run: the computation (total_s) holds the integration, and the
+    // files (CSV and image) took time of their own.
+    let t = &j["timings"];
+    let (total, integration, files) = (
+        t["total_s"].as_f64().unwrap(),
+        t["integration_s"].as_f64().unwrap(),
+        t["files_s"].as_f64().unwrap(),
+    );
+    assert!(
+        integration > 0.0 && integration <= total && files > 0.0,
+        "{t}"
+    );
     let img = image::open(dir.join("b.png")).unwrap();
     assert_eq!((img.width(), img.height()), (1200, 800));
 }

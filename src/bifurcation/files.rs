@@ -228,11 +228,16 @@ struct TimingsJson {
     host_s: Option<f64>,
     /// Search for the bifurcation points (CPU, f64).
     bifurcations_s: f64,
+    /// Writing the CSV and the image (the JSON, written last, not included; null from the
+    /// library's report).
+    files_s: Option<f64>,
     kernel_s: Option<f64>,
     readback_s: Option<f64>,
     rk4_steps: f64,
     setup_s: Option<f64>,
     steps_per_s: f64,
+    /// The run's wall time up to its files (`files_s` is theirs), the adapter's start
+    /// excepted.
     total_s: f64,
 }
 
@@ -364,6 +369,7 @@ fn json(
     b: &Bifurcation,
     files: Vec<String>,
     panels_n: usize,
+    files_s: Option<f64>,
 ) -> Result<BifurcationJson<'_, Chain<'_>>> {
     let cfg = &b.cfg;
     let cont = b.continuation.is_some();
@@ -403,6 +409,7 @@ fn json(
                 .map(|t| t.decide_s),
             host_s: b.timings.filter(|_| b.cfg.run.early_stop).map(|t| t.host_s),
             bifurcations_s: b.bifurcations_s,
+            files_s,
             readback_s: b.timings.map(|t| t.readback_s),
             kernel_s: b.timings.and_then(|t| t.kernel_s),
             total_s: b.total_s,
@@ -420,7 +427,12 @@ fn json(
 /// The JSON that [`write_outputs`] writes, without its files (the Python package's report).
 pub fn report_json(b: &Bifurcation) -> Result<String> {
     let panels_n = b.runs.len().max(1);
-    Ok(serde_json::to_string(&json(b, Vec::new(), panels_n)?)?)
+    Ok(serde_json::to_string(&json(
+        b,
+        Vec::new(),
+        panels_n,
+        None,
+    )?)?)
 }
 
 /// Writes PREFIX.csv (parameter, sample index, state; with the direction of a continuation),
@@ -431,10 +443,12 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         return Err(Error::AllFailed { points: all.len() });
     }
     let mut staged = Staged::new();
+    let t_files = std::time::Instant::now();
     write_csv(&mut staged, out, b)?;
     let panels_n = write_png(&mut staged, out, b)?;
+    let files_s = t_files.elapsed().as_secs_f64();
     let json_path = with_ext(out, "json");
-    let j = json(b, staged.manifest(&json_path), panels_n)?;
+    let j = json(b, staged.manifest(&json_path), panels_n, Some(files_s))?;
     let io = |source| OutputError::Io {
         path: json_path.display().to_string(),
         source,
