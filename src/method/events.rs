@@ -4,6 +4,9 @@
 
 use super::{EV_NONE, MAX_ROOT_ITERS};
 use crate::real::Real;
+use std::any::Any;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// cos and sin of half a step's forcing phase, pi/N, computed in f64 and rounded once to F.
 pub fn half_step<F: Real>(n: u32) -> (F, F) {
@@ -20,6 +23,21 @@ pub fn half_step<F: Real>(n: u32) -> (F, F) {
 #[inline(always)]
 pub fn mid_step<F: Real>(c: F, s: F, half: (F, F)) -> (F, F) {
     (c * half.0 - s * half.1, s * half.0 + c * half.1)
+}
+
+/// [`forcing_table`] of `n` steps in F, computed once per process and shared by every
+/// integrator: a map's Newton trials each hold one (a quarter of a million of them at
+/// 512 x 512, 4 KiB and 2N + 1 sines and cosines apiece when each computed its own).
+pub fn shared_forcing_table<F: Real>(n: u32) -> Arc<[[F; 2]]> {
+    type Tables = HashMap<(u32, &'static str), Box<dyn Any + Send + Sync>>;
+    static TABLES: OnceLock<Mutex<Tables>> = OnceLock::new();
+    let mut tables = TABLES.get_or_init(Default::default).lock().unwrap();
+    tables
+        .entry((n, F::NAME))
+        .or_insert_with(|| Box::new(Arc::<[[F; 2]]>::from(forcing_table::<F>(n))))
+        .downcast_ref::<Arc<[[F; 2]]>>()
+        .expect("one table type per precision name")
+        .clone()
 }
 
 /// cos and sin of the forcing at the grid's stage phases 2*pi*j/(2N), j = 0..=2N, in F, on CPU

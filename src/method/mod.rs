@@ -26,7 +26,7 @@ pub mod tangent;
 use events::finite_state;
 pub use events::{
     Bracket, bracket, clear_of, clear_of_stops, cos_sin_small, forcing_table, half_step, illinois,
-    mid_step,
+    mid_step, shared_forcing_table,
 };
 pub use flows::{FlowTask, NEWTON_LANES, Queue, run_flows, run_flows_portable, run_queue};
 pub use lanes::{LANES, batches, run_lanes, run_lanes_portable};
@@ -81,8 +81,8 @@ impl<F: Real> StepObserver<F> for () {
 #[derive(Clone, Debug)]
 pub struct Integrator<F> {
     pub p: Params<F>,
-    /// cos/sin at phases 2*pi*j/(2N).
-    tab: Vec<[F; 2]>,
+    /// cos/sin at phases 2*pi*j/(2N), shared by the integrators of one N.
+    tab: std::sync::Arc<[[F; 2]]>,
     n: u32,
     /// Grid step h = P/N.
     h: F,
@@ -102,7 +102,7 @@ impl<F: Real> Integrator<F> {
         let dphi = F::of(2.0 * std::f64::consts::PI / n as f64);
         Integrator {
             p,
-            tab: forcing_table(n),
+            tab: shared_forcing_table(n),
             n,
             h: dphi / p.eta,
             dphi,
