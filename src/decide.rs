@@ -18,8 +18,8 @@ use crate::spec::{Points, RunSpec};
 use rayon::prelude::*;
 
 /// Where Newton's method runs ([`confirm_many`]): in f64 either way, each trial ended by the
-/// host's step (its least period and multipliers), so that the same evidence gives the same
-/// class up to round-off of the flows.
+/// host's step (its multipliers; its least period where the device has not looked), so that
+/// the same evidence gives the same class up to round-off of the flows.
 #[derive(Clone, Copy)]
 pub enum Decider<'a> {
     /// The host's lanes ([`run_parallel`]).
