@@ -321,12 +321,17 @@ pub fn drive<K: Keep>(
         timings.integration_s += tm.integration_s;
         timings.readback_s += tm.readback_s;
         log::debug!(
-            "stage {k}: {} points, {} + {} periods, {:.2} s ({:.2} s integration)",
+            "stage {k}: {} points, {} + {} periods, {:.2} s ({:.2} s integration, {:.2} s setup, \
+             {:.2} s readback, {:.2} s device deciding, {:.2} s host)",
             live.len(),
             round.transient,
             round.samples,
             t0.elapsed().as_secs_f64(),
             tm.integration_s,
+            tm.setup_s,
+            tm.readback_s,
+            decide_s,
+            (t0.elapsed().as_secs_f64() - engine_s - decide_s).max(0.0),
         );
         elapsed += round.transient + round.samples;
         let mut next = Vec::with_capacity(live.len());

@@ -166,6 +166,7 @@ pub enum Trials {
 /// time on the lanes of [`run_flows`], in parallel, one pass per proposed period (a point
 /// leaves once a stable cycle is found).
 pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) -> Vec<Verdict> {
+    let t0 = std::time::Instant::now();
     let periods: Vec<Vec<(u32, Option<Candidate>)>> = points
         .par_iter()
         .map(|q| {
@@ -185,6 +186,7 @@ pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) 
     let mut stable: Vec<Option<Cycle>> = vec![None; points.len()];
     let mut tried: Vec<Vec<u32>> = vec![Vec::new(); points.len()];
     let passes = periods.iter().map(Vec::len).max().unwrap_or(0);
+    let (t_proposals, mut t_trials, mut trials) = (t0.elapsed().as_secs_f64(), 0.0, 0);
     for pass in 0..passes {
         // In parallel: each task's integrator tabulates the forcing (a 512 x 512 map has a
         // quarter of a million of them).
@@ -203,7 +205,10 @@ pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) 
                 Some((i, Refine::new(it, &start, n)))
             })
             .unzip();
+        let t_pass = std::time::Instant::now();
+        trials += tasks.len();
         let tasks = decider.refine(settings, tasks);
+        t_trials += t_pass.elapsed().as_secs_f64();
         let found: Vec<(Cycle, bool)> = idx
             .par_iter()
             .zip(tasks)
@@ -227,6 +232,12 @@ pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) 
             }
         }
     }
+    log::debug!(
+        "newton: {} points, {trials} trials in {passes} passes, {:.3} s: proposals {t_proposals:.3} s, \
+         trials {t_trials:.3} s",
+        points.len(),
+        t0.elapsed().as_secs_f64(),
+    );
     points
         .par_iter()
         .zip(stable)
