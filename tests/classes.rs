@@ -424,8 +424,8 @@ fn stick_slip_map_classes_agree_with_the_judge_on_the_gpu() {
 
 #[test]
 fn map_classes_decided_on_the_device_agree_with_the_judge() {
-    // Newton's flows on the adapter's f64 flows kernel (`run.decide = "device"`), scored on the
-    // three maps' fixtures with the targets of the host's decisions above.
+    // Newton's iterations on the adapter's f64 Newton kernel (`run.decide = "device"`), scored
+    // on the three maps' fixtures with the targets of the host's decisions above.
     let Some(engine) = common::gpu_engine() else {
         return;
     };

@@ -337,8 +337,8 @@ fn small_map_classes_agree_with_cpu() {
 
 #[test]
 fn a_map_decided_on_the_device_has_the_classes_decided_on_the_host() {
-    // `run.decide = "device"`: Newton's flows on the adapter's flows kernel (f64), against the
-    // host's lanes on the same kernel evidence. The flows agree to round-off (gpu_kernel.rs),
+    // `run.decide = "device"`: Newton's iterations on the adapter's Newton kernel (f64),
+    // against the host's lanes on the same kernel evidence. The flows agree to round-off (gpu_kernel.rs),
     // so the classes must be the same in every cell (a cell whose Newton iteration stops at the
     // two-iteration rule by a hair could differ; none of these does), the periods too, and the
     // multipliers of the stable cycles to 1e-6; the device's seconds are in `decide_s`.
