@@ -88,6 +88,8 @@ fn fabs(x: F) -> F { return select(-x, x, x >= F(0.0)); }
 fn fmax(a: F, b: F) -> F { return select(b, a, a > b); }
 // shader-only: as fabs.
 fn fmin(a: F, b: F) -> F { return select(b, a, a < b); }
+// shader-only: the largest |component| (nalgebra's `amax` on the host).
+fn amax4(v: vec4<F>) -> F { return fmax(fmax(fabs(v.x), fabs(v.y)), fmax(fabs(v.z), fabs(v.w))); }
 
 // shader-only: buffer access (the host side is src/gpu/layout.rs).
 // A vector in `ys` from slot `base` on (Y_MAIN, Y_TAN + k STATE_DIM).

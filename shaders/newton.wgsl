@@ -186,7 +186,7 @@ fn unit(v: u32) -> vec4<F> {
 
 // shader-only: the host's `scale`, max(1, |x|) over the components.
 fn newton_scale(x: vec4<F>) -> F {
-    return fmax(F(1.0), fmax(fmax(fabs(x.x), fabs(x.y)), fmax(fabs(x.z), fabs(x.w))));
+    return fmax(F(1.0), amax4(x));
 }
 
 // twin: step
@@ -203,7 +203,7 @@ fn newton_step() -> u32 {
         }
     }
     let r = st.y - nt.x;
-    let residual = fmax(fmax(fabs(r.x), fabs(r.y)), fmax(fabs(r.z), fabs(r.w)));
+    let residual = amax4(r);
     // The host's residual before the first iteration, and the one two back before the
     // second, are NaN: no comparison with them holds.
     if (nt.iters >= 1u && residual > F(1e3) * nt.residual) {
@@ -287,7 +287,7 @@ fn least_return(periods: u32, d: u32) -> bool {
     }
     let e = st.y - nt.x;
     let bound = F(1e3) * NEWTON_TOL * newton_scale(nt.x);
-    return fmax(fmax(fabs(e.x), fabs(e.y)), fmax(fabs(e.z), fabs(e.w))) <= bound;
+    return amax4(e) <= bound;
 }
 
 // twin: mode_after_update
