@@ -14,16 +14,15 @@
 use crate::class::{Class, Shown};
 use crate::config::{Config, StateCoord};
 use crate::cycles::{Cycle, modulus};
-use crate::decide::confirm;
+use crate::decide::{Trials, confirm_all};
 use crate::engine::Engine;
 use crate::error::Result;
-use crate::method::{Integrator, PointState, RunResult};
+use crate::method::{Integrator, PointState, Split, Timings};
 use crate::model::{Mode, field};
 use crate::output::{Staged, save_npy, with_ext};
 use crate::progress::Progress;
 use crate::render::{ATTRACTOR_COLORS, CategoryMap, category_map_png, color};
 use crate::spec::{Points, RunSpec};
-use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -144,17 +143,6 @@ impl Attractor {
     }
 }
 
-/// Seconds of a basin run.
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct BasinTimings {
-    /// Integration on the backend (sum over chunks).
-    pub integration_s: f64,
-    /// Newton refinement, multipliers and identification (CPU, f64).
-    pub refinement_s: f64,
-    /// The whole computation, output files excluded.
-    pub wall_s: f64,
-}
-
 /// A computed basin map.
 #[derive(Clone, Debug)]
 pub struct Basin {
@@ -165,7 +153,9 @@ pub struct Basin {
     pub failed: usize,
     pub backend: String,
     pub device: String,
-    pub timings: BasinTimings,
+    /// Integration (sum over chunks), Newton's trials on the device and on the host with the
+    /// multipliers and the identification, files, wall.
+    pub timings: Split,
 }
 
 impl Basin {
@@ -178,15 +168,12 @@ impl Basin {
     /// Lines for the terminal.
     pub fn summary(&self) -> String {
         let mut s = format!(
-            "basin: {} x {} cells on {} ({}) in {:.2} s ({:.2} s integration, {:.2} s \
-             refinement)\n",
+            "basin: {} x {} cells on {} ({}) in {}\n",
             self.grid.x_values.len(),
             self.grid.y_values.len(),
             self.backend,
             self.device,
-            self.timings.wall_s,
-            self.timings.integration_s,
-            self.timings.refinement_s
+            self.timings.line()
         );
         for a in &self.attractors {
             s += &format!(
@@ -330,28 +317,45 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
     let tol = cfg.basin.tol;
     let mut ids = Vec::with_capacity(grid.len());
     let mut found: Vec<Found> = Vec::new();
-    let mut timings = BasinTimings::default();
+    let mut timings = Timings::default();
+    let mut host_s = 0.0;
+    let decider = engine.decider(cfg.run.decide);
     for start in (0..grid.len()).step_by(chunk) {
         let end = (start + chunk).min(grid.len());
         let y0s: Vec<[f64; 4]> = (start..end).map(|c| grid.state(c)).collect();
         let (results, t) = engine.run(&spec, &Points::states(&y0s), progress)?;
-        timings.integration_s += t.integration_s;
+        timings.add(&t);
         let t1 = Instant::now();
-        let verdicts: Vec<(Class, Option<Cycle>, f64)> = results
-            .par_iter()
-            .map(|r: &RunResult| {
-                let v = confirm(&spec.params, &spec.settings, r, r.class(spec.period_tol));
-                (v.class, v.cycle, r.impacts_per_period())
-            })
-            .collect();
-        drop(results);
+        let on_device = engine.decide_seconds();
+        let classes: Vec<Class> = results.iter().map(|r| r.class(spec.period_tol)).collect();
+        let verdicts = confirm_all(
+            decider,
+            |_| spec.params,
+            &spec.settings,
+            &results,
+            &classes,
+            &[],
+            Trials::All,
+        );
         // In grid order, so that the first cell of each attractor (its representative) and
         // hence every id are the same on every run.
-        for (k, (class, cycle, ipp)) in verdicts.into_iter().enumerate() {
-            ids.push(assign(&mut found, &it, tol, start + k, class, cycle, ipp));
+        for (k, (v, r)) in verdicts.into_iter().zip(&results).enumerate() {
+            let ipp = r.impacts_per_period();
+            ids.push(assign(
+                &mut found,
+                &it,
+                tol,
+                start + k,
+                v.class,
+                v.cycle,
+                ipp,
+            ));
         }
-        timings.refinement_s += t1.elapsed().as_secs_f64();
+        let device = engine.decide_seconds() - on_device;
+        timings.decide_s += device;
+        host_s += t1.elapsed().as_secs_f64() - device;
     }
+    let t_order = Instant::now();
     let failed = ids.iter().filter(|&&i| i < 0).count();
     // Ids by count, most cells first.
     let mut order: Vec<usize> = (0..found.len()).collect();
@@ -403,7 +407,8 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
             }
         })
         .collect();
-    timings.wall_s = t0.elapsed().as_secs_f64();
+    host_s += t_order.elapsed().as_secs_f64();
+    let timings = Split::of(&timings, host_s, t0.elapsed().as_secs_f64());
     Ok(Basin {
         grid,
         ids,
@@ -510,7 +515,7 @@ struct BasinJson<'a> {
     failed_cells: usize,
     rest_cell: RestCell,
     identification: &'static str,
-    timings: &'a BasinTimings,
+    timings: Split,
 }
 
 #[derive(Serialize)]
@@ -523,6 +528,7 @@ struct RestCell {
 /// Writes PREFIX.png (one colour per attractor), PREFIX.npy (i32 attractor id per cell, -1
 /// failed; shape (y_points, x_points), row 0 at y_from) and PREFIX.json; all or nothing.
 pub fn write_outputs(prefix: &Path, cfg: &Config, b: &Basin) -> Result<Vec<PathBuf>> {
+    let t_files = Instant::now();
     let g = &b.grid;
     let (nx, ny) = (g.x_values.len(), g.y_values.len());
     let mut st = Staged::new();
@@ -596,12 +602,16 @@ pub fn write_outputs(prefix: &Path, cfg: &Config, b: &Basin) -> Result<Vec<PathB
             state: g.state(rest),
             attractor,
         },
-        identification: "period-n confirmed by Newton (CPU f64) with every multiplier inside \
+        identification: "period-n confirmed by Newton (f64; on the device where run.decide \
+                         puts it) with every multiplier inside \
                          the unit circle; same attractor = same period and cycle point within \
                          basin.tol (relative) of one of the other cycle's section points; \
                          cells without a stable cycle: one id per class and rounded impacts \
                          per period",
-        timings: &b.timings,
+        timings: Split {
+            files_s: Some(t_files.elapsed().as_secs_f64()),
+            ..b.timings
+        },
     };
     st.write_json(&with_ext(prefix, "json"), &j)?;
     Ok(st.commit()?)

@@ -263,17 +263,15 @@ fn sensitivity_command(a: SensitivityArgs) -> Result<Vec<PathBuf>> {
     let spec = RunSpec::new(&cfg);
     let work = rattle::sensitivity::points(&o) as u64 * engine.progress_per_point(&spec);
     let pb = progress_bar(work, "sensitivity");
-    let t0 = std::time::Instant::now();
     let study = rattle::sensitivity::run(&engine, &cfg, &o, &|n| pb.inc(n))?;
     pb.finish_and_clear();
     eprintln!(
-        "sensitivity: {} points on {} ({}, {}) in {:.2} s ({:.2} s integration)",
+        "sensitivity: {} points on {} ({}, {}) in {}",
         study.runs,
         engine.name(),
         engine.device(),
         cfg.method.precision.name(),
-        t0.elapsed().as_secs_f64(),
-        study.timings.integration_s
+        study.timings.line()
     );
     eprintln!("{}", rattle::sensitivity::caption(&study));
     Ok(rattle::sensitivity::write_outputs(

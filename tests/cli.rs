@@ -239,3 +239,73 @@ fn run_tangent_chooses_what_the_tangent_dynamics_compute() {
     let j = common::json(&d.join("b.json"));
     assert_eq!(j["points"][0]["class"], "chaotic", "{}", j["points"][0]);
 }
+
+/// Every command's JSON `timings` share the keys of `method::Split`: the engine's
+/// integration, Newton on the device, the host's deciding, the files and the wall time up to
+/// them, each non-negative and the parts within the wall (CPU backend: no device deciding).
+#[test]
+fn every_commands_timings_share_the_split_keys() {
+    let d = scratch("split");
+    let check = |what: &str, t: &serde_json::Value, files: bool| {
+        let part = |k: &str| {
+            t[k].as_f64()
+                .unwrap_or_else(|| panic!("{what}: timings.{k}: {t}"))
+        };
+        let (integration, device, host, wall) = (
+            part("integration_s"),
+            part("device_decide_s"),
+            part("host_s"),
+            part("wall_s"),
+        );
+        assert!(integration > 0.0 && host > 0.0, "{what}: {t}");
+        assert_eq!(device, 0.0, "{what}: the CPU backend has no device: {t}");
+        assert!(integration + host <= wall + 1e-9, "{what}: {t}");
+        assert_eq!(
+            t["files_s"].as_f64().is_some_and(|f| f > 0.0),
+            files,
+            "{what}: {t}"
+        );
+    };
+    let j = point_json("1.5", &[]);
+    check("point", &j["timings"], false);
+    let run = |args: &[&str], cfg: &str, out: &str| {
+        let o = rattle()
+            .args(args)
+            .args(["--backend", "cpu", "--config"])
+            .arg(config(cfg))
+            .args([
+                "--set",
+                "run.transient_periods=50",
+                "--set",
+                "run.sample_periods=20",
+            ])
+            .arg("--out")
+            .arg(d.join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let line = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(line.contains("s device deciding, "), "{line}");
+        let j: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(d.join(out).with_extension("json")).unwrap(),
+        )
+        .unwrap();
+        j["timings"].clone()
+    };
+    let basin = [
+        "basin",
+        "--set",
+        "basin.x_points=5",
+        "--set",
+        "basin.y_points=5",
+    ];
+    check("basin", &run(&basin, "basin.toml", "b"), true);
+    let sens = [
+        "sensitivity",
+        "--uncertain",
+        "R=0.6+-0.02",
+        "--samples",
+        "16",
+    ];
+    check("sensitivity", &run(&sens, "fig2.toml", "s"), true);
+}

@@ -413,6 +413,7 @@ impl SensitivityData {
     fn report(&self) -> PyResult<String> {
         let j = serde_json::json!({
             "study": self.study,
+            "timings": self.study.timings,
             "nominal": self.study.nominal.name(),
             "caption": rattle::sensitivity::caption(&self.study),
             "backend": self.backend,

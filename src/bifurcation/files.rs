@@ -239,6 +239,8 @@ struct TimingsJson {
     /// The run's wall time up to its files (`files_s` is theirs), the adapter's start
     /// excepted.
     total_s: f64,
+    /// `total_s` under the key every command's timings share (`method::Split`).
+    wall_s: f64,
 }
 
 #[derive(Serialize)]
@@ -413,6 +415,7 @@ fn json(
             readback_s: b.timings.map(|t| t.readback_s),
             kernel_s: b.timings.and_then(|t| t.kernel_s),
             total_s: b.total_s,
+            wall_s: b.total_s,
             rk4_steps: steps,
             steps_per_s: steps / b.integration_s,
         },

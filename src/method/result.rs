@@ -254,6 +254,47 @@ pub struct Timings {
     pub decide_s: f64,
 }
 
+/// Where a command's wall time went: the keys every command's JSON `timings` shares (the map's
+/// and the diagram's add their own beside them), and the split its summary line prints.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct Split {
+    /// The engine's runs (on a GPU adapter the device's integration with its setup and
+    /// readbacks).
+    pub integration_s: f64,
+    /// Newton's iterations on the device (`run.decide`).
+    pub device_decide_s: f64,
+    /// The host's deciding and bookkeeping: Newton's trials and multipliers on the host, the
+    /// classifier, the command's own CPU f64 work.
+    pub host_s: f64,
+    /// Writing the output files (the JSON, written last, not included); null where the
+    /// command writes none.
+    pub files_s: Option<f64>,
+    /// The computation's wall time up to its files (`files_s` is theirs).
+    pub wall_s: f64,
+}
+
+impl Split {
+    /// The split of a computation that took `wall_s`, whose runs and deciding took `t`, plus
+    /// `host_s` seconds of the command's own host work outside them.
+    pub fn of(t: &Timings, host_s: f64, wall_s: f64) -> Split {
+        Split {
+            integration_s: t.integration_s,
+            device_decide_s: t.decide_s,
+            host_s: t.host_s + host_s,
+            files_s: None,
+            wall_s,
+        }
+    }
+
+    /// "W s (I s integration, D s device deciding, H s host deciding)", for summary lines.
+    pub fn line(&self) -> String {
+        format!(
+            "{:.2} s ({:.2} s integration, {:.2} s device deciding, {:.2} s host deciding)",
+            self.wall_s, self.integration_s, self.device_decide_s, self.host_s
+        )
+    }
+}
+
 impl Timings {
     /// Adds the times of another run (kernel time only where both have it).
     pub fn add(&mut self, o: &Timings) {

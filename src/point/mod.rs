@@ -10,7 +10,7 @@ use crate::config::{Config, Tangent};
 use crate::cycles::{Cycle, modulus, spectrum};
 use crate::engine::Engine;
 use crate::error::Result;
-use crate::method::{Diagnostics, Integrator, PointState};
+use crate::method::{Diagnostics, Integrator, PointState, Split};
 use crate::model::{Mode, Params};
 use crate::observables::{Distribution, Observables, impact_speeds};
 use crate::progress::Progress;
@@ -62,7 +62,11 @@ pub struct PointReport {
     pub backend: &'static str,
     pub device: String,
     pub precision: &'static str,
+    /// The wall time of the computation (`timings.wall_s`).
     pub seconds: f64,
+    /// Where it went: the run and its deciding; host_s includes the CPU f64 runs of the
+    /// impact speeds and the spectrum.
+    pub timings: Split,
 }
 
 /// Integrates the configured point, with the exponents `run.tangent` asks for (default: the
@@ -74,6 +78,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     // The configured run, then the adaptive horizon where it is undecided, as a map cell.
     let a = crate::adaptive::run_samples(engine, &spec, &Points::single(), false, progress)?;
     let (r, verdict) = (a.results[0].clone(), a.verdicts[0].clone());
+    let t_host = Instant::now();
     let class: Class = verdict.class;
     // The CPU f64 runs from the run's end: every impact's speed, and the spectrum.
     let it = Integrator::<f64>::new(&spec.params, &spec.settings);
@@ -94,6 +99,8 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     } else {
         Some(spectrum(&it, &mut end.clone(), spec.samples, 4).exponents)
     };
+    let wall_s = t.elapsed().as_secs_f64();
+    let timings = Split::of(&a.timings, t_host.elapsed().as_secs_f64(), wall_s);
     Ok(PointReport {
         class: class.name(),
         period: class.period(),
@@ -123,7 +130,8 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         backend: engine.name(),
         device: engine.device(),
         precision: cfg.method.precision.name(),
-        seconds: t.elapsed().as_secs_f64(),
+        seconds: wall_s,
+        timings,
         samples: r.samples,
     })
 }
@@ -148,8 +156,11 @@ impl fmt::Display for PointReport {
         )?;
         writeln!(
             f,
-            "backend            {} on {} ({}), {:.3} s",
-            self.backend, self.device, self.precision, self.seconds
+            "backend            {} on {} ({}), {}",
+            self.backend,
+            self.device,
+            self.precision,
+            self.timings.line()
         )?;
         writeln!(f, "samples (phase 0 of the forcing):")?;
         writeln!(

@@ -23,6 +23,7 @@ use crate::config::{Config, Tangent};
 use crate::decide::Summary;
 use crate::engine::{Engine, Timings};
 use crate::error::{OptionError, Result};
+use crate::method::Split;
 use crate::model::Param;
 use crate::observables::{Distribution, Observables};
 use crate::progress::Progress;
@@ -265,7 +266,9 @@ pub struct Study {
     #[serde(skip)]
     pub draws: Vec<Sample>,
     pub plane: Option<PlaneMap>,
-    pub timings: Timings,
+    /// In the JSON with the files' seconds (`output::write_outputs`).
+    #[serde(skip)]
+    pub timings: Split,
     /// Uncertain parameters the model does not read ([`Config::without_effect`]).
     pub warnings: Vec<String>,
 }
@@ -330,6 +333,7 @@ pub fn check_memory(o: &Options) -> Result<()> {
 /// Runs the study at the configuration's nominal point.
 pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) -> Result<Study> {
     o.check()?;
+    let t0 = std::time::Instant::now();
     let u = &o.uncertain;
     let d = u.len();
     let n = o.samples;
@@ -407,6 +411,11 @@ pub fn run(engine: &Engine, cfg: &Config, o: &Options, progress: &dyn Progress) 
     } else {
         None
     };
+    // The host's seconds: everything but the engine's runs and Newton on the device (the
+    // design, the indices and the sectioning besides the adaptive runs' deciding).
+    let wall_s = t0.elapsed().as_secs_f64();
+    let own = wall_s - timings.integration_s - timings.decide_s - timings.host_s;
+    let timings = Split::of(&timings, own.max(0.0), wall_s);
     Ok(Study {
         uncertain: u.clone(),
         samples: n,

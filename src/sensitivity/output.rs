@@ -24,6 +24,7 @@ struct Report<'a> {
     caption: String,
     #[serde(flatten)]
     study: &'a Study,
+    timings: crate::method::Split,
     config: &'a Config,
 }
 
@@ -130,6 +131,7 @@ pub fn write_outputs(
     backend: &str,
     device: &str,
 ) -> Result<Vec<PathBuf>> {
+    let t_files = std::time::Instant::now();
     let mut staged = Staged::new();
     let csv_path = with_ext(out, "csv");
     {
@@ -183,6 +185,10 @@ pub fn write_outputs(
         precision: cfg.method.precision.name(),
         caption: caption(s),
         study: s,
+        timings: crate::method::Split {
+            files_s: Some(t_files.elapsed().as_secs_f64()),
+            ..s.timings
+        },
         config: cfg,
     };
     staged.write_json(&with_ext(out, "json"), &report)?;
