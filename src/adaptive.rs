@@ -144,7 +144,7 @@ pub fn run_once(
     let timings = engine.run_lean(spec, points, progress, &mut |start, mut rs| {
         let part = points.slice(start, start + rs.len());
         out.extend(crate::decide::summaries(
-            engine.decider(spec.decide),
+            engine.decider(spec.decide, spec.decide_precision),
             spec,
             &part,
             &mut rs,
@@ -397,9 +397,12 @@ impl Keep for Samples {
                         skip: [0; 2],
                     })
                     .collect();
-                let mut verdicts =
-                    confirm_many(s.engine.decider(round.decide), &self.settings, &proposals)
-                        .into_iter();
+                let mut verdicts = confirm_many(
+                    s.engine.decider(round.decide, round.decide_precision),
+                    &self.settings,
+                    &proposals,
+                )
+                .into_iter();
                 rs.into_iter()
                     .zip(classes)
                     .enumerate()
@@ -433,8 +436,11 @@ impl Keep for Samples {
                         skip: [0; 2],
                     })
                     .collect();
-                let verdicts =
-                    confirm_many(s.engine.decider(round.decide), &self.settings, &proposals);
+                let verdicts = confirm_many(
+                    s.engine.decider(round.decide, round.decide_precision),
+                    &self.settings,
+                    &proposals,
+                );
                 rs.into_iter()
                     .zip(verdicts)
                     .map(|(r, v)| (r, Some(v)))
@@ -572,7 +578,7 @@ impl Keep for Summaries {
             .run_lean(round, sub, s.progress, &mut |start, mut rs| {
                 let end = start + rs.len();
                 ss.extend(crate::decide::summaries(
-                    s.engine.decider(round.decide),
+                    s.engine.decider(round.decide, round.decide_precision),
                     round,
                     &sub.slice(start, end),
                     &mut rs,

@@ -319,7 +319,7 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
     let mut found: Vec<Found> = Vec::new();
     let mut timings = Timings::default();
     let mut host_s = 0.0;
-    let decider = engine.decider(cfg.run.decide);
+    let decider = engine.decider(cfg.run.decide, cfg.run.decide_precision);
     for start in (0..grid.len()).step_by(chunk) {
         let end = (start + chunk).min(grid.len());
         let y0s: Vec<[f64; 4]> = (start..end).map(|c| grid.state(c)).collect();

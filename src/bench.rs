@@ -202,7 +202,10 @@ pub fn bench(
             rows.push(res);
         }
         if !ends.is_empty() {
-            rows.push(decide_row(&engine, &spec, &values, &ends));
+            rows.push(decide_row(&engine, &spec, &values, &ends, Precision::F64));
+            if matches!(engine, Engine::Gpu(_)) {
+                rows.push(decide_row(&engine, &spec, &values, &ends, Precision::F32));
+            }
         }
         for prec in [Precision::F32, Precision::F64] {
             rows.push(bare_row(&engine, &spec, &values, prec));
@@ -277,11 +280,15 @@ fn bare_row(engine: &Engine, spec: &RunSpec, values: &[f64], prec: Precision) ->
 /// The decide row on `engine`: a Newton trial of period 1 from each of the `ends` of the
 /// bench sweep (eta `values`), where `run.decide = "device"` runs Newton on this engine (the
 /// device's Newton kernel, the host's lanes on the CPU), timed as a whole.
+/// Newton's trials of period 1 from the f64 run's ends where `run.decide = "device"` puts
+/// them, Newton's device part in `on_device` (f32: each trial judged in f64 by the host; its
+/// flows are then the host's and the device's iterations together are not counted).
 fn decide_row(
     engine: &Engine,
     spec: &RunSpec,
     values: &[f64],
     ends: &[([f64; 4], crate::model::Mode)],
+    on_device: Precision,
 ) -> Result<BenchRow> {
     use crate::cycles::Refine;
     use crate::method::{Integrator, PointState};
@@ -300,7 +307,7 @@ fn decide_row(
             Refine::new(Integrator::new(&p, &settings), &start, 1)
         })
         .collect();
-    let decider = engine.decider(crate::config::Decide::Device);
+    let decider = engine.decider(crate::config::Decide::Device, Some(on_device));
     // One trial first, so that the flows pipeline's compilation is not timed (as the
     // production rows' kernels are compiled before their timed runs).
     let _ = decider.refine(&settings, tasks[..1].to_vec());
@@ -318,8 +325,13 @@ fn decide_row(
             Engine::Cpu => Backend::Cpu,
         },
         schedule: Schedule::Decide,
-        device: format!("{}, {flows} flows", engine.device()),
-        precision: Precision::F64,
+        device: match (engine, on_device) {
+            (Engine::Gpu(_), Precision::F32) => {
+                format!("{}, {flows} f64 flows on the host", engine.device())
+            }
+            _ => format!("{}, {flows} flows", engine.device()),
+        },
+        precision: on_device,
         points: values.len(),
         periods: 1,
         steps_per_period: n,
@@ -431,8 +443,12 @@ fn ratio_lines(rows: &[Result<BenchRow>]) -> String {
         if r.schedule == Schedule::Decide {
             let _ = writeln!(
                 s,
-                "newton on {}: {} trials of period 1 in {:.3} s: {:.3e} trials/s",
+                "newton on {} ({}): {} trials of period 1 in {:.3} s: {:.3e} trials/s",
                 r.backend.name(),
+                match r.backend {
+                    Backend::Gpu => format!("{} on the device", r.precision.name()),
+                    Backend::Cpu => r.precision.name().to_string(),
+                },
                 r.points,
                 r.timings.integration_s,
                 r.points as f64 / r.timings.integration_s

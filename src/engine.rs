@@ -5,7 +5,7 @@
 //! is decided in [`crate::decide`], and [`crate::adaptive`] combines the two. Nothing else
 //! calls a backend.
 
-use crate::config::{Backend, Decide};
+use crate::config::{Backend, Decide, Precision};
 use crate::gpu::{Gpu, GpuError, Job};
 /// The kernel ladder's rungs ([`Engine::time_rung`]) and the adapters report, for `bench` and
 /// `adapters`.
@@ -77,24 +77,48 @@ impl Engine {
         }
     }
 
-    /// Where Newton's flows run for a run that asks for `decide` ([`Decide`]): the device only
-    /// where it has f64 (the reference arithmetic), with `auto` only where it is not the host's
-    /// own cores and for calls of at least [`DEVICE_MIN_TRIALS`](crate::decide::DEVICE_MIN_TRIALS)
-    /// trials.
-    pub fn decider(&self, decide: Decide) -> crate::decide::Decider<'_> {
+    /// Where Newton's flows run for a run that asks for `decide` ([`Decide`]): on a GPU
+    /// adapter where asked, with `auto` only where it is not the host's own cores and for
+    /// calls of at least [`DEVICE_MIN_TRIALS`](crate::decide::DEVICE_MIN_TRIALS) trials; on
+    /// the device in `precision` where given, else in f64 where the adapter has it and in f32
+    /// where it has not (the host then judges each trial in f64).
+    pub fn decider(
+        &self,
+        decide: Decide,
+        precision: Option<Precision>,
+    ) -> crate::decide::Decider<'_> {
         use crate::decide::{DEVICE_MIN_TRIALS, Decider};
-        match (self, decide) {
-            (Engine::Gpu(gpu), Decide::Device) if gpu.has_f64() => {
-                Decider::Device { gpu, min_trials: 0 }
-            }
-            (Engine::Gpu(gpu), Decide::Auto)
-                if gpu.has_f64() && gpu.info.device_type != wgpu::DeviceType::Cpu =>
-            {
-                Decider::Device {
-                    gpu,
-                    min_trials: DEVICE_MIN_TRIALS,
+        let Engine::Gpu(gpu) = self else {
+            return Decider::Host;
+        };
+        let precision = match precision {
+            Some(p) if p == Precision::F32 || gpu.has_f64() => p,
+            _ if gpu.has_f64() => Precision::F64,
+            asked => {
+                if asked.is_some() && decide != Decide::Host {
+                    static SAID: std::sync::Once = std::sync::Once::new();
+                    SAID.call_once(|| {
+                        log::warn!(
+                            "run.decide_precision = \"f64\": {} has no f64; Newton's device part \
+                             runs in f32 and the host judges every trial in f64",
+                            gpu.info.name
+                        )
+                    });
                 }
+                Precision::F32
             }
+        };
+        match decide {
+            Decide::Device => Decider::Device {
+                gpu,
+                min_trials: 0,
+                precision,
+            },
+            Decide::Auto if gpu.info.device_type != wgpu::DeviceType::Cpu => Decider::Device {
+                gpu,
+                min_trials: DEVICE_MIN_TRIALS,
+                precision,
+            },
             _ => Decider::Host,
         }
     }

@@ -22,8 +22,10 @@ pub struct RunSpec {
     /// An undecided point may run this many times the configured periods in all
     /// (`run.horizon`, [`crate::adaptive::extensions`]).
     pub horizon: u32,
-    /// Where Newton's flows run (`run.decide`).
+    /// Where Newton's flows run (`run.decide`), and in what on the device
+    /// (`run.decide_precision`).
     pub decide: Decide,
+    pub decide_precision: Option<Precision>,
     pub precision: Precision,
 }
 
@@ -38,6 +40,7 @@ impl RunSpec {
             period_tol: cfg.run.period_tol,
             horizon: cfg.run.horizon,
             decide: cfg.run.decide,
+            decide_precision: cfg.run.decide_precision,
             precision: cfg.method.precision,
         }
     }

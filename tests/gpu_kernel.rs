@@ -410,7 +410,6 @@ fn newton_on_the_device_ends_each_trial_as_the_host_does() {
     // iterations and mode must agree; the cycle point and multipliers to round-off of the
     // flows (lavapipe: see the printed figures). Periods 2-12 at period-1 points converge to
     // the period-1 cycle, whose least period the device's pass finds.
-    use rattle::cycles::Refine;
     use rattle::decide::Decider;
     let Some(g) = gpu() else { return };
     let g = g.lock().unwrap();
@@ -418,26 +417,11 @@ fn newton_on_the_device_ends_each_trial_as_the_host_does() {
         panic!("Newton on the device needs an f64 adapter (lavapipe has one)");
     }
     let s = Settings::default();
-    let mut tasks = Vec::new();
-    for (p, st) in settled_starts(&s) {
-        let it = Integrator::<f64>::new(&p, &s);
-        // 12 periods: a flow longer than one llvmpipe dispatch (7), so it resumes.
-        let long = [1.5, 1.9, 1.45].contains(&p.eta);
-        for n in [1, 2, 3, 5, 12].into_iter().filter(|&n| n < 12 || long) {
-            tasks.push(Refine::new(it.clone(), &st, n));
-        }
-        if p.eta == 1.5 && p.is_coulomb() {
-            let mut far = st;
-            far.y = [3.0, -2.0, 3.5, 1.0];
-            tasks.push(Refine::new(it.clone(), &far, 1));
-            let mut bad = st;
-            bad.y[1] = f64::NAN;
-            tasks.push(Refine::new(it.clone(), &bad, 1));
-        }
-    }
+    let tasks = newton_trials(&s, true);
     let device = Decider::Device {
         gpu: &g,
         min_trials: 0,
+        precision: Precision::F64,
     };
     let asked: Vec<u32> = tasks.iter().map(|t| t.period()).collect();
     let on_device = device.refine(&s, tasks.clone());
@@ -473,6 +457,87 @@ fn newton_on_the_device_ends_each_trial_as_the_host_does() {
         "too few least-period passes that found a divisor ({divisors})"
     );
     assert!(dx < 1e-10 && dm < 1e-7, "points {dx:e}, multipliers {dm:e}");
+}
+
+#[test]
+fn newton_in_f32_on_the_device_finds_the_hosts_cycles() {
+    // Newton's device part in f32 (adapters without f64, `run.decide_precision = "f32"`): the
+    // device iterates to f32's floor and the host judges every trial in f64 from there (a
+    // fresh f64 trial from an iterate within decide::F32_POLISH of its image, else the host's
+    // step from the device's iterate). Against the host alone on the trials of the f64 test:
+    // the same trials converge, to the same cycle (period, mode, point, multipliers), and
+    // the host's share is smaller (its flows counted by the iterations it reports; lavapipe:
+    // 25 cycles, points 5.5e-10, multipliers 1.1e-8, 37 host iterations against 68).
+    use rattle::decide::Decider;
+    let Some(g) = gpu() else { return };
+    let g = g.lock().unwrap();
+    let s = Settings::default();
+    let tasks = newton_trials(&s, false);
+    let device = Decider::Device {
+        gpu: &g,
+        min_trials: 0,
+        precision: Precision::F32,
+    };
+    let on_device = device.refine(&s, tasks.clone());
+    let on_host = Decider::Host.refine(&s, tasks);
+    let (mut dx, mut dm, mut converged, mut host_iters, mut polish_iters) =
+        (0.0f64, 0.0f64, 0, 0, 0);
+    for (d, h) in on_device.into_iter().zip(on_host) {
+        let (d, h) = (d.cycle(), h.cycle());
+        assert_eq!(
+            (d.converged, d.period, d.mode),
+            (h.converged, h.period, h.mode),
+            "f32 device {d:?}\nhost {h:?}"
+        );
+        if !h.converged {
+            continue;
+        }
+        converged += 1;
+        host_iters += h.iterations;
+        polish_iters += d.iterations;
+        dx = dx.max(max_diff(&d.point, &h.point));
+        assert_eq!(d.multipliers.len(), h.multipliers.len());
+        for (a, b) in d.multipliers.iter().zip(&h.multipliers) {
+            dm = dm.max((a[0] - b[0]).hypot(a[1] - b[1]));
+        }
+    }
+    eprintln!(
+        "newton f32 + f64 polish: {converged} converged, cycle points {dx:.2e}, multipliers \
+         {dm:.2e}; the host's iterations {polish_iters} against {host_iters} alone"
+    );
+    assert!(converged >= 10, "too few cycles to compare ({converged})");
+    assert!(dx < 1e-8 && dm < 1e-6, "points {dx:e}, multipliers {dm:e}");
+    // Trials from a start already on its cycle take one host iteration either way; the
+    // others' polish takes one or two instead of three to six.
+    assert!(
+        4 * polish_iters <= 3 * host_iters,
+        "the f64 polish must save the host a quarter of its iterations at least: {polish_iters} \
+         against {host_iters}"
+    );
+}
+
+/// Newton trials of periods 1, 2, 3 and 5 from each of the [`settled_starts`], with `long` 12
+/// periods at three of them too (a flow longer than one llvmpipe dispatch, 7 periods, so it
+/// resumes), and at Fig. 2's eta = 1.5 a far start and a non-finite one.
+fn newton_trials(s: &Settings, long: bool) -> Vec<rattle::cycles::Refine> {
+    use rattle::cycles::Refine;
+    let mut tasks = Vec::new();
+    for (p, st) in settled_starts(s) {
+        let it = Integrator::<f64>::new(&p, s);
+        let twelve = long && [1.5, 1.9, 1.45].contains(&p.eta);
+        for n in [1, 2, 3, 5, 12].into_iter().filter(|&n| n < 12 || twelve) {
+            tasks.push(Refine::new(it.clone(), &st, n));
+        }
+        if p.eta == 1.5 && p.is_coulomb() {
+            let mut far = st;
+            far.y = [3.0, -2.0, 3.5, 1.0];
+            tasks.push(Refine::new(it.clone(), &far, 1));
+            let mut bad = st;
+            bad.y[1] = f64::NAN;
+            tasks.push(Refine::new(it.clone(), &bad, 1));
+        }
+    }
+    tasks
 }
 
 /// States of Fig. 2 after 200 periods (period-1, period-2, chaotic and sticking points, Coulomb)

@@ -263,17 +263,17 @@ impl Tangent {
 }
 
 /// Where Newton's method runs the flows that decide a map's or a sweep's cycles (`run.decide`);
-/// both in f64, with the same iteration on the host (docs/stability.md).
+/// in f64 on the host, in f64 or f32 on the device (`run.decide_precision`), every trial
+/// ended by the host's f64 step (docs/stability.md).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Decide {
-    /// On a GPU adapter with f64 that is a device of its own; on the host where the adapter
-    /// runs on the host's own cores (lavapipe: the host's lanes are faster there, measured in
-    /// docs/performance.md) or has no f64.
+    /// On a GPU adapter that is a device of its own; on the host where the adapter runs on
+    /// the host's own cores (lavapipe: the host's lanes are faster there, measured in
+    /// docs/performance.md).
     #[default]
     Auto,
-    /// On the GPU adapter where it has f64 (the cpu backend and adapters without f64 decide
-    /// on the host).
+    /// On the GPU adapter (the cpu backend decides on the host).
     Device,
     /// On the host's lanes.
     Host,
@@ -299,6 +299,10 @@ pub struct RunConfig {
     pub horizon: u32,
     /// Where Newton's flows run ([`Decide`]).
     pub decide: Decide,
+    /// The arithmetic of Newton's part on a GPU adapter (`run.decide`): unset, f64 where the
+    /// adapter has it and f32 where it has not; f32 also where asked (GPUs whose f64 is slow).
+    /// The host judges every f32 trial in f64 (`decide::refine_on_device`).
+    pub decide_precision: Option<Precision>,
 }
 
 impl Default for RunConfig {
@@ -312,6 +316,7 @@ impl Default for RunConfig {
             early_stop: true,
             horizon: 10,
             decide: Decide::Auto,
+            decide_precision: None,
         }
     }
 }

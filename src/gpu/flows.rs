@@ -1,4 +1,5 @@
-//! Newton's method on the device, in f64: its flows (`shaders/flows.wgsl`, the twin of
+//! Newton's method on the device, in f64 (in f32 where the adapter has no f64 or the run
+//! asks for it, the host then judging each trial in f64): its flows (`shaders/flows.wgsl`, the twin of
 //! `method::tangent::flow`: many flows of the state with the four tangent vectors from the
 //! identity, each with its own parameters, start and periods) and its iteration
 //! (`shaders/newton.wgsl`, the twin of `cycles::Refine`: the flows, the 4 x 4 solve and the
@@ -68,6 +69,9 @@ struct Batch {
     chunk: u32,
     y_slots: u32,
     u_slots: u32,
+    /// The kernel's arithmetic: f64, or f32 where Newton's device part runs in f32
+    /// ([`Gpu::newton`]).
+    precision: Precision,
 }
 
 impl Gpu {
@@ -86,17 +90,20 @@ impl Gpu {
     /// Runs Newton's iteration of each trial (its parameters and where it stands) on the
     /// device until a step would end it or it has done `iterations` more, in one dispatch on
     /// GPUs (a few periods per dispatch on CPU adapters, for llvmpipe's loop limit). Their
-    /// ends come back in their order.
+    /// ends come back in their order. In `precision` f32 (adapters without f64, or
+    /// `run.decide_precision`) the iterates and flows are f32: the host then judges every
+    /// trial in f64 from where the device left it (`decide::refine_on_device`).
     pub fn newton(
         &self,
         settings: &Settings,
         trials: &[(Params<f64>, Iterate)],
         iterations: u32,
+        precision: Precision,
     ) -> Result<Vec<NewtonEnd>, GpuError> {
         let t0 = Instant::now();
         let mut out = Vec::with_capacity(trials.len());
         for chunk in trials.chunks(self.flows_per_batch(Y_NEWTON_SLOTS)) {
-            out.extend(self.newton_batch(settings, chunk, iterations.max(1))?);
+            out.extend(self.newton_batch(settings, chunk, iterations.max(1), precision)?);
         }
         *self.decide_s.lock().unwrap() += t0.elapsed().as_secs_f64();
         Ok(out)
@@ -116,10 +123,10 @@ impl Gpu {
         let m = flows.len();
         let b = self.upload(
             settings,
+            Precision::F64,
             "flows",
             flows,
-            Y_FLOW_SLOTS,
-            U_SLOTS,
+            (Y_FLOW_SLOTS, U_SLOTS),
             |_, _, _| {},
         )?;
         let longest = flows.iter().map(|f| f.periods).max().unwrap_or(0);
@@ -141,6 +148,7 @@ impl Gpu {
         settings: &Settings,
         trials: &[(Params<f64>, Iterate)],
         iterations: u32,
+        precision: Precision,
     ) -> Result<Vec<NewtonEnd>, GpuError> {
         let m = trials.len();
         // Each trial's first flow starts from its iterate.
@@ -154,10 +162,10 @@ impl Gpu {
             .collect();
         let b = self.upload(
             settings,
+            precision,
             "newton",
             &flows,
-            Y_NEWTON_SLOTS,
-            U_NEWTON_SLOTS,
+            (Y_NEWTON_SLOTS, U_NEWTON_SLOTS),
             |i, ys, us| {
                 let it = &trials[i].1;
                 for c in 0..4 {
@@ -242,13 +250,13 @@ impl Gpu {
     fn upload(
         &self,
         settings: &Settings,
+        precision: Precision,
         entry: &str,
         flows: &[Flow],
-        y_slots: u32,
-        u_slots: u32,
+        (y_slots, u_slots): (u32, u32),
         fill: impl Fn(usize, &mut [f64], &mut [u32]),
     ) -> Result<Batch, GpuError> {
-        if !self.has_f64 {
+        if precision == Precision::F64 && !self.has_f64 {
             return Err(GpuError::NoF64(self.info.name.clone()));
         }
         if settings.impacts != ImpactMethod::Located {
@@ -256,9 +264,7 @@ impl Gpu {
         }
         let m = flows.len();
         let coulomb = flows.iter().all(|f| f.params.is_coulomb());
-        let pipeline = self
-            .kernels
-            .flows(&self.device, Precision::F64, coulomb, entry);
+        let pipeline = self.kernels.flows(&self.device, precision, coulomb, entry);
         self.check_error()?;
         let spec = RunSpec {
             params: flows[0].params,
@@ -269,9 +275,13 @@ impl Gpu {
             period_tol: 0.0,
             horizon: 1,
             decide: Default::default(),
-            precision: Precision::F64,
+            decide_precision: None,
+            precision,
         };
-        let shared = Shared::new::<f64>(self, &spec);
+        let shared = match precision {
+            Precision::F64 => Shared::new::<f64>(self, &spec),
+            Precision::F32 => Shared::new::<f32>(self, &spec),
+        };
         let mut ys = vec![0.0f64; y_slots as usize * m];
         let mut us = vec![0u32; u_slots as usize * m];
         let mut pv = Vec::with_capacity(N_PARAMS * m);
@@ -288,9 +298,20 @@ impl Gpu {
             pv.extend(f.params.values());
             fill(i, &mut ys, &mut us);
         }
-        let ys_buf = self.storage_init("flows ys", bytemuck::cast_slice(&ys));
+        let (ys_buf, pvals) = match precision {
+            Precision::F64 => (
+                self.storage_init("flows ys", bytemuck::cast_slice(&ys)),
+                self.storage_init("flows pvals", bytemuck::cast_slice(&pv)),
+            ),
+            Precision::F32 => {
+                let narrow = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+                (
+                    self.storage_init("flows ys", bytemuck::cast_slice(&narrow(&ys))),
+                    self.storage_init("flows pvals", bytemuck::cast_slice(&narrow(&pv))),
+                )
+            }
+        };
         let us_buf = self.storage_init("flows us", bytemuck::cast_slice(&us));
-        let pvals = self.storage_init("flows pvals", bytemuck::cast_slice(&pv));
         let unused = self.storage_empty("unused", 16);
         let bind = shared.bind(
             self,
@@ -327,11 +348,20 @@ impl Gpu {
             chunk,
             y_slots,
             u_slots,
+            precision,
         })
     }
 
+    /// The batch's `ys` (widened to f64) and `us`.
     fn read_back(&self, b: &Batch, m: usize) -> Result<(Vec<f64>, Vec<u32>), GpuError> {
-        let ys = self.read_storage(&b.ys, b.y_slots as u64 * m as u64 * 8)?;
+        let n = b.y_slots as u64 * m as u64;
+        let ys = match b.precision {
+            Precision::F64 => self.read_storage(&b.ys, n * 8)?,
+            Precision::F32 => {
+                let ys: Vec<f32> = self.read_storage(&b.ys, n * 4)?;
+                ys.into_iter().map(f64::from).collect()
+            }
+        };
         let us = self.read_storage(&b.us, b.u_slots as u64 * m as u64 * 4)?;
         Ok((ys, us))
     }

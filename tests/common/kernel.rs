@@ -33,6 +33,7 @@ pub fn eta_spec(s: Settings, transient: u32, samples: u32, f64: bool) -> RunSpec
         period_tol: 1e-4,
         horizon: 1,
         decide: Default::default(),
+        decide_precision: None,
         precision: if f64 { Precision::F64 } else { Precision::F32 },
     }
 }

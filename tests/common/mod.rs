@@ -119,6 +119,7 @@ pub fn run_point(
         period_tol: 1e-4,
         horizon: 1,
         decide: Default::default(),
+        decide_precision: None,
         precision,
     };
     let (mut rs, _) = engine
