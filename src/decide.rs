@@ -103,6 +103,9 @@ pub fn refine_on_device(
         .map(|t| t.iterate().map_or(0, |i| i.iterations))
         .collect();
     while !open.is_empty() {
+        // Longest first: the lanes of one SIMD group (8 on llvmpipe, 32 on a warp) run as long
+        // as their longest flow, so trials of one period share a group.
+        open.sort_by_key(|&i| std::cmp::Reverse(tasks[i].period()));
         let trials: Vec<_> = open
             .iter()
             .map(|&i| (tasks[i].integrator().p, tasks[i].iterate().unwrap()))
