@@ -269,8 +269,15 @@ impl std::str::FromStr for Param {
 /// `m = l1 w`, so that at w = 0 it is fs to the last bit, the static limit the stick and lock
 /// tests use (`(fs - fk) + fk` may round off fs, and then a slip that starts at rest can
 /// accelerate against the direction the needed force chose), with the old form's latency.
+///
+/// With Coulomb friction the law's value is `fk + 0 w` bit for bit (fk for a finite w, NaN
+/// for an infinite or NaN one), taken without the division: the test is one branch the CPU
+/// predicts (the CPU lanes compile it away per batch, `lanes::slip_field`).
 #[inline(always)]
 pub fn friction<F: Real>(p: &Params<F>, w: F) -> F {
+    if p.l1 == F::zero() && p.l2 == F::zero() && p.fs == p.fk {
+        return p.fk + F::zero() * w;
+    }
     let m = (p.l1 * w).max(F::of(-0.5));
     p.fs - (p.fs - p.fk) * m / (F::one() + m) + p.l2 * w * w
 }
