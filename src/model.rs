@@ -282,9 +282,14 @@ pub fn friction<F: Real>(p: &Params<F>, w: F) -> F {
     p.fs - (p.fs - p.fk) * m / (F::one() + m) + p.l2 * w * w
 }
 
-/// d[`friction`]/dw: zero where the divisor is clamped.
+/// d[`friction`]/dw: zero where the divisor is clamped. With Coulomb friction q is 1 for a
+/// finite w (and the sum NaN otherwise), so the decay is `-(fs - fk) l1` bit for bit without
+/// the division (as in [`friction`]).
 #[inline(always)]
 pub fn friction_slope<F: Real>(p: &Params<F>, w: F) -> F {
+    if p.l1 == F::zero() && p.l2 == F::zero() && p.fs == p.fk {
+        return -(p.fs - p.fk) * p.l1 + F::of(2.0) * p.l2 * w;
+    }
     let q = F::one() + p.l1 * w;
     let decay = if q > F::of(0.5) {
         -(p.fs - p.fk) * p.l1 / (q * q)
