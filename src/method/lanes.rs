@@ -213,9 +213,9 @@ fn trial<F: Real, const N: usize, const COULOMB: bool>(
     }
 }
 
-/// `model::jacobian_times` in slip on every lane.
+/// `model::jacobian_times` in slip on every lane (`COULOMB`: as in [`slip_field`]).
 #[inline(always)]
-fn slip_jacobian_times<F: Real, const N: usize>(
+fn slip_jacobian_times<F: Real, const N: usize, const COULOMB: bool>(
     q: &LaneParams<F, N>,
     s: &Lanes<F, N>,
     y: &[Lanes<F, N>; 4],
@@ -223,7 +223,14 @@ fn slip_jacobian_times<F: Real, const N: usize>(
 ) -> [Lanes<F, N>; 4] {
     let mut out = [[F::zero(); N]; 4];
     for l in 0..N {
-        let e = q.b1[l] * q.delta[l] + friction_slope(q, l, s[l] * (y[1][l] - y[3][l]));
+        let w = s[l] * (y[1][l] - y[3][l]);
+        let slope = if COULOMB {
+            // model::friction_slope's Coulomb value, bit for bit.
+            -(q.fs[l] - q.fk[l]) * q.l1[l] + F::of(2.0) * q.l2[l] * w
+        } else {
+            friction_slope(q, l, w)
+        };
+        let e = q.b1[l] * q.delta[l] + slope;
         let rel = e * (x[1][l] - x[3][l]);
         out[0][l] = x[1][l];
         out[1][l] = -x[0][l] - q.b1[l] * x[1][l] - rel;
@@ -235,7 +242,7 @@ fn slip_jacobian_times<F: Real, const N: usize>(
 
 /// `tangent::tangent_substep` of a whole quiet step (dt = h) on every lane.
 #[inline(always)]
-fn tangent_substep<F: Real, const N: usize>(
+fn tangent_substep<F: Real, const N: usize, const COULOMB: bool>(
     q: &LaneParams<F, N>,
     s: &Lanes<F, N>,
     y: &[Lanes<F, N>; 4],
@@ -245,10 +252,10 @@ fn tangent_substep<F: Real, const N: usize>(
     let dt = q.h;
     let half: [_; N] = lanes(F::zero(), |l| F::of(0.5) * dt[l]);
     let at = |a: &Lanes<F, N>, k: &[Lanes<F, N>; 4]| vectors(|i, l| x[i][l] + a[l] * k[i][l]);
-    let k1 = slip_jacobian_times(q, s, y, x);
-    let k2 = slip_jacobian_times(q, s, &stages[0], &at(&half, &k1));
-    let k3 = slip_jacobian_times(q, s, &stages[1], &at(&half, &k2));
-    let k4 = slip_jacobian_times(q, s, &stages[2], &at(&dt, &k3));
+    let k1 = slip_jacobian_times::<F, N, COULOMB>(q, s, y, x);
+    let k2 = slip_jacobian_times::<F, N, COULOMB>(q, s, &stages[0], &at(&half, &k1));
+    let k3 = slip_jacobian_times::<F, N, COULOMB>(q, s, &stages[1], &at(&half, &k2));
+    let k4 = slip_jacobian_times::<F, N, COULOMB>(q, s, &stages[2], &at(&dt, &k3));
     let two = F::of(2.0);
     vectors(|i, l| {
         let sixth = dt[l] / F::of(6.0);
@@ -260,7 +267,8 @@ fn tangent_substep<F: Real, const N: usize>(
 /// the scalar grid step of one lane with them as its observer.
 pub(super) trait LaneTangent<F: Real, const N: usize>: Sized {
     /// The quiet step (dt = h, slip) of the lanes in `keep`; the others stay as they are.
-    fn quiet(
+    /// `COULOMB`: every lane has Coulomb friction ([`LaneParams::coulomb`]).
+    fn quiet<const COULOMB: bool>(
         &mut self,
         q: &LaneParams<F, N>,
         s: &Lanes<F, N>,
@@ -284,7 +292,7 @@ struct One<F, const N: usize>([Lanes<F, N>; 4]);
 
 impl<F: Real, const N: usize> LaneTangent<F, N> for One<F, N> {
     #[inline(always)]
-    fn quiet(
+    fn quiet<const COULOMB: bool>(
         &mut self,
         q: &LaneParams<F, N>,
         s: &Lanes<F, N>,
@@ -292,7 +300,7 @@ impl<F: Real, const N: usize> LaneTangent<F, N> for One<F, N> {
         stages: &[[Lanes<F, N>; 4]; 3],
         keep: &[bool; N],
     ) {
-        let x = tangent_substep(q, s, y, stages, &self.0);
+        let x = tangent_substep::<F, N, COULOMB>(q, s, y, stages, &self.0);
         for (t, x) in self.0.iter_mut().zip(&x) {
             for l in 0..N {
                 // A select, not a branch: it compiles to a blend.
@@ -330,7 +338,7 @@ impl<F: Real, const N: usize> LaneTangent<F, N> for Four<F, N> {
     /// each lane's whole step inside, so that the compiler vectorises it over the lanes with
     /// the temporaries in registers.
     #[inline(always)]
-    fn quiet(
+    fn quiet<const COULOMB: bool>(
         &mut self,
         q: &LaneParams<F, N>,
         s: &Lanes<F, N>,
@@ -486,7 +494,7 @@ impl<F: Real, T: LaneTangent<F, N>, const N: usize> Batch<F, T, N> {
             });
             if tangent {
                 let keep: [_; N] = lanes(false, |l| take[l] && self.tan_ok[l]);
-                self.tan.quiet(&self.q, &s, &y, &t.stages, &keep);
+                self.tan.quiet::<COULOMB>(&self.q, &s, &y, &t.stages, &keep);
             }
             for i in 0..4 {
                 for l in 0..N {
