@@ -176,12 +176,15 @@ pub struct ParamError {
     pub range: &'static str,
 }
 
-impl Params<f64> {
+impl<F: Real> Params<F> {
     /// Coulomb friction (l1 = l2 = 0, fs = fk): [`friction`] is fk for every finite speed.
+    #[inline(always)]
     pub fn is_coulomb(&self) -> bool {
-        self.l1 == 0.0 && self.l2 == 0.0 && self.fs == self.fk
+        self.l1 == F::zero() && self.l2 == F::zero() && self.fs == self.fk
     }
+}
 
+impl Params<f64> {
     /// The paper's Fig. 2 point (Coulomb friction, lambda = 0.02), at the given eta.
     pub fn paper(eta: f64) -> Self {
         let mut p = Params::defaults();
@@ -275,8 +278,8 @@ impl std::str::FromStr for Param {
 /// predicts (the CPU lanes compile it away per batch, `lanes::slip_field`).
 #[inline(always)]
 pub fn friction<F: Real>(p: &Params<F>, w: F) -> F {
-    if p.l1 == F::zero() && p.l2 == F::zero() && p.fs == p.fk {
-        return p.fk + F::zero() * w;
+    if p.is_coulomb() {
+        return coulomb_friction(p.fk, w);
     }
     let m = (p.l1 * w).max(F::of(-0.5));
     p.fs - (p.fs - p.fk) * m / (F::one() + m) + p.l2 * w * w
@@ -287,8 +290,8 @@ pub fn friction<F: Real>(p: &Params<F>, w: F) -> F {
 /// the division (as in [`friction`]).
 #[inline(always)]
 pub fn friction_slope<F: Real>(p: &Params<F>, w: F) -> F {
-    if p.l1 == F::zero() && p.l2 == F::zero() && p.fs == p.fk {
-        return -(p.fs - p.fk) * p.l1 + F::of(2.0) * p.l2 * w;
+    if p.is_coulomb() {
+        return coulomb_slope(p.fs, p.fk, p.l1, p.l2, w);
     }
     let q = F::one() + p.l1 * w;
     let decay = if q > F::of(0.5) {
@@ -297,6 +300,19 @@ pub fn friction_slope<F: Real>(p: &Params<F>, w: F) -> F {
         F::zero()
     };
     decay + F::of(2.0) * p.l2 * w
+}
+
+/// [`friction`]'s value with Coulomb parameters, `fk + 0 w` (the CPU lanes' Coulomb batches
+/// call it too).
+#[inline(always)]
+pub fn coulomb_friction<F: Real>(fk: F, w: F) -> F {
+    fk + F::zero() * w
+}
+
+/// [`friction_slope`]'s value with Coulomb parameters (q = 1), `-(fs - fk) l1 + 2 l2 w`.
+#[inline(always)]
+pub fn coulomb_slope<F: Real>(fs: F, fk: F, l1: F, l2: F, w: F) -> F {
+    -(fs - fk) * l1 + F::of(2.0) * l2 * w
 }
 
 /// `1/mu`, so that the field multiplies where it would divide: a division costs several

@@ -444,8 +444,21 @@ fn map_classes_decided_in_f32_on_the_device_agree_with_the_judge() {
     let Some(engine) = common::gpu_engine() else {
         return;
     };
+    // The path under test is the device's in f32, not the host's.
+    assert!(matches!(
+        engine.decider(Decide::Device, Some(Precision::F32)),
+        rattle::decide::Decider::Device {
+            precision: Precision::F32,
+            ..
+        }
+    ));
+    let before = engine.decide_seconds();
     let device = (Precision::F32, Decide::Device, Some(Precision::F32));
     check_decided(R_LAMBDA, "r_lambda", &engine, device, 0.85, 0.15);
     check_decided(STRIBECK, "stribeck", &engine, device, 0.90, 0.03);
     check_decided(ETA_LAMBDA, "eta_lambda", &engine, device, 0.90, 0.05);
+    assert!(
+        engine.decide_seconds() > before,
+        "no Newton trial ran on the device"
+    );
 }

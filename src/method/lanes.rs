@@ -58,6 +58,8 @@ pub(super) struct LaneParams<F, const N: usize> {
     inv_mu: Lanes<F, N>,
     r: Lanes<F, N>,
     h: Lanes<F, N>,
+    /// The lane's parameters are Coulomb's (`Params::is_coulomb`).
+    coulomb: [bool; N],
 }
 
 impl<F: Real, const N: usize> LaneParams<F, N> {
@@ -73,13 +75,13 @@ impl<F: Real, const N: usize> LaneParams<F, N> {
         self.inv_mu[l] = crate::model::inv_mu(&it.p);
         self.r[l] = it.p.clearance;
         self.h[l] = it.h;
+        self.coulomb[l] = it.p.is_coulomb();
     }
 
     /// Every lane has Coulomb friction (l1 = l2 = 0, fs = fk): the slip field's friction law
     /// is fk without its division (`slip_field`'s `COULOMB`).
     fn coulomb(&self) -> bool {
-        (0..N)
-            .all(|l| self.l1[l] == F::zero() && self.l2[l] == F::zero() && self.fs[l] == self.fk[l])
+        self.coulomb.iter().all(|&c| c)
     }
 
     pub(super) fn new(its: &[&Integrator<F>; N]) -> Self {
@@ -95,6 +97,7 @@ impl<F: Real, const N: usize> LaneParams<F, N> {
             inv_mu: z,
             r: z,
             h: z,
+            coulomb: [false; N],
         };
         for (l, it) in its.iter().enumerate() {
             q.set(l, it);
@@ -120,7 +123,7 @@ fn slip_field<F: Real, const N: usize, const COULOMB: bool>(
         // fk for a finite w, NaN for an infinite or NaN one, and so is fk + 0 w, bit for bit,
         // without the division and the max (+14% cpu steps/s, docs/performance.md).
         let law = if COULOMB {
-            q.fk[l] + F::zero() * w
+            crate::model::coulomb_friction(q.fk[l], w)
         } else {
             let m = (q.l1[l] * w).max(F::of(-0.5));
             q.fs[l] - (q.fs[l] - q.fk[l]) * m / (F::one() + m) + q.l2[l] * w * w
@@ -225,8 +228,7 @@ fn slip_jacobian_times<F: Real, const N: usize, const COULOMB: bool>(
     for l in 0..N {
         let w = s[l] * (y[1][l] - y[3][l]);
         let slope = if COULOMB {
-            // model::friction_slope's Coulomb value, bit for bit.
-            -(q.fs[l] - q.fk[l]) * q.l1[l] + F::of(2.0) * q.l2[l] * w
+            crate::model::coulomb_slope(q.fs[l], q.fk[l], q.l1[l], q.l2[l], w)
         } else {
             friction_slope(q, l, w)
         };
