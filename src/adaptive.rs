@@ -633,6 +633,13 @@ impl Keep for Summaries {
 /// engine runs say which points leave. With `early` the points run the early rounds first;
 /// every point then runs the configured stretch, and a point still undecided gets the windows
 /// of [`extensions`], and is `unresolved` only after the last of them.
+///
+/// Where the engine overlaps ([`Engine::overlap`], `run.overlap`), the points are dealt to
+/// k streams (point i to stream i mod k, so that each holds the same mix of the grid) and
+/// each stream runs the driver in a thread of its own: while one stream's points are decided
+/// on the host, another's are integrated on the device. Every point's answer is its own,
+/// whatever stream it ran in. The timings are the streams' sums (each stream's own seconds,
+/// `Timings::streams` = k), so they can add up to more than the wall.
 pub fn run_summaries(
     engine: &Engine,
     spec: &RunSpec,
@@ -640,6 +647,51 @@ pub fn run_summaries(
     early: bool,
     progress: &dyn Progress,
 ) -> Result<(Vec<Summary>, Timings), EngineError> {
-    let (out, _, timings) = drive(engine, spec, points, early, &mut Summaries, progress)?;
+    let n = points.len();
+    let k = engine.overlap(spec.overlap, n);
+    if k <= 1 {
+        let (out, _, timings) = drive(engine, spec, points, early, &mut Summaries, progress)?;
+        return Ok((out, timings));
+    }
+    let y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
+    let modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
+    let streams: Vec<(Vec<usize>, Live)> = (0..k)
+        .map(|s| {
+            let idx: Vec<usize> = (s..n).step_by(k).collect();
+            let live = Live::new(points, &idx, &y, &modes);
+            (idx, live)
+        })
+        .collect();
+    let runs = std::thread::scope(|scope| {
+        let handles: Vec<_> = streams
+            .iter()
+            .map(|(_, live)| {
+                scope.spawn(move || {
+                    let sub = live.points(points);
+                    drive(engine, spec, &sub, early, &mut Summaries, progress)
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("a stream's thread panicked"))
+            .collect::<Vec<_>>()
+    });
+    let mut out: Vec<Option<Summary>> = vec![None; n];
+    let mut timings = Timings {
+        streams: k as u32,
+        ..Timings::default()
+    };
+    for ((idx, _), run) in streams.iter().zip(runs) {
+        let (ss, _, t) = run?;
+        timings.add(&t);
+        for (&i, s) in idx.iter().zip(ss) {
+            out[i] = Some(s);
+        }
+    }
+    let out = out
+        .into_iter()
+        .map(|s| s.expect("every point in one stream"))
+        .collect();
     Ok((out, timings))
 }

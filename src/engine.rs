@@ -32,6 +32,15 @@ pub enum EngineError {
     NeedsGpu { what: &'static str },
 }
 
+/// Fewest points of a run that [`Engine::overlap`] runs in streams by default, and how many.
+/// Measured on an H100 with 16 host cores (docs/performance.md, "Overlap"): the 1024 x 1024
+/// map (2^20 points) took 17.3-18.4 s in one stream, 15.2-15.7 s in two and 14.0-14.2 s in
+/// four, but the 512 x 512 one 6.4-6.5 s in one, 7.3 in two and 7.6 in four, the 256 x 256
+/// one 2.7 s in one and 3.5 s in two: a stream's smaller Newton calls fall below the
+/// device's threshold and go to the host, whose cores the streams share.
+pub const OVERLAP_MIN_POINTS: usize = 4 * GPU_BLOCK;
+pub const OVERLAP_STREAMS: usize = 4;
+
 /// Points per CPU block of [`Engine::run_lean`]: samples of one block only are held.
 const CPU_BLOCK: usize = 4096;
 
@@ -123,7 +132,24 @@ impl Engine {
         }
     }
 
-    /// Seconds of Newton's flows on the device so far (0 on the CPU).
+    /// Streams of a run of `points` points to run at once
+    /// ([`crate::adaptive::run_summaries`]): `asked` where given (`run.overlap`), else
+    /// [`OVERLAP_STREAMS`] on a GPU adapter that is a device of its own for runs of at least
+    /// [`OVERLAP_MIN_POINTS`] points, 1 elsewhere (an adapter on the host's own cores leaves
+    /// no idle host to overlap with); never more than the points.
+    pub fn overlap(&self, asked: Option<u32>, points: usize) -> usize {
+        let auto = match self {
+            Engine::Gpu(g) if g.info.device_type != wgpu::DeviceType::Cpu => OVERLAP_STREAMS,
+            _ => 1,
+        };
+        match asked {
+            Some(k) => (k as usize).min(points).max(1),
+            None if points >= OVERLAP_MIN_POINTS => auto,
+            None => 1,
+        }
+    }
+
+    /// Seconds of Newton's flows on the device so far by the calling thread (0 on the CPU).
     pub fn decide_seconds(&self) -> f64 {
         match self {
             Engine::Gpu(g) => g.decide_seconds(),

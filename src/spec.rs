@@ -26,6 +26,9 @@ pub struct RunSpec {
     /// (`run.decide_precision`).
     pub decide: Decide,
     pub decide_precision: Option<Precision>,
+    /// Streams run at once (`run.overlap`; unset: the engine's choice,
+    /// [`crate::engine::Engine::overlap`]).
+    pub overlap: Option<u32>,
     pub precision: Precision,
 }
 
@@ -41,6 +44,7 @@ impl RunSpec {
             horizon: cfg.run.horizon,
             decide: cfg.run.decide,
             decide_precision: cfg.run.decide_precision,
+            overlap: cfg.run.overlap,
             precision: cfg.method.precision,
         }
     }

@@ -39,6 +39,12 @@ fn errors_name_the_key() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("sweep.to") && e.contains("[0, 1]"), "{e}");
+    for bad in ["0", "9"] {
+        let e = Config::from_toml(&format!("[run]\noverlap = {bad}\n"), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("run.overlap") && e.contains("[1, 8]"), "{e}");
+    }
 }
 
 #[test]

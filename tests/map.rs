@@ -95,6 +95,58 @@ fn sharded_and_merged_map_equals_the_single_run() {
     assert!(!d.join("bad.json").exists());
 }
 
+/// A map run in streams (`run.overlap`: the points dealt to threads that integrate and decide
+/// at once) is the one-stream map, every NPY layer byte for byte: a cell's answer never
+/// depends on the points it ran beside. On the GPU adapter (lavapipe in CI) and on the CPU,
+/// Newton on the host and on the device.
+#[test]
+fn a_map_in_streams_equals_the_map_in_one() {
+    let d = scratch("streams");
+    let cfg = d.join("small.toml");
+    std::fs::write(&cfg, common::points::rl_map(64, 40, 20, 13, 11)).unwrap();
+    let mut runs: Vec<(&str, &[&str])> = vec![("cpu", &["--precision", "f64"])];
+    if common::gpu_engine().is_some() {
+        runs.push(("gpu", &[]));
+        runs.push(("gpu", &["--set", "run.decide=device"]));
+    }
+    for (backend, extra) in runs {
+        let map = |streams: u32| {
+            let out = d.join(format!("{backend}{}-{streams}", extra.len()));
+            let mut c = rattle();
+            c.args(["map", "--backend", backend, "--config"])
+                .arg(&cfg)
+                .args(["--set", &format!("run.overlap={streams}")])
+                .args(extra.iter())
+                .arg("--out")
+                .arg(&out);
+            ok(&mut c);
+            out
+        };
+        let one = map(1);
+        for k in [2, 3] {
+            let many = map(k);
+            let report = json(&many.with_extension("json"));
+            assert_eq!(report["timings"]["streams"], k, "{backend} {extra:?}");
+            let prefix = format!("{}-", one.file_name().unwrap().to_str().unwrap());
+            let mut layers = 0;
+            for e in std::fs::read_dir(&d).unwrap() {
+                let name = e.unwrap().file_name().into_string().unwrap();
+                let Some(layer) = name.strip_prefix(&prefix) else {
+                    continue;
+                };
+                if !layer.ends_with(".npy") {
+                    continue;
+                }
+                let a = std::fs::read(d.join(&name)).unwrap();
+                let b = std::fs::read(format!("{}-{layer}", many.display())).unwrap();
+                assert!(a == b, "{backend} {extra:?}, {k} streams: {layer} differs");
+                layers += 1;
+            }
+            assert!(layers >= 10, "{backend}: only {layers} layers compared");
+        }
+    }
+}
+
 /// A cell has a multiplier exactly when its class is periodic, and it lies inside the circle.
 fn multipliers_only_on_cycles(s: &[rattle::decide::Summary]) -> bool {
     s.iter().all(|c| match c.class {

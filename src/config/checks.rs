@@ -80,6 +80,15 @@ impl Config {
         if !(1..=1000).contains(&r.horizon) {
             return Err(ConfigError::range("run.horizon", r.horizon, "[1, 1000]"));
         }
+        if let Some(o) = r.overlap
+            && !(1..=super::MAX_OVERLAP).contains(&o)
+        {
+            return Err(ConfigError::range(
+                "run.overlap",
+                o,
+                &format!("[1, {}]", super::MAX_OVERLAP),
+            ));
+        }
         if !(r.lyapunov_tol.is_finite() && r.lyapunov_tol > 0.0) {
             return Err(ConfigError::range(
                 "run.lyapunov_tol",

@@ -279,6 +279,9 @@ pub enum Decide {
     Host,
 }
 
+/// The most streams of one run at once (`run.overlap`).
+pub const MAX_OVERLAP: u32 = 8;
+
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RunConfig {
@@ -303,6 +306,11 @@ pub struct RunConfig {
     /// adapter has it and f32 where it has not; f32 also where asked (GPUs whose f64 is slow).
     /// The host judges every f32 trial in f64 (`decide::refine_on_device`).
     pub decide_precision: Option<Precision>,
+    /// Streams of a map's or study's points run at once, so that the host decides one while
+    /// the device integrates another; unset: 4 for runs of 2^19 points or more on a GPU
+    /// adapter that is a device of its own, else 1 (also where the adapter is the host's own
+    /// cores: nothing to overlap; and on the cpu backend) ([`crate::engine::Engine::overlap`]).
+    pub overlap: Option<u32>,
 }
 
 impl Default for RunConfig {
@@ -317,6 +325,7 @@ impl Default for RunConfig {
             horizon: 10,
             decide: Decide::Auto,
             decide_precision: None,
+            overlap: None,
         }
     }
 }

@@ -142,10 +142,10 @@ impl Gpu {
             enc.resolve_query_set(&t.set, 0..2, &t.resolve, 0);
             enc.copy_buffer_to_buffer(&t.resolve, 0, &t.read, 0, 16);
         }
-        self.queue.submit([enc.finish()]);
-        self.wait("dispatch")?;
+        let index = self.queue.submit([enc.finish()]);
+        self.wait(index.clone(), "dispatch")?;
         if let Some(t) = timer {
-            let ts: Vec<u64> = self.read_buffer(&t.read, 16)?;
+            let ts: Vec<u64> = self.read_buffer(&t.read, 16, index)?;
             t.ns += ts[1].saturating_sub(ts[0]) as f64 * self.queue.get_timestamp_period() as f64;
         }
         Ok(())

@@ -83,7 +83,7 @@ impl Gpu {
         for chunk in flows.chunks(self.flows_per_batch(Y_FLOW_SLOTS)) {
             out.extend(self.flows_batch(settings, chunk)?);
         }
-        *self.decide_s.lock().unwrap() += t0.elapsed().as_secs_f64();
+        self.add_decide_seconds(t0.elapsed().as_secs_f64());
         Ok(out)
     }
 
@@ -105,7 +105,7 @@ impl Gpu {
         for chunk in trials.chunks(self.flows_per_batch(Y_NEWTON_SLOTS)) {
             out.extend(self.newton_batch(settings, chunk, iterations.max(1), precision)?);
         }
-        *self.decide_s.lock().unwrap() += t0.elapsed().as_secs_f64();
+        self.add_decide_seconds(t0.elapsed().as_secs_f64());
         Ok(out)
     }
 
@@ -276,6 +276,7 @@ impl Gpu {
             horizon: 1,
             decide: Default::default(),
             decide_precision: None,
+            overlap: None,
             precision,
         };
         let shared = match precision {

@@ -30,6 +30,7 @@ use bytemuck::Pod;
 use dispatch::Timer;
 pub use kernel::Rung;
 use kernel::{Kernels, Variant};
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
@@ -97,8 +98,10 @@ pub struct Gpu {
     limits: wgpu::Limits,
     error: Arc<Mutex<Option<String>>>,
     kernels: Kernels,
-    /// Seconds spent in Newton's flows on this device ([`Gpu::flows`]), for the timings.
-    decide_s: Mutex<f64>,
+    /// Seconds spent in Newton's flows on this device ([`Gpu::flows`]), for the timings, per
+    /// calling thread: the shards of an overlapped run ([`crate::adaptive::run_summaries`])
+    /// each count their own.
+    decide_s: Mutex<HashMap<std::thread::ThreadId, f64>>,
     /// Longest wait for one dispatch before giving up.
     pub timeout: Duration,
 }
@@ -238,7 +241,7 @@ impl Gpu {
             limits,
             error,
             kernels: Kernels::default(),
-            decide_s: Mutex::new(0.0),
+            decide_s: Mutex::new(HashMap::new()),
             timeout: Duration::from_secs(120),
         })
     }
@@ -251,9 +254,21 @@ impl Gpu {
         self.timestamps
     }
 
-    /// Seconds spent in Newton's flows on this device so far.
+    /// Seconds spent in Newton's flows on this device so far, by the calling thread.
     pub fn decide_seconds(&self) -> f64 {
-        *self.decide_s.lock().unwrap()
+        let me = std::thread::current().id();
+        self.decide_s
+            .lock()
+            .unwrap()
+            .get(&me)
+            .copied()
+            .unwrap_or(0.0)
+    }
+
+    /// Adds `seconds` of Newton's flows to the calling thread's count.
+    fn add_decide_seconds(&self, seconds: f64) {
+        let me = std::thread::current().id();
+        *self.decide_s.lock().unwrap().entry(me).or_default() += seconds;
     }
 
     pub fn adapter_name(&self) -> &str {
@@ -274,10 +289,12 @@ impl Gpu {
         }
     }
 
-    fn wait(&self, what: &str) -> Result<(), GpuError> {
+    /// Waits for submission `index` (not for all work queued: another thread's dispatch may
+    /// run on while this one reads back).
+    fn wait(&self, index: wgpu::SubmissionIndex, what: &str) -> Result<(), GpuError> {
         self.device
             .poll(wgpu::PollType::Wait {
-                submission_index: None,
+                submission_index: Some(index),
                 timeout: Some(self.timeout),
             })
             .map_err(|e| self.fail(format!("{what}: {e} (timeout {:?})", self.timeout)))?;
@@ -404,17 +421,23 @@ impl Gpu {
         let dst = self.readback_buffer(size);
         let mut enc = self.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(src, 0, &dst, 0, size);
-        self.queue.submit([enc.finish()]);
-        self.read_buffer(&dst, size)
+        let index = self.queue.submit([enc.finish()]);
+        self.read_buffer(&dst, size, index)
     }
 
-    fn read_buffer<T: Pod>(&self, buf: &wgpu::Buffer, size: u64) -> Result<Vec<T>, GpuError> {
+    /// Reads `buf`, last written by submission `index`.
+    fn read_buffer<T: Pod>(
+        &self,
+        buf: &wgpu::Buffer,
+        size: u64,
+        index: wgpu::SubmissionIndex,
+    ) -> Result<Vec<T>, GpuError> {
         let slice = buf.slice(0..size);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });
-        self.wait("readback")?;
+        self.wait(index, "readback")?;
         rx.recv()
             .map_err(|e| self.fail(format!("readback: {e}")))?
             .map_err(|e| self.fail(format!("readback: {e}")))?;

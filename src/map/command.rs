@@ -170,6 +170,8 @@ pub struct MapSummary {
     pub files_s: f64,
     pub counts: std::collections::BTreeMap<String, usize>,
     pub wall_s: f64,
+    /// Streams run at once (`run.overlap`; 0 or 1: none).
+    pub streams: u32,
 }
 
 impl MapSummary {
@@ -185,9 +187,13 @@ impl MapSummary {
                 100.0 * changed as f64 / cells as f64
             );
         }
+        let streams = match self.streams {
+            k if k > 1 => format!(", summed over {k} streams run at once"),
+            _ => String::new(),
+        };
         s + &format!(
             "map: {} x {} cells on {} ({}, {}) in {:.2} s ({:.2} s integration, {:.2} s device \
-             deciding, {:.2} s host deciding, {:.2} s files); {:?}\n",
+             deciding, {:.2} s host deciding{streams}, {:.2} s files); {:?}\n",
             cfg.map.x_points,
             cfg.map.y_points,
             self.backend,
@@ -273,6 +279,7 @@ fn assemble(engine: &Engine, o: &MapOptions, parts: Vec<Part>) -> crate::Result<
             device_decide_s: Some(decide_s),
             rk4_steps: Some(steps),
             steps_per_s: Some(steps / secs),
+            streams: Some(timings.streams.max(1)),
             ..MapTimings::default()
         },
         refine: o.refine.map(|k| CoarseReport {
@@ -354,6 +361,7 @@ pub fn run(
     summary.files_s = t_files.elapsed().as_secs_f64();
     summary.host_s = host_s;
     summary.decide_s = decide_s;
+    summary.streams = timings.streams;
     if n > 1 {
         for i in 0..n {
             let _ = std::fs::remove_file(part_path(out, i, n));

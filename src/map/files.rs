@@ -107,6 +107,10 @@ pub struct MapTimings {
     /// adapter's start, the engine's setup and the parts' merge.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wall_s: Option<f64>,
+    /// Streams run at once (`run.overlap`): with more than one, the seconds above but
+    /// `files_s` and `wall_s` are the streams' sums and can add up to more than the wall.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub streams: Option<u32>,
 }
 
 /// The `--compare` result.

@@ -252,6 +252,10 @@ pub struct Timings {
     /// `host_s`).
     #[serde(default)]
     pub decide_s: f64,
+    /// Streams of an overlapped run ([`crate::adaptive::run_summaries`]; 0 or 1: none): the
+    /// seconds above are then the streams' sums, which ran at once.
+    #[serde(default)]
+    pub streams: u32,
 }
 
 /// Where a command's wall time went: the keys every command's JSON `timings` shares (the map's
@@ -310,5 +314,6 @@ impl Timings {
         self.batches += o.batches;
         self.host_s += o.host_s;
         self.decide_s += o.decide_s;
+        self.streams = self.streams.max(o.streams);
     }
 }

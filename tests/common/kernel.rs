@@ -34,6 +34,7 @@ pub fn eta_spec(s: Settings, transient: u32, samples: u32, f64: bool) -> RunSpec
         horizon: 1,
         decide: Default::default(),
         decide_precision: None,
+        overlap: None,
         precision: if f64 { Precision::F64 } else { Precision::F32 },
     }
 }

@@ -120,6 +120,7 @@ pub fn run_point(
         horizon: 1,
         decide: Default::default(),
         decide_precision: None,
+        overlap: None,
         precision,
     };
     let (mut rs, _) = engine
