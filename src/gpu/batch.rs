@@ -16,6 +16,7 @@ use crate::model::{Mode, Params, initial_mode};
 use crate::real::Real;
 use crate::spec::RunSpec;
 use bytemuck::Pod;
+use rayon::prelude::*;
 use std::marker::PhantomData;
 use std::ops::Range;
 use wgpu::util::DeviceExt;
@@ -327,23 +328,33 @@ impl<F: Real + Pod> Batch<F> {
     ) -> Result<ReadBack<F>, GpuError> {
         let m = self.range.len() as u64;
         let fsz = size_of::<F>() as u64;
-        // The state only: the tangent vector is the kernel's business.
-        let ys = gpu.read_storage(&self.ys, (Y_MAIN + STATE_DIM) as u64 * m * fsz)?;
-        // The ring always: the last section values and the torus test's sums are evidence.
-        let ring = gpu.read_storage(&self.ring, m * R_SLOTS as u64 * fsz)?;
-        let us = gpu.read_storage(&self.us, U_SLOTS as u64 * m * 4)?;
-        let samples = if job.store_samples {
-            gpu.read_storage(&self.samples, m * plan.store_bytes)?
-        } else {
-            Vec::new()
-        };
-        Ok(ReadBack {
-            start: self.range.start,
-            m: self.range.len(),
-            ys,
-            us,
-            ring,
-            samples,
+        // The state only: the tangent vector is the kernel's business. The ring always: the
+        // last section values and the torus test's sums are evidence. One submission and
+        // one wait for all of them.
+        let mut parts = vec![
+            (&self.ys, (Y_MAIN + STATE_DIM) as u64 * m * fsz),
+            (&self.ring, m * R_SLOTS as u64 * fsz),
+            (&self.us, U_SLOTS as u64 * m * 4),
+        ];
+        if job.store_samples {
+            parts.push((&self.samples, m * plan.store_bytes));
+        }
+        let sizes: Vec<usize> = parts.iter().map(|p| p.1 as usize).collect();
+        gpu.read_storages(&parts, |all| {
+            let mut at = 0;
+            let mut part = |k: usize| {
+                let size = sizes.get(k).copied().unwrap_or(0);
+                at += size;
+                &all[at - size..at]
+            };
+            ReadBack {
+                start: self.range.start,
+                m: self.range.len(),
+                ys: bytemuck::pod_collect_to_vec(part(0)),
+                ring: bytemuck::pod_collect_to_vec(part(1)),
+                us: bytemuck::pod_collect_to_vec(part(2)),
+                samples: bytemuck::pod_collect_to_vec(part(3)),
+            }
         })
     }
 }
@@ -384,7 +395,8 @@ impl<F: Real> ReadBack<F> {
         let spec = job.spec;
         let per_point = spec.samples as usize;
         let dim = STATE_DIM as usize;
-        for i in 0..self.m {
+        // Each point's result is its own: decoded in parallel, in point order.
+        let one = |i: usize| {
             let u = |slot| self.u(slot, i);
             // A failed point stopped sampling where it failed; the detector counted its samples.
             let count = u(U_DET_COUNT);
@@ -450,7 +462,7 @@ impl<F: Real> ReadBack<F> {
                 .collect();
             let (dissipation, stick_fraction) =
                 crate::method::energy(&diag, n_samples, spec.settings.steps_per_period);
-            results.push(RunResult {
+            RunResult {
                 exponent_lost: spec.settings.lyapunov
                     && lyapunov.value.is_nan()
                     && u(U_NONFINITE) == 0
@@ -467,7 +479,8 @@ impl<F: Real> ReadBack<F> {
                 impact_speed: crate::method::impact_speed(&diag, u(U_SAMPLE_IMPACTS) as u64),
                 dissipation,
                 stick_fraction,
-            });
-        }
+            }
+        };
+        results.par_extend((0..self.m).into_par_iter().map(one));
     }
 }

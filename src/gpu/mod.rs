@@ -425,6 +425,25 @@ impl Gpu {
         self.read_buffer(&dst, size, index)
     }
 
+    /// Copies the first `size` bytes of each buffer of `parts`, one after the other, to one
+    /// mappable buffer in one submission and reads them back: one wait for all of them.
+    fn read_storages<R>(
+        &self,
+        parts: &[(&wgpu::Buffer, u64)],
+        read: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R, GpuError> {
+        let total: u64 = parts.iter().map(|p| p.1).sum();
+        let dst = self.readback_buffer(total);
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        let mut at = 0;
+        for &(src, size) in parts {
+            enc.copy_buffer_to_buffer(src, 0, &dst, at, size);
+            at += size;
+        }
+        let index = self.queue.submit([enc.finish()]);
+        self.map_buffer(&dst, total, index, read)
+    }
+
     /// Reads `buf`, last written by submission `index`.
     fn read_buffer<T: Pod>(
         &self,
@@ -432,6 +451,18 @@ impl Gpu {
         size: u64,
         index: wgpu::SubmissionIndex,
     ) -> Result<Vec<T>, GpuError> {
+        self.map_buffer(buf, size, index, bytemuck::pod_collect_to_vec::<u8, T>)
+    }
+
+    /// Maps `buf`, last written by submission `index`, and hands its first `size` bytes to
+    /// `read`.
+    fn map_buffer<R>(
+        &self,
+        buf: &wgpu::Buffer,
+        size: u64,
+        index: wgpu::SubmissionIndex,
+        read: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R, GpuError> {
         let slice = buf.slice(0..size);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -445,7 +476,7 @@ impl Gpu {
             let view = slice
                 .get_mapped_range()
                 .map_err(|e| self.fail(format!("readback: {e}")))?;
-            bytemuck::pod_collect_to_vec::<u8, T>(&view)
+            read(&view)
         };
         buf.unmap();
         Ok(out)
