@@ -33,11 +33,11 @@ pub enum EngineError {
 }
 
 /// Fewest points of a run that [`Engine::overlap`] runs in streams by default, and how many.
-/// Measured on an H100 with 16 host cores (docs/performance.md, "Overlap"): the 1024 x 1024
-/// map (2^20 points) took 17.3-18.4 s in one stream, 15.2-15.7 s in two and 14.0-14.2 s in
-/// four, but the 512 x 512 one 6.4-6.5 s in one, 7.3 in two and 7.6 in four, the 256 x 256
-/// one 2.7 s in one and 3.5 s in two: a stream's smaller Newton calls fall below the
-/// device's threshold and go to the host, whose cores the streams share.
+/// Measured on an H100 with 16 host cores (docs/performance.md, "Overlap"; `wall_s`): the
+/// 1024 x 1024 map (2^20 points) took 16.7-17.5 s in one stream, 14.5-15.0 s in two and
+/// 13.3-13.6 s in four, but the 512 x 512 one 6.1 s in one, 7.0 in two and 7.3 in four, the
+/// 256 x 256 one 2.5 s in one and 3.3 s in two: a stream's smaller Newton calls fall below
+/// the device's threshold and go to the host, whose cores the streams share.
 pub const OVERLAP_MIN_POINTS: usize = 4 * GPU_BLOCK;
 pub const OVERLAP_STREAMS: usize = 4;
 
