@@ -147,6 +147,31 @@ fn a_map_in_streams_equals_the_map_in_one() {
     }
 }
 
+/// The default streams: one on the CPU backend and on an adapter that is the host's own cores
+/// (nothing to overlap), whatever the size; an asked number, never more than the points.
+#[test]
+fn streams_by_default_only_where_the_host_is_idle() {
+    let cpu = Engine::Cpu;
+    assert_eq!(cpu.overlap(None, 1 << 22), 1);
+    assert_eq!(cpu.overlap(Some(3), 1000), 3);
+    assert_eq!(cpu.overlap(Some(8), 5), 5);
+    if let Some(gpu) = common::gpu_engine() {
+        let Engine::Gpu(g) = &gpu else {
+            unreachable!("gpu_engine opens a GPU")
+        };
+        let big = rattle::engine::OVERLAP_MIN_POINTS;
+        let own_cores = g.info.device_type == wgpu::DeviceType::Cpu;
+        let expect = if own_cores {
+            1
+        } else {
+            rattle::engine::OVERLAP_STREAMS
+        };
+        assert_eq!(gpu.overlap(None, big), expect);
+        assert_eq!(gpu.overlap(None, big - 1), 1);
+        assert_eq!(gpu.overlap(Some(2), big - 1), 2);
+    }
+}
+
 /// A cell has a multiplier exactly when its class is periodic, and it lies inside the circle.
 fn multipliers_only_on_cycles(s: &[rattle::decide::Summary]) -> bool {
     s.iter().all(|c| match c.class {
