@@ -319,7 +319,7 @@ impl<F: Real + Pod> Batch<F> {
         })
     }
 
-    /// Reads back what decoding needs, one copy per buffer.
+    /// Reads back what decoding needs, every buffer in one submission.
     pub(super) fn read_back(
         &self,
         gpu: &Gpu,
@@ -339,22 +339,15 @@ impl<F: Real + Pod> Batch<F> {
         if job.store_samples {
             parts.push((&self.samples, m * plan.store_bytes));
         }
-        let sizes: Vec<usize> = parts.iter().map(|p| p.1 as usize).collect();
-        gpu.read_storages(&parts, |all| {
-            let mut at = 0;
-            let mut part = |k: usize| {
-                let size = sizes.get(k).copied().unwrap_or(0);
-                at += size;
-                &all[at - size..at]
-            };
-            ReadBack {
-                start: self.range.start,
-                m: self.range.len(),
-                ys: bytemuck::pod_collect_to_vec(part(0)),
-                ring: bytemuck::pod_collect_to_vec(part(1)),
-                us: bytemuck::pod_collect_to_vec(part(2)),
-                samples: bytemuck::pod_collect_to_vec(part(3)),
-            }
+        gpu.read_storages(&parts, |p| ReadBack {
+            start: self.range.start,
+            m: self.range.len(),
+            ys: bytemuck::pod_collect_to_vec(p[0]),
+            ring: bytemuck::pod_collect_to_vec(p[1]),
+            us: bytemuck::pod_collect_to_vec(p[2]),
+            samples: p
+                .get(3)
+                .map_or_else(Vec::new, |s| bytemuck::pod_collect_to_vec(s)),
         })
     }
 }

@@ -99,7 +99,7 @@ pub struct Gpu {
     error: Arc<Mutex<Option<String>>>,
     kernels: Kernels,
     /// Seconds spent in Newton's flows on this device ([`Gpu::flows`]), for the timings, per
-    /// calling thread: the shards of an overlapped run ([`crate::adaptive::run_summaries`])
+    /// calling thread: the streams of an overlapped run ([`crate::adaptive::run_summaries`])
     /// each count their own.
     decide_s: Mutex<HashMap<std::thread::ThreadId, f64>>,
     /// Longest wait for one dispatch before giving up.
@@ -418,19 +418,16 @@ impl Gpu {
 
     /// Copies a storage buffer to a mappable one and reads it.
     fn read_storage<T: Pod>(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<T>, GpuError> {
-        let dst = self.readback_buffer(size);
-        let mut enc = self.device.create_command_encoder(&Default::default());
-        enc.copy_buffer_to_buffer(src, 0, &dst, 0, size);
-        let index = self.queue.submit([enc.finish()]);
-        self.read_buffer(&dst, size, index)
+        self.read_storages(&[(src, size)], |p| bytemuck::pod_collect_to_vec(p[0]))
     }
 
     /// Copies the first `size` bytes of each buffer of `parts`, one after the other, to one
-    /// mappable buffer in one submission and reads them back: one wait for all of them.
+    /// mappable buffer in one submission, and hands `read` each part's bytes: one wait and
+    /// one mapping for all of them.
     fn read_storages<R>(
         &self,
         parts: &[(&wgpu::Buffer, u64)],
-        read: impl FnOnce(&[u8]) -> R,
+        read: impl FnOnce(&[&[u8]]) -> R,
     ) -> Result<R, GpuError> {
         let total: u64 = parts.iter().map(|p| p.1).sum();
         let dst = self.readback_buffer(total);
@@ -441,7 +438,18 @@ impl Gpu {
             at += size;
         }
         let index = self.queue.submit([enc.finish()]);
-        self.map_buffer(&dst, total, index, read)
+        self.map_buffer(&dst, total, index, |all| {
+            let mut rest = all;
+            let split: Vec<&[u8]> = parts
+                .iter()
+                .map(|&(_, size)| {
+                    let (part, tail) = rest.split_at(size as usize);
+                    rest = tail;
+                    part
+                })
+                .collect();
+            read(&split)
+        })
     }
 
     /// Reads `buf`, last written by submission `index`.
