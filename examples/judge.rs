@@ -5,13 +5,19 @@
 //!
 //! `cargo run --release --example judge -- CONFIG CLASS_NPY SAMPLE SEED OUT_CSV`
 //!
-//! CLASS_NPY is a map's `PREFIX-class.npy` over the config's [map] grid. SAMPLE `s30` draws 30
+//! `rejudge:FIXTURE.csv` as SAMPLE re-judges the rows of an earlier fixture whose verdict was
+//! `chaotic` or `unclear` (the rule below for chaos once returned at the first chaotic window,
+//! 3000 periods in: a chaotic transient then passed for chaos) and keeps the other rows as
+//! they are (a periodic, quasi-periodic or impact-free verdict is final when it is reached).
+//!
+//! CLASS_NPY is a map's `PREFIX-class.npy` over the config's [map] grid (`-` with `rejudge:`). SAMPLE `s30` draws 30
 //! cells of each map class group (chaotic, periodic of period 1-4, periodic of period 5 or more,
 //! quasi-periodic, unresolved; fewer where the map has fewer), `u100` 100 cells uniformly over
 //! the grid, with a fixed-seed generator; `cells:FILE.csv` judges the cells (ix, iy) of an
 //! earlier fixture again. Each cell is judged from the map's start state:
-//! - a run of 2000 periods, then windows of 1000 sampled periods (up to 10^4 periods in all) until
-//!   one decides;
+//! - a run of 2000 periods, then windows of 1000 sampled periods (up to 3 x 10^4 periods in all)
+//!   until one decides a periodic, quasi-periodic or impact-free motion; chaos is the verdict of
+//!   the last window only (a chaotic transient can end tens of thousands of periods in);
 //! - periodic: the window's last 256 sections repeat with the smallest lag n <= 128 to 1e-9 of
 //!   max(1, range), and a neighbour 1e-8 away converges onto it (a negative exponent); a cycle
 //!   that still converges slowly (its alternating part repeats at twice the lag sooner) waits
@@ -22,7 +28,7 @@
 //!   exponents of -0.0005 and below, waits), weighted Birkhoff averages of y1 over the window's
 //!   two halves agree to 8 digits, and no lag <= 128 repeats to 1e-6;
 //! - no_impact: no impact in the window; failed: the reference could not follow the motion;
-//! - anything else after 10^4 periods is `unclear` (left out of the score).
+//! - anything else after 3 x 10^4 periods is `unclear` (left out of the score).
 
 use rattle::config::Config;
 use rattle::model::Params;
@@ -35,7 +41,7 @@ use std::path::Path;
 const SCAN: u32 = 1024;
 const FIRST: u32 = 2000;
 const WINDOW: u32 = 1000;
-const TOTAL: u32 = 10_000;
+const TOTAL: u32 = 30_000;
 
 /// The fixed-seed generator of the sample: the same on every machine.
 use rattle::stats::SplitMix as Mix;
@@ -85,7 +91,8 @@ fn judge(p: &Params<f64>, zeno: f64, y0: [f64; 4]) -> Verdict {
     while done < TOTAL {
         match window(&r, &mut st) {
             Ok(v) => {
-                if v.0 != "unclear" {
+                // Chaos may be a transient: only the last window's says it lasts.
+                if v.0 != "unclear" && v.0 != "chaotic" {
                     return v;
                 }
                 last = v;
@@ -178,9 +185,14 @@ fn main() -> anyhow::Result<()> {
         "usage: judge CONFIG CLASS_NPY SAMPLE SEED OUT_CSV"
     );
     let cfg = Config::load(Path::new(&a[1]), &[])?;
-    let bytes = std::fs::read(&a[2])?;
-    let classes: Vec<i32> = npyz::NpyFile::new(&bytes[..])?.into_vec()?;
     let (nx, ny) = (cfg.map.x_points as usize, cfg.map.y_points as usize);
+    // `-`: no class array (a `rejudge:` takes each row's group from the fixture).
+    let classes: Vec<i32> = if a[2] == "-" {
+        vec![0; nx * ny]
+    } else {
+        let bytes = std::fs::read(&a[2])?;
+        npyz::NpyFile::new(&bytes[..])?.into_vec()?
+    };
     anyhow::ensure!(
         classes.len() == nx * ny,
         "the class array is not the config's grid"
@@ -190,7 +202,31 @@ fn main() -> anyhow::Result<()> {
     let zeno = cfg.settings().zeno_speed;
     let name = |c: usize| group(classes[c]).unwrap_or("other");
     let mut picked: Vec<(usize, &str)> = Vec::new();
-    if let Some(file) = a[3].strip_prefix("cells:") {
+    // Rows of an earlier fixture kept as they are (`rejudge:`), by cell.
+    let mut kept: std::collections::HashMap<usize, String> = Default::default();
+    let mut order: Vec<usize> = Vec::new();
+    if let Some(file) = a[3].strip_prefix("rejudge:") {
+        let mut r = csv::Reader::from_path(file)?;
+        for row in r.records() {
+            let row = row?;
+            let c = row[1].parse::<usize>()? * nx + row[0].parse::<usize>()?;
+            order.push(c);
+            if &row[5] == "chaotic" || &row[5] == "unclear" {
+                let g: &str = match &row[4] {
+                    "chaotic" => "chaotic",
+                    "periodic" => "periodic",
+                    "long_periodic" => "long_periodic",
+                    "quasi_periodic" => "quasi_periodic",
+                    "unresolved" => "unresolved",
+                    "any" => "any",
+                    _ => "other",
+                };
+                picked.push((c, g));
+            } else {
+                kept.insert(c, row.iter().collect::<Vec<_>>().join(","));
+            }
+        }
+    } else if let Some(file) = a[3].strip_prefix("cells:") {
         let mut r = csv::Reader::from_path(file)?;
         for row in r.records() {
             let row = row?;
@@ -224,7 +260,7 @@ fn main() -> anyhow::Result<()> {
             picked.extend(cells.into_iter().take(count).map(|c| (c, name(c))));
         }
     }
-    let rows: Vec<String> = {
+    let rows: Vec<(usize, String)> = {
         use rayon::prelude::*;
         picked
             .par_iter()
@@ -234,11 +270,22 @@ fn main() -> anyhow::Result<()> {
                 cfg.map.x.set(&mut p, xs[ix]);
                 cfg.map.y.set(&mut p, ys[iy]);
                 let (class, period, l, l1, digits) = judge(&p, zeno, cfg.initial.y);
-                format!(
+                let row = format!(
                     "{ix},{iy},{:.9},{:.9},{g},{class},{period},{l:.6},{l1:.6},{digits:.2}",
                     xs[ix], ys[iy]
-                )
+                );
+                (c, row)
             })
+            .collect()
+    };
+    // A re-judged fixture keeps its rows' order.
+    let rows: Vec<String> = if order.is_empty() {
+        rows.into_iter().map(|r| r.1).collect()
+    } else {
+        let mut new: std::collections::HashMap<usize, String> = rows.into_iter().collect();
+        order
+            .iter()
+            .map(|c| kept.remove(c).or_else(|| new.remove(c)).expect("every row"))
             .collect()
     };
     let mut f = std::fs::File::create(&a[5])?;

@@ -18,9 +18,10 @@
 //! decided block by block ([`run_summaries`]).
 
 use crate::class::Class;
-use crate::classify::{Exponent, Pool};
+use crate::classify::{Exponent, Pool, Rule};
 use crate::decide::{Proposal, Summary, Trials, Verdict, confirm_many};
 use crate::engine::{Engine, EngineError, Timings};
+use crate::look::{Carried, Looked, Neighbours, Seed};
 use crate::method::{Diagnostics, RunResult};
 use crate::model::{Mode, Params};
 use crate::progress::Progress;
@@ -51,6 +52,13 @@ pub struct Adaptive {
     pub verdicts: Vec<Verdict>,
     /// Forcing periods each point was integrated for.
     pub periods: Vec<u32>,
+    /// Periods until each point was on its attractor ([`Ended::settle`]).
+    pub settle: Vec<u32>,
+    /// The stable cycle carried to each point that coexists with its attractor
+    /// ([`crate::look`]).
+    pub coexist: Vec<Option<Carried>>,
+    /// What the long look did.
+    pub look: crate::look::LookCounts,
     pub timings: Timings,
     /// Wall time of the Newton confirmations (CPU, f64).
     pub newton_s: f64,
@@ -187,6 +195,10 @@ pub enum Stage {
     Final,
     /// More sampled periods for the undecided (the adaptive horizon).
     Extra(u32),
+    /// A stage of the long look at a point that looks chaotic ([`look_stages`]): `transient`
+    /// more periods without the exponent, then a window of `samples`; the point leaves as
+    /// soon as the window shows another attractor (a confirmed cycle, a torus, no impacts).
+    Look(u32, u32),
 }
 
 /// The stages of a run: the early rounds (with `early`), the final stretch, the windows of the
@@ -215,7 +227,35 @@ fn stage_spec(spec: &RunSpec, stage: Stage, elapsed: u32) -> RunSpec {
             samples: w,
             ..spec.clone()
         },
+        Stage::Look(t, w) => RunSpec {
+            transient: t,
+            samples: w,
+            ..spec.clone()
+        },
     }
+}
+
+/// Ratio of one look stage's end to the one before (in periods from the start).
+pub const LOOK_GROWTH: u32 = 3;
+
+/// The stages of the long look ([`look`]) at a point that looked chaotic after the configured
+/// `spec.periods()`: each ends at [`LOOK_GROWTH`] times the periods of the one before (3, 9,
+/// 27 ... times the configured periods), the last at `spec.look`; each is a transient and a
+/// window of the configured sampled periods. Empty where `spec.look` is not beyond the
+/// configured periods.
+pub fn look_stages(spec: &RunSpec) -> Vec<Stage> {
+    let (mut end, w) = (u64::from(spec.periods()), u64::from(spec.samples));
+    let cap = u64::from(spec.look);
+    let mut out = Vec::new();
+    while end < cap {
+        let next = (end * u64::from(LOOK_GROWTH)).min(cap);
+        // A last stage too short for a window of its own joins the one before.
+        let next = if cap - next < w { cap } else { next };
+        let len = next - end;
+        out.push(Stage::Look(len.saturating_sub(w) as u32, len.min(w) as u32));
+        end = next;
+    }
+    out
 }
 
 /// The live points of one stage, as [`Keep::stage`] runs them.
@@ -247,21 +287,26 @@ pub trait Keep {
     /// Where an undecided point continues from, and the periods it tried in vain.
     fn state(&self, p: &Self::Point) -> ([f64; 4], Mode, [u32; 2]);
     fn diag(&self, p: &Self::Point) -> Diagnostics;
-    /// Makes `p` the point's answer: its diagnostics over the whole run, the periods
-    /// integrated, and for a cycle decided in an early round the exponent of the cycle.
-    fn finish(
-        &self,
-        p: &mut Self::Point,
-        diag: Diagnostics,
-        periods: u32,
-        stage: Stage,
-        params: &Params<f64>,
-    );
+    /// Makes `p` the point's answer: its diagnostics over the whole run, where it ended
+    /// (periods integrated, settle time), and for a cycle decided in an early round the
+    /// exponent of the cycle.
+    fn finish(&self, p: &mut Self::Point, diag: Diagnostics, at: Ended, params: &Params<f64>);
 }
 
 /// What [`drive`] returns: each point's answer, the periods it was integrated for, the
 /// timings.
 pub type Driven<P> = (Vec<P>, Vec<u32>, Timings);
+
+/// Where each point of [`drive_stages`] starts: the periods and diagnostics of its run so far
+/// (a point of the long look goes on from where the configured run left it).
+#[derive(Clone, Copy, Default)]
+pub struct Start {
+    pub periods: u32,
+    pub diag: Diagnostics,
+    /// The exponent so far, which the stages' windows pool with (chaos that goes on through
+    /// the look keeps the evidence it had).
+    pub pool: Pool,
+}
 
 /// The one adaptive driver: runs `points` stage by stage ([`Stage`]), each stage on the points
 /// still live, continuing from where the stage before left them; a point leaves once `keep`
@@ -275,21 +320,43 @@ pub fn drive<K: Keep>(
     keep: &mut K,
     progress: &dyn Progress,
 ) -> Result<Driven<K::Point>, EngineError> {
+    let starts = vec![Start::default(); points.len()];
+    drive_stages(
+        engine,
+        spec,
+        points,
+        &stages(spec, early),
+        &starts,
+        keep,
+        progress,
+    )
+}
+
+/// [`drive`] through the given `stages`, each point from its [`Start`] (its initial state and
+/// mode are those of `points`).
+pub fn drive_stages<K: Keep>(
+    engine: &Engine,
+    spec: &RunSpec,
+    points: &Points,
+    stages: &[Stage],
+    starts: &[Start],
+    keep: &mut K,
+    progress: &dyn Progress,
+) -> Result<Driven<K::Point>, EngineError> {
     let n = points.len();
     let mut y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
     let mut modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
     let mut live: Vec<usize> = (0..n).collect();
-    let mut diag = vec![Diagnostics::default(); n];
+    let mut diag: Vec<Diagnostics> = starts.iter().map(|s| s.diag).collect();
     let mut done: Vec<Option<K::Point>> = (0..n).map(|_| None).collect();
     let mut periods = vec![0u32; n];
     let mut timings = Timings::default();
     let mut elapsed = 0u32;
-    let mut pools = vec![Pool::default(); n];
+    let mut pools: Vec<Pool> = starts.iter().map(|s| s.pool).collect();
     // The candidate periods each live point tried in vain in its last window.
     let mut skip = vec![[0u32; 2]; n];
-    let stages = stages(spec, early);
-    let last = stages.len() - 1;
-    for (k, stage) in stages.into_iter().enumerate() {
+    let last = stages.len().saturating_sub(1);
+    for (k, &stage) in stages.iter().enumerate() {
         if live.is_empty() {
             break;
         }
@@ -321,8 +388,8 @@ pub fn drive<K: Keep>(
         timings.integration_s += tm.integration_s;
         timings.readback_s += tm.readback_s;
         log::debug!(
-            "stage {k}: {} points, {} + {} periods, {:.2} s ({:.2} s integration, {:.2} s setup, \
-             {:.2} s readback, {:.2} s device deciding, {:.2} s host)",
+            "stage {k} ({stage:?}): {} points, {} + {} periods, {:.2} s ({:.2} s integration, \
+             {:.2} s setup, {:.2} s readback, {:.2} s device deciding, {:.2} s host)",
             live.len(),
             round.transient,
             round.samples,
@@ -333,19 +400,21 @@ pub fn drive<K: Keep>(
             decide_s,
             (t0.elapsed().as_secs_f64() - engine_s - decide_s).max(0.0),
         );
+        // Where this stage's window began: the trajectory was on the attractor its window
+        // showed by then.
+        let window_from = elapsed + round.transient;
         elapsed += round.transient + round.samples;
         let mut next = Vec::with_capacity(live.len());
         for (mut p, &i) in ps.into_iter().zip(&live) {
             add(&mut diag[i], &keep.diag(&p));
             if k == last || keep.decided(&p, stage) {
-                keep.finish(
-                    &mut p,
-                    diag[i],
-                    elapsed,
+                let at = Ended {
+                    periods: starts[i].periods + elapsed,
+                    window_from: starts[i].periods + window_from,
                     stage,
-                    &points.params(&spec.params, i),
-                );
-                periods[i] = elapsed;
+                };
+                keep.finish(&mut p, diag[i], at, &points.params(&spec.params, i));
+                periods[i] = at.periods;
                 done[i] = Some(p);
             } else {
                 let (at, mode, tried) = keep.state(&p);
@@ -362,6 +431,39 @@ pub fn drive<K: Keep>(
     Ok((out, periods, timings))
 }
 
+/// Where a point's run ended ([`Keep::finish`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Ended {
+    /// Forcing periods integrated in all.
+    pub periods: u32,
+    /// Periods before the window that decided it.
+    pub window_from: u32,
+    /// The stage it left in.
+    pub stage: Stage,
+}
+
+impl Ended {
+    /// Periods until the trajectory was on the attractor of its class: for a chaotic point
+    /// the whole run (chaos is only known to last as long as it was looked at), otherwise the
+    /// periods before the window that showed the attractor (an upper bound).
+    pub fn settle(&self, class: Class) -> u32 {
+        if class == Class::Chaotic {
+            self.periods
+        } else {
+            self.window_from
+        }
+    }
+}
+
+/// Whether a point whose window concluded by `rule` leaves the run after `stage` (past the
+/// early rounds): undecided points run on; in the long look, so do the chaotic-looking ones.
+fn leaves(rule: Rule, stage: Stage) -> bool {
+    match stage {
+        Stage::Look(..) => !matches!(rule, Rule::Undecided | Rule::PositiveExponent),
+        _ => rule != Rule::Undecided,
+    }
+}
+
 /// [`Keep`] of the runs that keep their samples (sweeps, `point`): each point's result and
 /// verdict; a cycle decided in an early round keeps its n section points.
 struct Samples {
@@ -370,8 +472,10 @@ struct Samples {
     newton_s: f64,
 }
 
-/// A point of [`Samples`]: its result, and its verdict once decided.
-type Sampled = (RunResult, Option<Verdict>);
+/// A point of [`Samples`]: its result, its verdict once decided, its settle time
+/// ([`Ended::settle`]) once finished, and the stable cycle that coexists with its attractor
+/// ([`crate::look`]).
+type Sampled = (RunResult, Option<Verdict>, u32, Option<Carried>);
 
 impl Keep for Samples {
     type Point = Sampled;
@@ -443,7 +547,7 @@ impl Keep for Samples {
                 );
                 rs.into_iter()
                     .zip(verdicts)
-                    .map(|(r, v)| (r, Some(v)))
+                    .map(|(r, v)| (r, Some(v), 0, None))
                     .collect()
             }
         };
@@ -455,7 +559,7 @@ impl Keep for Samples {
         match (&p.1, stage) {
             (None, _) => false,
             (Some(_), Stage::Early(..)) => true,
-            (Some(v), _) => v.rule != crate::classify::Rule::Undecided,
+            (Some(v), _) => leaves(v.rule, stage),
         }
     }
 
@@ -467,15 +571,30 @@ impl Keep for Samples {
         p.0.diag
     }
 
-    fn finish(
-        &self,
-        p: &mut Sampled,
-        diag: Diagnostics,
-        _periods: u32,
-        _stage: Stage,
-        _params: &Params<f64>,
-    ) {
+    fn finish(&self, p: &mut Sampled, diag: Diagnostics, at: Ended, _params: &Params<f64>) {
         p.0.diag = diag;
+        p.2 = p.1.as_ref().map_or(at.periods, |v| at.settle(v.class));
+    }
+}
+
+impl Looked for Samples {
+    fn verdict(&self, p: &Sampled) -> (Class, Rule) {
+        p.1.as_ref()
+            .map_or((Class::Unresolved, Rule::Undecided), |v| (v.class, v.rule))
+    }
+
+    fn exponent(&self, p: &Sampled) -> Exponent {
+        p.0.lyapunov
+    }
+
+    fn seed(&self, p: &Sampled) -> Option<Seed> {
+        let v = p.1.as_ref()?;
+        let c = v.cycle.as_ref().filter(|c| c.is_stable())?;
+        matches!(v.class, Class::Periodic(_)).then_some((c.period, c.point, c.mode))
+    }
+
+    fn coexists(&self, p: &mut Sampled, c: Option<Carried>) {
+        p.3 = c;
     }
 }
 
@@ -492,12 +611,12 @@ fn early_answer(
     match (proposal, verdict) {
         (Class::Periodic(_), Some(v)) => {
             let Class::Periodic(n) = v.class else {
-                return (r, None);
+                return (r, None, 0, None);
             };
             let w = r.samples.len();
             let n = n as usize;
             if n > w {
-                return (r, None);
+                return (r, None, 0, None);
             }
             let ipp = r.sample_impacts as f64 / w as f64;
             let keep = RunResult {
@@ -511,7 +630,7 @@ fn early_answer(
                 },
                 ..r
             };
-            (keep, Some(v))
+            (keep, Some(v), 0, None)
         }
         (Class::NoImpact, _) if r.repeats_without_impacts(spec.period_tol) => (
             r,
@@ -521,43 +640,69 @@ fn early_answer(
                 rule: crate::classify::Rule::NoImpact,
                 tried: Vec::new(),
             }),
+            0,
+            None,
         ),
-        _ => (r, None),
+        _ => (r, None, 0, None),
     }
 }
 
-/// Runs `points` with early termination and the adaptive horizon, keeping samples (sweeps).
+/// Runs `points` with early termination, the adaptive horizon and the long look, keeping
+/// samples (sweeps; `nb` says which points neighbour each other, [`crate::look`]).
 pub fn run(
     engine: &Engine,
     spec: &RunSpec,
     points: &Points,
+    nb: &Neighbours,
     progress: &dyn Progress,
 ) -> Result<Adaptive, EngineError> {
-    run_samples(engine, spec, points, true, progress)
+    run_samples(engine, spec, points, true, nb, progress)
 }
 
 /// [`run`] with the early rounds only where `early` is set (`point` runs the configured
-/// stretch, then the adaptive horizon).
+/// stretch, then the adaptive horizon, then the long look).
 pub fn run_samples(
     engine: &Engine,
     spec: &RunSpec,
     points: &Points,
     early: bool,
+    nb: &Neighbours,
     progress: &dyn Progress,
 ) -> Result<Adaptive, EngineError> {
     let mut keep = Samples {
         settings: spec.settings,
         newton_s: 0.0,
     };
-    let (done, periods, timings) = drive(engine, spec, points, early, &mut keep, progress)?;
+    let (mut done, mut periods, mut timings) =
+        drive(engine, spec, points, early, &mut keep, progress)?;
+    let (t, look) = crate::look::look(
+        engine,
+        spec,
+        points,
+        nb,
+        &mut keep,
+        &mut done,
+        &mut periods,
+        progress,
+    )?;
+    timings.add(&t);
+    let mut settle = Vec::with_capacity(done.len());
+    let mut coexist = Vec::with_capacity(done.len());
     let (results, verdicts) = done
         .into_iter()
-        .map(|(r, v)| (r, v.expect("a finished point has its verdict")))
+        .map(|(r, v, s, c)| {
+            settle.push(s);
+            coexist.push(c);
+            (r, v.expect("a finished point has its verdict"))
+        })
         .unzip();
     Ok(Adaptive {
         results,
         verdicts,
         periods,
+        settle,
+        coexist,
+        look,
         timings,
         newton_s: keep.newton_s,
     })
@@ -598,7 +743,7 @@ impl Keep for Summaries {
             Stage::Early(..) => {
                 matches!(s.class, Class::Periodic(_)) || (s.class == Class::NoImpact && s.repeats)
             }
-            _ => s.rule != crate::classify::Rule::Undecided,
+            _ => leaves(s.rule, stage),
         }
     }
 
@@ -610,22 +755,38 @@ impl Keep for Summaries {
         s.diag
     }
 
-    fn finish(
-        &self,
-        s: &mut Summary,
-        diag: Diagnostics,
-        periods: u32,
-        stage: Stage,
-        params: &Params<f64>,
-    ) {
-        if let (Stage::Early(..), Some(n)) = (stage, s.class.period()) {
+    fn finish(&self, s: &mut Summary, diag: Diagnostics, at: Ended, params: &Params<f64>) {
+        if let (Stage::Early(..), Some(n)) = (at.stage, s.class.period()) {
             s.lyapunov = Exponent {
                 value: floquet_exponent(s.multiplier, n, params),
                 se: 0.0,
             };
         }
         s.diag = diag;
-        s.periods = periods;
+        s.periods = at.periods;
+        s.settle = at.settle(s.class);
+    }
+}
+
+impl Looked for Summaries {
+    fn verdict(&self, s: &Summary) -> (Class, Rule) {
+        (s.class, s.rule)
+    }
+
+    fn exponent(&self, s: &Summary) -> Exponent {
+        s.lyapunov
+    }
+
+    fn seed(&self, s: &Summary) -> Option<Seed> {
+        s.class.period().map(|n| (n, s.final_y, s.final_mode))
+    }
+
+    fn coexists(&self, s: &mut Summary, c: Option<Carried>) {
+        s.coexist = c;
+    }
+
+    fn looked(&self, s: &mut Summary, look: crate::look::Look) {
+        s.looked = look;
     }
 }
 
@@ -641,6 +802,32 @@ impl Keep for Summaries {
 /// whatever stream it ran in. The timings are the streams' sums (each stream's own seconds,
 /// `Timings::streams` = k), so they can add up to more than the wall.
 pub fn run_summaries(
+    engine: &Engine,
+    spec: &RunSpec,
+    points: &Points,
+    early: bool,
+    nb: &Neighbours,
+    progress: &dyn Progress,
+) -> Result<(Vec<Summary>, Timings), EngineError> {
+    let (mut out, mut timings) = configured_summaries(engine, spec, points, early, progress)?;
+    let mut periods: Vec<u32> = out.iter().map(|s| s.periods).collect();
+    let (t, _) = crate::look::look(
+        engine,
+        spec,
+        points,
+        nb,
+        &mut Summaries,
+        &mut out,
+        &mut periods,
+        progress,
+    )?;
+    timings.add(&t);
+    Ok((out, timings))
+}
+
+/// The configured stages of [`run_summaries`] (before the long look), in streams where the
+/// engine overlaps.
+fn configured_summaries(
     engine: &Engine,
     spec: &RunSpec,
     points: &Points,

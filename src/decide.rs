@@ -353,6 +353,15 @@ pub struct Summary {
     pub final_mode: Mode,
     /// Forcing periods integrated.
     pub periods: u32,
+    /// Periods until the trajectory was on its attractor: for a chaotic point the length of
+    /// its look, otherwise the periods before the window that showed the attractor
+    /// ([`crate::adaptive::Ended::settle`]).
+    pub settle: u32,
+    /// A stable cycle at the point's parameters, carried from a neighbour, that coexists with
+    /// its attractor ([`crate::look`]).
+    pub coexist: Option<crate::look::Carried>,
+    /// How long the point was looked at after it looked chaotic ([`crate::look::Looked`]).
+    pub looked: crate::look::Look,
     /// Mean and largest impact speed over the sampled periods (NaN without impacts).
     pub impact_speed: [f64; 2],
     /// Energy dissipated per sampled period by impacts and by friction.
@@ -429,6 +438,9 @@ impl Summary {
             final_y: r.final_y,
             final_mode: r.final_mode,
             periods: spec.periods(),
+            settle: spec.periods(),
+            coexist: None,
+            looked: crate::look::Look::None,
             impact_speed: r.impact_speed,
             dissipation: r.dissipation,
             stick_fraction: r.stick_fraction,

@@ -21,6 +21,7 @@ pub mod decide;
 pub mod engine;
 pub mod error;
 pub mod gpu;
+pub mod look;
 pub mod map;
 pub mod memory;
 pub mod method;

@@ -22,6 +22,9 @@ pub struct RunSpec {
     /// An undecided point may run this many times the configured periods in all
     /// (`run.horizon`, [`crate::adaptive::extensions`]).
     pub horizon: u32,
+    /// The longest look at a point that looks chaotic, in forcing periods from its start
+    /// (`run.look`, [`crate::adaptive::look_stages`]).
+    pub look: u32,
     /// Where Newton's flows run (`run.decide`), and in what on the device
     /// (`run.decide_precision`).
     pub decide: Decide,
@@ -42,6 +45,7 @@ impl RunSpec {
             samples: cfg.run.sample_periods,
             period_tol: cfg.run.period_tol,
             horizon: cfg.run.horizon,
+            look: cfg.run.look,
             decide: cfg.run.decide,
             decide_precision: cfg.run.decide_precision,
             overlap: cfg.run.overlap,

@@ -384,21 +384,23 @@ fn map_classes_agree_with_the_judge_on_the_cpu() {
         &Engine::Cpu,
         Precision::F64,
         0.90,
-        0.08,
+        0.09,
     );
 }
 
 #[test]
 fn map_classes_agree_with_the_judge_on_the_gpu() {
-    // Fails, not skips, without an adapter when RATTLE_REQUIRE_GPU=1 (CI). The strata hold 30
-    // cells the map once called chaotic; about ten of them are chaotic transients of 300-3000
-    // periods (every path, f32 or f64, N = 128 or the reference, leaves them at another time)
-    // that the judge's path left for a cycle and the f32 map's path had not left by 400
-    // periods: on them only this backend falls below 90% (docs/classes.md).
+    // Fails, not skips, without an adapter when RATTLE_REQUIRE_GPU=1 (CI). The fixtures' cells
+    // are computed without their neighbours, so every chaotic-looking one gets the whole long
+    // look (run.look). Of the strata's 9-10 wrong cells (f32 and f64 alike) 5 are cycles near a
+    // period doubling that the exact system has doubled and the map's N = 128 not (period 5
+    // against 10, 3 against 6), 2 are coexisting cycles reached on different paths (period 2
+    // against 50), 2-3 chaotic transients longer than the look: the 3% target is missed there
+    // (docs/classes.md).
     let Some(engine) = common::gpu_engine() else {
         return;
     };
-    check(R_LAMBDA, "r_lambda", &engine, Precision::F32, 0.85, 0.15);
+    check(R_LAMBDA, "r_lambda", &engine, Precision::F32, 0.90, 0.09);
 }
 
 // The stick-slip maps nobody tuned the classes on: a Stribeck map and the eta x lambda map,
@@ -408,7 +410,7 @@ fn map_classes_agree_with_the_judge_on_the_gpu() {
 fn stick_slip_map_classes_agree_with_the_judge_on_the_cpu() {
     let cpu = &Engine::Cpu;
     check(STRIBECK, "stribeck", cpu, Precision::F64, 0.90, 0.03);
-    check(ETA_LAMBDA, "eta_lambda", cpu, Precision::F64, 0.90, 0.03);
+    check(ETA_LAMBDA, "eta_lambda", cpu, Precision::F64, 0.90, 0.05);
 }
 
 #[test]
@@ -417,9 +419,10 @@ fn stick_slip_map_classes_agree_with_the_judge_on_the_gpu() {
         return;
     };
     check(STRIBECK, "stribeck", &engine, Precision::F32, 0.90, 0.03);
-    // 5 of the 115 judged strata cells are wrong in f32 (2 chaotic transients, 3 cycles near a
-    // period doubling, |mu| 0.95-0.96, that the exact system has already doubled): the 3%
-    // target is missed there (docs/classes.md).
+    // 3-5 judged cells of each eta x lambda fixture are wrong: cycles near a period doubling
+    // that the exact system has already doubled (period 1 against 2, 8 against 16, 14 against
+    // 28), and chaotic transients longer than the look (3600 periods) that the judge's path
+    // left within 3 x 10^4: the 3% target is missed there (docs/classes.md).
     let f32 = Precision::F32;
     check(ETA_LAMBDA, "eta_lambda", &engine, f32, 0.90, 0.05);
 }
@@ -432,7 +435,7 @@ fn map_classes_decided_on_the_device_agree_with_the_judge() {
         return;
     };
     let device = (Precision::F32, Decide::Device, None);
-    check_decided(R_LAMBDA, "r_lambda", &engine, device, 0.85, 0.15);
+    check_decided(R_LAMBDA, "r_lambda", &engine, device, 0.90, 0.09);
     check_decided(STRIBECK, "stribeck", &engine, device, 0.90, 0.03);
     check_decided(ETA_LAMBDA, "eta_lambda", &engine, device, 0.90, 0.05);
 }
@@ -454,7 +457,7 @@ fn map_classes_decided_in_f32_on_the_device_agree_with_the_judge() {
     ));
     let before = engine.decide_seconds();
     let device = (Precision::F32, Decide::Device, Some(Precision::F32));
-    check_decided(R_LAMBDA, "r_lambda", &engine, device, 0.85, 0.15);
+    check_decided(R_LAMBDA, "r_lambda", &engine, device, 0.90, 0.09);
     check_decided(STRIBECK, "stribeck", &engine, device, 0.90, 0.03);
     check_decided(ETA_LAMBDA, "eta_lambda", &engine, device, 0.90, 0.05);
     assert!(

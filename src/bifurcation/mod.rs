@@ -240,7 +240,9 @@ pub fn run(
     let (runs, timings): (Vec<(Option<Direction>, Vec<SweepPoint>)>, _) = match continuation {
         None if cfg.run.early_stop => {
             let vary = [cfg.sweep.param];
-            let a = crate::adaptive::run(engine, &spec, &Points::along(&vary, &values), progress)?;
+            let nb = crate::look::Neighbours::line(values.len());
+            let points = Points::along(&vary, &values);
+            let a = crate::adaptive::run(engine, &spec, &points, &nb, progress)?;
             newton_s = a.newton_s;
             let points = values
                 .iter()

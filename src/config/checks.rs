@@ -80,6 +80,13 @@ impl Config {
         if !(1..=1000).contains(&r.horizon) {
             return Err(ConfigError::range("run.horizon", r.horizon, "[1, 1000]"));
         }
+        if r.look > 10_000_000 {
+            return Err(ConfigError::range(
+                "run.look",
+                r.look,
+                "[0, 10000000] (forcing periods)",
+            ));
+        }
         if let Some(o) = r.overlap
             && !(1..=super::MAX_OVERLAP).contains(&o)
         {

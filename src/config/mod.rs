@@ -300,6 +300,11 @@ pub struct RunConfig {
     /// A point still undecided after the configured periods keeps integrating, in doubling
     /// windows, up to this many times the configured periods in all (1: never).
     pub horizon: u32,
+    /// The longest look, in forcing periods from the start, at a point that still looks
+    /// chaotic after the configured periods and is contested (a stable cycle at its parameters,
+    /// a quasi-periodic or impact-free neighbour, or neighbours unknown; [`crate::look`]). At most the configured periods: no look, and no cycles
+    /// carried between points.
+    pub look: u32,
     /// Where Newton's flows run ([`Decide`]).
     pub decide: Decide,
     /// The arithmetic of Newton's part on a GPU adapter (`run.decide`): unset, f64 where the
@@ -323,6 +328,7 @@ impl Default for RunConfig {
             lyapunov_tol: 0.01,
             early_stop: true,
             horizon: 10,
+            look: 3600,
             decide: Decide::Auto,
             decide_precision: None,
             overlap: None,

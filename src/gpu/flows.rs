@@ -274,6 +274,7 @@ impl Gpu {
             samples: 0,
             period_tol: 0.0,
             horizon: 1,
+            look: 0,
             decide: Default::default(),
             decide_precision: None,
             overlap: None,

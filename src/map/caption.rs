@@ -19,12 +19,24 @@ pub fn title(cfg: &Config) -> String {
 }
 
 /// The caption of a map's JSON.
+/// What the long look saw over a map (docs/classes.md): cells looked at to the end
+/// (contested), cells that looked chaotic uncontested, and cells with a coexisting stable
+/// cycle carried from a neighbour (of which chaotic).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct LookSeen {
+    pub contested: usize,
+    pub uncontested: usize,
+    pub coexist: usize,
+    pub coexist_chaotic: usize,
+}
+
 pub(super) fn caption(
     cfg: &Config,
     report: &MapReport,
     counts: &BTreeMap<String, usize>,
     rules: &BTreeMap<String, usize>,
     coexisting: usize,
+    look: LookSeen,
 ) -> String {
     let r = &cfg.run;
     let backend = report.backend.as_deref().unwrap_or("unknown");
@@ -57,6 +69,25 @@ pub(super) fn caption(
             ltol = r.lyapunov_tol,
         )
     });
+    let looked = if r.look > r.transient_periods + r.sample_periods {
+        format!(
+            " A cell still chaotic-looking then is contested where a stable cycle carried from \
+             a neighbouring cell exists at its parameters or a neighbour is quasi-periodic or \
+             impact-free; contested cells ({c}) went on to {l} periods in all and left as soon \
+             as a window showed another attractor, so chaotic there means chaotic for {l} \
+             periods; the {u} others are chaotic after the configured periods \
+             (PREFIX-looked.npy; PREFIX-settle.npy: periods until on the attractor). {k} cells \
+             ({kc} of them chaotic) have a stable cycle carried from a neighbour beside the \
+             attractor their trajectory reached (PREFIX-coexist.npy: its period).",
+            c = look.contested,
+            l = r.look,
+            u = look.uncontested,
+            k = look.coexist,
+            kc = look.coexist_chaotic,
+        )
+    } else {
+        String::new()
+    };
     format!(
         "Class map of the attractor reached at each of {grid}. Each cell starts from y0 = {start:?} and is integrated with {how}; {tr} transient periods, then \
          {sa} sampled periods. Classes (docs/classes.md): period-n only where Newton's method \
@@ -68,7 +99,7 @@ pub(super) fn caption(
          averages of y1 over the two halves of the window agree to {digits} digits) with an \
          exponent shown to be within {bound} of zero (|exponent| + {z} standard errors); aperiodic where no exponent was \
          computed. A cell still undecided gets doubling windows up to {hz} x the configured \
-         periods (PREFIX-periods.npy) and is unresolved only then. Cells by deciding rule: \
+         periods (PREFIX-periods.npy) and is unresolved only then.{looked} Cells by deciding rule: \
          {rules}. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64) with \
          lightness steps inside a family; chaotic near-black, quasi-periodic light green. The \
          legend gives the share and the count of every class shown. Most frequent: \

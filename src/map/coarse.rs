@@ -172,6 +172,9 @@ pub fn coarse_grid<E>(
                             s.lyapunov.value = f64::NAN;
                             s.multiplier = f64::NAN;
                             s.periods = 0;
+                            s.settle = 0;
+                            s.coexist = None;
+                            s.looked = crate::look::Look::None;
                             known[c] = Some((s, 1));
                             inferred[c] = 1;
                         }

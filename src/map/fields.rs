@@ -183,6 +183,12 @@ map_layers! {
     dissipation: [Option<f64>; 2] = |c| c.dissipation.map(finite);
     /// Fraction of the sampled time the masses moved together.
     stick_fraction: [Option<f64>; 1] = |c| [finite(c.stick_fraction)];
+    /// Periods until the motion was on its attractor: for a chaotic cell the length of its look (docs/classes.md), otherwise the periods before the window that showed the attractor (an upper bound); 0 for inferred cells.
+    settle: [u32; 1] = |c| [c.settle];
+    /// The period of a stable cycle carried from a neighbouring cell that exists at this cell's parameters beside the attractor its trajectory reached (0: none found).
+    coexist: [i32; 1] = |c| [c.coexist.map_or(0, |k| k.period as i32)];
+    /// The long look after the cell looked chaotic: 0 none (it did not look chaotic after the configured periods), 1 none beyond them (it did, uncontested), 2 all of it, up to `run.look` periods (contested: a stable cycle carried to its parameters, a quasi-periodic or impact-free neighbour, or neighbours not computed).
+    looked: [u8; 1] = |c| [c.looked.code()];
 }
 
 impl Fields {

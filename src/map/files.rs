@@ -372,12 +372,24 @@ pub fn map_caption(cfg: &Config, fields: &Fields, report: &MapReport) -> String 
         .zip(&fields.attractors)
         .filter(|&(c, &a)| Shown::of(c, a) == Shown::Coexisting)
         .count();
+    let look = super::caption::LookSeen {
+        contested: fields.looked.iter().filter(|&&l| l == 2).count(),
+        uncontested: fields.looked.iter().filter(|&&l| l == 1).count(),
+        coexist: fields.coexist.iter().filter(|&&c| c > 0).count(),
+        coexist_chaotic: fields
+            .coexist
+            .iter()
+            .zip(&fields.class)
+            .filter(|&(&c, &k)| c > 0 && k == Class::Chaotic.code())
+            .count(),
+    };
     caption(
         cfg,
         report,
         &fields.counts(),
         &fields.rule_counts(),
         coexisting,
+        look,
     )
 }
 

@@ -98,6 +98,12 @@ pub fn compute_cells(
 ) -> crate::Result<(Vec<(Summary, u8)>, Timings)> {
     let spec = RunSpec::new(cfg).with_tangent(cfg.tangent(crate::config::Tangent::Largest));
     let k = starts.max(1);
+    let cells: Vec<usize> = cells.into_iter().collect();
+    let nb = crate::look::Neighbours::grid(
+        &cells,
+        (cfg.map.x_points as usize, cfg.map.y_points as usize),
+        k,
+    );
     let cells = cell_values(cfg, cells);
     let values: Vec<f64> = cells
         .chunks(2)
@@ -108,7 +114,7 @@ pub fn compute_cells(
     let vary = [cfg.map.x, cfg.map.y];
     let points = Points::along(&vary, &values).with_states(&y0s);
     let (s, t) =
-        crate::adaptive::run_summaries(engine, &spec, &points, cfg.run.early_stop, progress)?;
+        crate::adaptive::run_summaries(engine, &spec, &points, cfg.run.early_stop, &nb, progress)?;
     let out = s
         .chunks(k)
         .map(|g| {

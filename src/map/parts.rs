@@ -130,8 +130,10 @@ impl Part {
         if !(1..=64).contains(&self.starts) {
             return Err(PartError(format!("starts {} outside [1, 64]", self.starts)));
         }
+        // The adaptive horizon, then the long look (docs/classes.md).
         let total = (self.config.run.transient_periods + self.config.run.sample_periods)
-            * self.config.run.horizon;
+            * self.config.run.horizon
+            + self.config.run.look;
         for c in 0..len {
             let class = f.class[c];
             let codes = Class::min_code()..=crate::classify::MAX_TRIAL_PERIOD as i32;

@@ -43,8 +43,13 @@ pub struct PointReport {
     pub rule: crate::classify::Rule,
     /// The periods Newton tried, in order.
     pub tried_periods: Vec<u32>,
-    /// Forcing periods integrated (more than configured where the point was undecided).
+    /// Forcing periods integrated (more than configured where the point was undecided, or
+    /// looked chaotic and got the long look, docs/classes.md).
     pub periods: u32,
+    /// Periods until the motion was on its attractor: for a chaotic point the length of its
+    /// look (chaos is known to last that long, no longer); otherwise the periods before the
+    /// window that showed the attractor (an upper bound).
+    pub settle: u32,
     /// All four Lyapunov exponents per unit time (tangent dynamics, CPU f64, over the sampled
     /// periods from the final state), largest first; a stick or lock removes directions
     /// exactly, and the exponents of removed directions then only say "very negative".
@@ -76,7 +81,9 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     let spec = RunSpec::new(cfg).with_tangent(tangent);
     let t = Instant::now();
     // The configured run, then the adaptive horizon where it is undecided, as a map cell.
-    let a = crate::adaptive::run_samples(engine, &spec, &Points::single(), false, progress)?;
+    // A single point's neighbours are unknown: a chaotic-looking point gets the whole look.
+    let nb = crate::look::Neighbours::none(1);
+    let a = crate::adaptive::run_samples(engine, &spec, &Points::single(), false, &nb, progress)?;
     let (r, verdict) = (a.results[0].clone(), a.verdicts[0].clone());
     let t_host = Instant::now();
     let class: Class = verdict.class;
@@ -117,6 +124,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         rule: verdict.rule,
         tried_periods: verdict.tried.clone(),
         periods: a.periods[0],
+        settle: a.settle[0],
         lyapunov_spectrum,
         multipliers: verdict
             .cycle
@@ -240,6 +248,19 @@ impl PointReport {
             self.periods,
             self.tried_periods
         )?;
+        if self.class == "chaotic" {
+            writeln!(
+                f,
+                "settled            still chaotic after a look of {} periods",
+                self.settle
+            )?;
+        } else {
+            writeln!(
+                f,
+                "settled            on its attractor within {} periods",
+                self.settle
+            )?;
+        }
         Ok(())
     }
 

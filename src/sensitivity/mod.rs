@@ -297,6 +297,7 @@ fn decide_points(
         &spec,
         &points,
         cfg.run.early_stop,
+        &crate::look::Neighbours::none(points.len()),
         progress,
     )?)
 }

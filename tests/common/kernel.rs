@@ -32,6 +32,7 @@ pub fn eta_spec(s: Settings, transient: u32, samples: u32, f64: bool) -> RunSpec
         samples,
         period_tol: 1e-4,
         horizon: 1,
+        look: 0,
         decide: Default::default(),
         decide_precision: None,
         overlap: None,

@@ -118,6 +118,7 @@ pub fn run_point(
         samples,
         period_tol: 1e-4,
         horizon: 1,
+        look: 0,
         decide: Default::default(),
         decide_precision: None,
         overlap: None,
