@@ -861,7 +861,8 @@ fn configured_summaries(
             .collect();
         handles
             .into_iter()
-            .map(|h| h.join().expect("a stream's thread panicked"))
+            // A stream's panic (an interrupt's included) goes on as itself, not as another.
+            .map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
             .collect::<Vec<_>>()
     });
     let mut out: Vec<Option<Summary>> = vec![None; n];

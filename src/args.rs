@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use rattle::bifurcation::Continuation;
 use rattle::config::{Backend, Config, Overrides, Precision};
 use rattle::map;
-use rattle::model::Param;
+use rattle::request::{Command, Loaded, Request, Source};
 use std::path::{Path, PathBuf};
 
 /// A clap parser for one of the library's named choices (the library knows no clap): the
@@ -100,8 +100,8 @@ pub enum Cmd {
         common: Common,
         /// Points for the state-difference rows (the class rows use the whole sweep); 1 to
         /// 100000 (none would print an agreement of nothing).
-        #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u64).range(1..=100_000))]
-        state_points: u64,
+        #[arg(long, default_value_t = 64, allow_negative_numbers = true)]
+        state_points: i64,
     },
     /// Measure RK4 steps/s of every backend and precision in one run.
     Bench(BenchArgs),
@@ -160,10 +160,10 @@ pub struct SensitivityArgs {
     pub uncertain: Vec<String>,
     /// Draws per matrix of the Saltelli design, 16 to 65536 (overrides sensitivity.samples).
     #[arg(long, allow_negative_numbers = true)]
-    pub samples: Option<u32>,
+    pub samples: Option<i64>,
     /// Seed of the Sobol sequence's scrambling (overrides sensitivity.seed).
     #[arg(long, allow_negative_numbers = true)]
-    pub seed: Option<u32>,
+    pub seed: Option<i64>,
     /// Output prefix: PREFIX.json, PREFIX.csv, PREFIX.png, PREFIX.svg.
     #[arg(long, default_value = "sensitivity")]
     pub out: PathBuf,
@@ -281,132 +281,35 @@ impl Common {
             .map_or(vec![Backend::Gpu, Backend::Cpu], |b| vec![b])
     }
 
-    /// The configuration of `path` with this command line's overrides, validated.
-    pub fn load_from(&self, path: &Path) -> Result<Config> {
-        self.load_as(path, self.precision, self.backend)
+    /// The request for the configuration at `path` with this command line's overrides.
+    pub fn request(&self, path: &Path) -> Request {
+        Request {
+            source: Source::File(path.to_path_buf()),
+            sets: self.set.clone(),
+            flags: Overrides {
+                eta: self.eta,
+                restitution: self.restitution,
+                lambda: self.lambda,
+                precision: self.precision,
+                backend: self.backend,
+            },
+        }
     }
 
-    /// The configuration for `point --plot`, which integrates in CPU f64 whatever is named:
-    /// validated as f64, so a value only f32 cannot hold is not refused.
-    pub fn load_plot(&self) -> Result<Config> {
-        self.load_as(&self.config, Some(Precision::F64), Some(Backend::Cpu))
+    /// The configuration at `path` for `cmd`, validated as the library validates it for every
+    /// caller; its notes and warnings are printed.
+    pub fn load(&self, path: &Path, cmd: Command) -> Result<Config> {
+        Ok(said(self.request(path).load(cmd)?))
     }
+}
 
-    fn load_as(
-        &self,
-        path: &Path,
-        precision: Option<Precision>,
-        backend: Option<Backend>,
-    ) -> Result<Config> {
-        // A flag and a `--set` of the same key: one would be dropped unread (and unchecked).
-        let flags = [
-            ("--eta", "model.eta", self.eta.is_some()),
-            ("--R", "model.R", self.restitution.is_some()),
-            ("--lambda", "model.lambda", self.lambda.is_some()),
-            ("--precision", "method.precision", self.precision.is_some()),
-            ("--backend", "method.backend", self.backend.is_some()),
-        ];
-        // The same key twice: the last would win silently. Bare keys are the model's.
-        let full_key = |set: &str| {
-            let key = set.split('=').next().unwrap_or("").trim().to_string();
-            if key.contains('.') {
-                key
-            } else {
-                format!("model.{key}")
-            }
-        };
-        for (i, a) in self.set.iter().enumerate() {
-            if let Some(b) = self.set[..i].iter().find(|b| full_key(b) == full_key(a)) {
-                anyhow::bail!(
-                    "--set {b} and --set {a} both set `{}`: give one of them",
-                    full_key(a)
-                );
-            }
-        }
-        for set in &self.set {
-            let key = set.split('=').next().unwrap_or("").trim();
-            for (flag, full, given) in flags {
-                let short = full.split('.').nth(1).unwrap_or(full);
-                if given && (key == full || key == short) {
-                    anyhow::bail!("{flag} and --set {set} both set `{full}`: give one of them");
-                }
-            }
-        }
-        let o = Overrides {
-            eta: self.eta,
-            restitution: self.restitution,
-            lambda: self.lambda,
-            precision,
-            backend,
-        };
-        let cfg = Config::load_with(path, &self.set, &o)?;
-        for n in cfg.notes() {
-            eprintln!("note: {n}");
-        }
-        Ok(cfg)
+/// The configuration, once its notes and warnings are printed.
+pub fn said(l: Loaded) -> Config {
+    for n in &l.notes {
+        eprintln!("note: {n}");
     }
-
-    pub fn load_map(&self, path: &Path) -> Result<Config> {
-        let cfg = self.load_from(path)?;
-        cfg.check_map()?;
-        self.refuse_varied(&[cfg.map.x], "map.x")?;
-        self.refuse_varied(&[cfg.map.y], "map.y")?;
-        for w in cfg.without_effect(&[cfg.map.x, cfg.map.y]) {
-            log::warn!("{w}");
-        }
-        Ok(cfg)
+    for w in &l.warnings {
+        log::warn!("{w}");
     }
-
-    /// Refuses a flag or `--set` value for a parameter the command varies (a map axis, the
-    /// swept parameter, an uncertain one), named by `by`: it would be dropped unread. Lambda
-    /// sets fs and fk, so it overlaps both.
-    pub fn refuse_varied(&self, varied: &[Param], by: &str) -> Result<()> {
-        let flags = [
-            ("--eta", Param::Eta, self.eta),
-            ("--R", Param::Restitution, self.restitution),
-            ("--lambda", Param::Lambda, self.lambda),
-        ];
-        for &v in varied {
-            for (flag, p, value) in flags {
-                if let Some(x) = value.filter(|_| p.overlaps(v)) {
-                    anyhow::bail!(
-                        "{flag} {x} sets `{}`, which {by} varies ({}): its value would be dropped; \
-                         give the range there instead",
-                        p.name(),
-                        v.name()
-                    );
-                }
-            }
-            for set in &self.set {
-                let key = set.split('=').next().unwrap_or("").trim();
-                let key = key.strip_prefix("model.").unwrap_or(key);
-                if key.parse::<Param>().is_ok_and(|p| p.overlaps(v)) {
-                    anyhow::bail!(
-                        "--set {set} sets `{key}`, which {by} varies ({}): its value would be \
-                         dropped; give the range there instead",
-                        v.name()
-                    );
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// With `[basin]` checked too.
-    pub fn load_basin(&self) -> Result<Config> {
-        let cfg = self.load_from(&self.config)?;
-        cfg.check_basin()?;
-        Ok(cfg)
-    }
-
-    /// With `[sweep]` checked too, for the commands that sweep.
-    pub fn load_sweep(&self) -> Result<Config> {
-        let cfg = self.load_from(&self.config)?;
-        cfg.check_sweep()?;
-        self.refuse_varied(&[cfg.sweep.param], "sweep.param")?;
-        for w in cfg.without_effect(&[cfg.sweep.param]) {
-            log::warn!("{w}");
-        }
-        Ok(cfg)
-    }
+    l.cfg
 }

@@ -122,6 +122,26 @@ fn bench_samples(periods: u32, lyapunov: bool) -> u32 {
     if lyapunov { periods / 2 } else { 2 }
 }
 
+/// The bench's sizes as a caller gives them (any integer, a Python caller's included), refused
+/// by their own option where out of range.
+pub fn sizes(points: i64, periods: i64) -> Result<(usize, u32)> {
+    let range = |option, value: i64, allowed: String| {
+        Err(OptionError::Range {
+            option,
+            value: value.to_string(),
+            allowed,
+        }
+        .into())
+    };
+    let Some(points) = usize::try_from(points).ok().filter(|&p| p >= 1) else {
+        return range("points", points, ">= 1".into());
+    };
+    match u32::try_from(periods) {
+        Ok(p) if (3..=MAX_PERIODS).contains(&p) => Ok((points, p)),
+        _ => range("periods", periods, format!("3 to {MAX_PERIODS}")),
+    }
+}
+
 /// The bench's sizes, each refused by its own option: points and periods in range, then the
 /// memory of the points at the samples they keep.
 fn check_sizes(points: usize, periods: u32, lyapunov: bool) -> Result<()> {
@@ -170,6 +190,7 @@ pub fn bench(
     periods: u32,
     backends: &[Backend],
     lyapunov: bool,
+    progress: &dyn crate::progress::Progress,
 ) -> Result<Vec<Result<BenchRow>>> {
     let (mut spec, values) = bench_sweep(cfg, points, periods, lyapunov)?;
     let mut rows = Vec::new();
@@ -189,7 +210,7 @@ pub fn bench(
             spec.precision = prec;
             spec.settings.lyapunov = lyap;
             let res = engine
-                .run(&spec, &Points::along(&[Param::Eta], &values), &Silent)
+                .run(&spec, &Points::along(&[Param::Eta], &values), progress)
                 .map_err(Error::from)
                 .map(|(rs, t)| {
                     if prec == Precision::F64 && !lyap {
@@ -201,6 +222,8 @@ pub fn bench(
                 });
             rows.push(res);
         }
+        // Between rows too, so that an interrupt (a Python caller's Ctrl-C) ends the bench.
+        progress.advance(0);
         if !ends.is_empty() {
             rows.push(decide_row(&engine, &spec, &values, &ends, Precision::F64));
             if matches!(engine, Engine::Gpu(_)) {
@@ -208,6 +231,7 @@ pub fn bench(
             }
         }
         for prec in [Precision::F32, Precision::F64] {
+            progress.advance(0);
             rows.push(bare_row(&engine, &spec, &values, prec));
         }
     }
@@ -216,6 +240,7 @@ pub fn bench(
         // the kernel's speed target.
         spec.precision = Precision::F64;
         spec.settings.lyapunov = false;
+        progress.advance(0);
         let t0 = std::time::Instant::now();
         crate::engine::run_scalar(&spec, &Points::along(&[Param::Eta], &values));
         let secs = t0.elapsed().as_secs_f64();
@@ -482,7 +507,7 @@ pub fn report(cfg: &Config, o: &BenchOptions) -> Result<String> {
     if o.output == BenchOutput::Ladder {
         return self::ladder(cfg, points, periods, o.lyapunov);
     }
-    let rows = bench(cfg, points, periods, &o.backends, o.lyapunov)?;
+    let rows = bench(cfg, points, periods, &o.backends, o.lyapunov, &Silent)?;
     let mut s = bench_table(&rows);
     if o.output == BenchOutput::TableAndJson {
         let ok: Vec<_> = rows.iter().flatten().collect();

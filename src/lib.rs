@@ -33,6 +33,7 @@ pub mod progress;
 pub mod real;
 pub mod reference;
 pub mod render;
+pub mod request;
 pub mod sensitivity;
 pub mod spec;
 pub mod stability;

@@ -11,6 +11,7 @@ use rattle::engine::Engine;
 use rattle::error::OptionError;
 use rattle::map::{self, MapOptions};
 use rattle::output::check_prefix;
+use rattle::request::Command;
 use rattle::spec::RunSpec;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -118,7 +119,7 @@ fn run(cli: Cli) -> Result<()> {
             out,
             continuation,
         } => {
-            let cfg = common.load_sweep()?;
+            let cfg = common.load(&common.config, Command::Sweep)?;
             check_prefix(&out, &["csv", "png", "json"])?;
             let engine = Engine::open(cfg.method.backend)?;
             let what = bifurcation::work(&engine, &cfg, continuation);
@@ -130,7 +131,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Cmd::Map(a) => map_command(a)?,
         Cmd::Basin { common, out } => {
-            let cfg = common.load_basin()?;
+            let cfg = common.load(&common.config, Command::Basin)?;
             check_prefix(&out, &["png", "npy", "json"])?;
             let engine = Engine::open(cfg.method.backend)?;
             let pb = progress_bar(rattle::basin::work(&engine, &cfg), "basin");
@@ -153,7 +154,7 @@ fn run(cli: Cli) -> Result<()> {
             transient,
         } => {
             use rattle::accuracy::{Options, study, write_outputs};
-            let cfg = common.load_sweep()?;
+            let cfg = common.load(&common.config, Command::Sweep)?;
             check_prefix(&out, &["csv", "png", "json"])?;
             let t0 = Instant::now();
             let o = Options {
@@ -175,8 +176,8 @@ fn run(cli: Cli) -> Result<()> {
             common,
             state_points,
         } => {
-            let cfg = common.load_sweep()?;
-            say(rattle::validate::validate(&cfg, state_points as usize)?)?;
+            let cfg = common.load(&common.config, Command::Sweep)?;
+            say(rattle::validate::validate(&cfg, state_points)?)?;
             vec![]
         }
         Cmd::Bench(a) => {
@@ -193,10 +194,10 @@ fn run(cli: Cli) -> Result<()> {
 /// `rattle point`: the text or JSON of one point, or with `--plot` its figure.
 fn point_command(a: PointArgs) -> Result<Vec<PathBuf>> {
     let Some(out) = a.plot else {
-        return point(&a.common.load_from(&a.common.config)?, a.json);
+        return point(&a.common.load(&a.common.config, Command::Point)?, a.json);
     };
     use rattle::point::plot::{PlotOptions, compute, write_outputs};
-    let cfg = a.common.load_plot()?;
+    let cfg = a.common.load(&a.common.config, Command::Plot)?;
     check_prefix(&out, &["png", "svg", "json"])?;
     let o = PlotOptions {
         periods: a.periods,
@@ -213,7 +214,7 @@ fn point_command(a: PointArgs) -> Result<Vec<PathBuf>> {
 /// `rattle map`: the config with `--risk`, the compared config, the options, then the map.
 fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
     let common = &a.common;
-    let mut cfg = common.load_map(&common.config)?;
+    let mut cfg = common.load(&common.config, Command::Map)?;
     if let Some(r) = &a.risk {
         cfg.map.risk = r
             .split(',')
@@ -231,7 +232,7 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
         .compare
         .as_ref()
         .map(|p| {
-            c.load_map(p)
+            c.load(p, Command::Map)
                 .with_context(|| format!("--compare {}", p.display()))
         })
         .transpose()?;
@@ -249,15 +250,12 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
 /// `rattle sensitivity`: the uncertain parameters checked before computing, then the study.
 fn sensitivity_command(a: SensitivityArgs) -> Result<Vec<PathBuf>> {
     let common = &a.common;
-    let cfg = common.load_from(&common.config)?;
-    let o = rattle::sensitivity::Options::from_config(
-        &cfg,
+    let (loaded, o) = common.request(&common.config).sensitivity(
         (!a.uncertain.is_empty()).then_some(&a.uncertain[..]),
-        a.samples.map(|n| n as usize),
+        a.samples,
         a.seed,
     )?;
-    let params: Vec<rattle::model::Param> = o.uncertain.iter().map(|u| u.param).collect();
-    common.refuse_varied(&params, "--uncertain")?;
+    let cfg = args::said(loaded);
     check_prefix(&a.out, &["json", "csv", "png", "svg"])?;
     let engine = Engine::open(cfg.method.backend)?;
     let spec = RunSpec::new(&cfg);
@@ -314,7 +312,7 @@ fn figure_command(a: FigureArgs) -> Result<Vec<PathBuf>> {
 
 /// `rattle bench`: the table (and JSON) of every backend and precision, or the ladder.
 fn bench_command(a: BenchArgs) -> Result<String> {
-    let cfg = a.common.load_sweep()?;
+    let cfg = a.common.load(&a.common.config, Command::Sweep)?;
     let output = match (a.ladder, a.json) {
         (true, _) => bench::BenchOutput::Ladder,
         (false, true) => bench::BenchOutput::TableAndJson,

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, Instant};
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -86,11 +86,35 @@ pub struct Staged {
 struct Manifest {
     #[serde(default)]
     files: Vec<String>,
+    /// Each file's fingerprint as rattle wrote it ([`fingerprint`]): what proves a file is
+    /// still the one the set wrote.
+    #[serde(default)]
+    file_sums: std::collections::BTreeMap<String, String>,
 }
 
-/// The files the JSON at `json` lists as its set's (none if it lists none or is not a set's
-/// JSON), among those that exist as files. Only plain names that begin with the JSON's own stem
-/// (`x.csv`, `x-class.npy` for `x.json`) count: a JSON cannot name files elsewhere.
+/// A file's size and CRC-32, `SIZE:CRC` (hex); None where it cannot be read.
+fn fingerprint(path: &Path) -> Option<String> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).ok()?;
+    let mut h = crc32fast::Hasher::new();
+    let mut buf = vec![0u8; 1 << 16];
+    let mut size = 0u64;
+    loop {
+        let n = f.read(&mut buf).ok()?;
+        if n == 0 {
+            break;
+        }
+        h.update(&buf[..n]);
+        size += n as u64;
+    }
+    Some(format!("{size}:{:08x}", h.finalize()))
+}
+
+/// The files of the set whose JSON is `json` that are still as that set wrote them: listed in
+/// its `files`, plain names beginning with the JSON's own stem (`x.csv`, `x-class.npy` for
+/// `x.json`, so a JSON cannot name files elsewhere), and with the size and CRC the set recorded
+/// in `file_sums` at its commit. A JSON rattle did not write (no sums), a file written since by
+/// anyone else, or one another set has replaced, is never among them.
 fn listed_by(json: &Path) -> Vec<PathBuf> {
     let is_file = |p: &Path| std::fs::symlink_metadata(p).is_ok_and(|m| m.is_file());
     if !is_file(json) {
@@ -112,9 +136,31 @@ fn listed_by(json: &Path) -> Vec<PathBuf> {
         .iter()
         .filter(|n| Path::new(n).file_name().and_then(|f| f.to_str()) == Some(n.as_str()))
         .filter(|n| n.starts_with(&format!("{stem}.")) || n.starts_with(&format!("{stem}-")))
-        .map(|n| dir.join(n))
-        .filter(|p| is_file(p))
+        .map(|n| (dir.join(n), m.file_sums.get(n)))
+        .filter(|(p, sum)| is_file(p) && sum.is_some() && fingerprint(p).as_ref() == *sum)
+        .map(|(p, _)| p)
         .collect()
+}
+
+/// A file of another set that a set at `prefix` would write over: one that the JSON of a
+/// shorter prefix (`fig.json` for `fig-compare`) lists as its own, still as it wrote it, and
+/// whose name begins with `prefix`'s (`fig-compare.png`). Returns the file and that JSON.
+fn owned_by_another_set(prefix: &Path) -> Option<(PathBuf, PathBuf)> {
+    let name = prefix.file_name()?.to_str()?;
+    let dir = prefix.parent().unwrap_or(Path::new(""));
+    let mut stem = name;
+    while let Some((head, _)) = stem.rsplit_once('-') {
+        stem = head;
+        let json = dir.join(format!("{stem}.json"));
+        if let Some(f) = listed_by(&json).into_iter().find(|f| {
+            f.file_name().and_then(|n| n.to_str()).is_some_and(|n| {
+                n.starts_with(&format!("{name}.")) || n.starts_with(&format!("{name}-"))
+            })
+        }) {
+            return Some((f, json));
+        }
+    }
+    None
 }
 
 /// Distinguishes the sets of one process.
@@ -126,10 +172,27 @@ static SET: AtomicU64 = AtomicU64::new(0);
 /// files, if any, are removed by the next commit on the prefix).
 static RENAMING: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
-/// Waits for a commit under way, then holds off the next one: take it in an interrupt handler
-/// before ending the process.
+/// The temporary files of every set of this process not yet committed or dropped: what an
+/// interrupt removes before the process ends ([`interrupt_guard`]).
+static PENDING: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn pending() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    PENDING.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn forget(tmps: &[PathBuf]) {
+    pending().retain(|p| !tmps.contains(p));
+}
+
+/// Waits for a commit under way, then holds off the next one, and removes the temporary files
+/// of the sets not committed: take it in an interrupt handler before ending the process, which
+/// then leaves no `.partial` file.
 pub fn interrupt_guard() -> std::sync::MutexGuard<'static, ()> {
-    RENAMING.lock().unwrap_or_else(|e| e.into_inner())
+    let held = RENAMING.lock().unwrap_or_else(|e| e.into_inner());
+    for p in pending().drain(..) {
+        let _ = std::fs::remove_file(p);
+    }
+    held
 }
 
 /// Exit status of a process ended by an interrupt (128 + SIGINT).
@@ -150,6 +213,7 @@ impl Staged {
             SET.fetch_add(1, Ordering::Relaxed)
         ));
         let tmp = PathBuf::from(tmp);
+        pending().push(tmp.clone());
         self.files.push((tmp.clone(), final_path.to_path_buf()));
         tmp
     }
@@ -216,8 +280,10 @@ impl Staged {
             return Ok(Vec::new());
         };
         let lock = DirLock::acquire(first)?;
-        let renaming = interrupt_guard();
+        let renaming = RENAMING.lock().unwrap_or_else(|e| e.into_inner());
+        let tmps: Vec<PathBuf> = files.iter().map(|f| f.0.clone()).collect();
         let result = self.rename_all(files);
+        forget(&tmps);
         // The lock file goes before an interrupt waiting on `renaming` may end the process.
         drop(lock);
         drop(renaming);
@@ -233,6 +299,11 @@ impl Staged {
                 self.files = files.clone();
                 return Err(other(dst, "a directory is in the way"));
             }
+        }
+        if let Err(e) = self.seal(&files) {
+            // Not committed: the staged files are removed with the set.
+            self.files = files.clone();
+            return Err(e);
         }
         // What the set being replaced listed and this one does not write, read before its JSON
         // is replaced.
@@ -269,6 +340,52 @@ impl Staged {
         }
         remove_orphans(&done);
         Ok(done)
+    }
+}
+
+impl Staged {
+    /// Records in the set's JSON (staged, not yet in place) the fingerprint of every file the
+    /// set writes, as `file_sums`: a later set removes only files that still match them. The
+    /// entry is appended to the JSON object in place (a large set's JSON is not read back).
+    fn seal(&self, files: &[(PathBuf, PathBuf)]) -> Result<(), OutputError> {
+        use std::io::{Read, Seek, SeekFrom, Write};
+        let Some(json) = self.manifest.clone() else {
+            return Ok(());
+        };
+        let Some((tmp, _)) = files.iter().find(|f| f.1 == json) else {
+            return Ok(());
+        };
+        let bad = |e: String| other(&json, e);
+        let mut sums = serde_json::Map::new();
+        for (t, dst) in files.iter().filter(|f| f.1 != json) {
+            let name = dst.file_name().map(|n| n.to_string_lossy().into_owned());
+            let (Some(name), Some(sum)) = (name, fingerprint(t)) else {
+                return Err(bad(format!("cannot read back {}", t.display())));
+            };
+            sums.insert(name, sum.into());
+        }
+        // Files of the run committed by a set of their own before this one, in place by now.
+        for p in &self.listed {
+            if let (Some(name), Some(sum)) = (p.file_name(), fingerprint(p)) {
+                sums.insert(name.to_string_lossy().into_owned(), sum.into());
+            }
+        }
+        let sums = serde_json::to_string(&sums).map_err(|e| bad(e.to_string()))?;
+        let mut f = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(tmp)
+            .map_err(|e| bad(e.to_string()))?;
+        // The JSON is an object with `files` at least: its last byte closes it.
+        let end = f.seek(SeekFrom::End(-1)).map_err(|e| bad(e.to_string()))?;
+        let mut last = [0u8];
+        f.read_exact(&mut last).map_err(|e| bad(e.to_string()))?;
+        if last[0] != b'}' {
+            return Err(bad("the set's JSON is not an object".into()));
+        }
+        f.seek(SeekFrom::Start(end))
+            .map_err(|e| bad(e.to_string()))?;
+        write!(f, ",\n  \"file_sums\": {sums}\n}}").map_err(|e| bad(e.to_string()))
     }
 }
 
@@ -326,100 +443,41 @@ impl Drop for Staged {
         for (tmp, _) in &self.files {
             let _ = std::fs::remove_file(tmp);
         }
+        forget(&self.files.iter().map(|f| f.0.clone()).collect::<Vec<_>>());
     }
 }
 
-/// A lock file in the directory of the outputs, held while a set is renamed into place.
-struct DirLock(PathBuf);
+/// The lock of the outputs' directory, held while a set is renamed into place: the
+/// operating system's lock on the directory itself (`flock`), released when it is dropped or
+/// when its process ends, however it ends. No lock file is left behind, and no lock outlives
+/// its run.
+struct DirLock(#[allow(dead_code)] std::fs::File);
 
 impl DirLock {
-    /// A lock older than this belongs to a run that died during its (short) commit.
-    const STALE: Duration = Duration::from_secs(60);
-
     fn acquire(file: &Path) -> Result<DirLock, OutputError> {
-        let dir = file.parent().filter(|p| !p.as_os_str().is_empty());
-        let path = dir.unwrap_or(Path::new(".")).join(".rattle-commit.lock");
+        let dir = file
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let f = std::fs::File::open(dir).map_err(io(dir))?;
         let t = Instant::now();
         let mut told = false;
         loop {
-            match std::fs::OpenOptions::new()
-                .write(true)
-                .create_new(true)
-                .open(&path)
-            {
-                Ok(mut f) => {
-                    // The holder's process id, so that a lock left by a killed run is known
-                    // as stale at once.
-                    let _ = std::io::Write::write_all(
-                        &mut f,
-                        std::process::id().to_string().as_bytes(),
-                    );
-                    return Ok(DirLock(path));
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                    let age = std::fs::metadata(&path)
-                        .and_then(|m| m.modified())
-                        .ok()
-                        .and_then(|m| SystemTime::now().duration_since(m).ok());
-                    let holder = Self::holder(&path);
-                    if holder == Holder::Gone || age.is_some_and(|a| a > Self::STALE) {
-                        let _ = std::fs::remove_file(&path);
-                        continue;
-                    }
-                    if t.elapsed() > 2 * Self::STALE {
-                        return Err(other(&path, "output directory locked by another run"));
-                    }
+            match f.try_lock() {
+                Ok(()) => return Ok(DirLock(f)),
+                Err(std::fs::TryLockError::WouldBlock) => {
                     if !told && t.elapsed() > Duration::from_secs(1) {
                         told = true;
-                        let who = match holder {
-                            Holder::Alive(pid) => format!("process {pid}"),
-                            _ => "another run".into(),
-                        };
                         log::info!(
-                            "waiting for {who} to finish committing its outputs ({}; a lock \
-                             older than {} s is taken over)",
-                            path.display(),
-                            Self::STALE.as_secs()
+                            "waiting for another run to finish committing its outputs in {}",
+                            dir.display()
                         );
                     }
                     std::thread::sleep(Duration::from_millis(5));
                 }
-                Err(e) => return Err(io(&path)(e)),
+                Err(std::fs::TryLockError::Error(e)) => return Err(io(dir)(e)),
             }
         }
-    }
-
-    /// Who holds the lock at `path`: a live process, a process that is gone (its id is not
-    /// in /proc), or unknown (no id written yet, or no /proc on this system).
-    fn holder(path: &Path) -> Holder {
-        let Some(pid) = std::fs::read_to_string(path)
-            .ok()
-            .and_then(|t| t.trim().parse::<u32>().ok())
-        else {
-            return Holder::Unknown;
-        };
-        let proc = Path::new("/proc");
-        if !proc.join("self").exists() {
-            Holder::Unknown
-        } else if proc.join(pid.to_string()).exists() {
-            Holder::Alive(pid)
-        } else {
-            Holder::Gone
-        }
-    }
-}
-
-/// See [`DirLock::holder`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Holder {
-    Alive(u32),
-    Gone,
-    Unknown,
-}
-
-impl Drop for DirLock {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.0);
     }
 }
 
@@ -452,6 +510,9 @@ pub fn with_suffix(prefix: &Path, suffix: &str) -> PathBuf {
     PathBuf::from(s)
 }
 
+/// The extensions of every file a set writes.
+const OUTPUT_EXTS: [&str; 5] = ["png", "svg", "json", "csv", "npy"];
+
 /// Checks, before any computation, that files `PREFIX.*` can be written: the prefix names a
 /// file (not a directory), its directory exists and is writable, and none of `PREFIX.ext`
 /// for `exts` is a directory.
@@ -482,6 +543,30 @@ pub fn check_prefix(prefix: &Path, exts: &[&str]) -> Result<(), OutputError> {
         if p.is_dir() {
             return Err(other(&p, "a directory is in the way"));
         }
+    }
+    // A directory in the way of any other file of the set (`PREFIX-class.npy`), refused now
+    // rather than after computing.
+    let name = prefix.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for e in entries.flatten() {
+            let n = e.file_name();
+            let Some(n) = n.to_str() else { continue };
+            let ours = n.starts_with(&format!("{name}-"))
+                && OUTPUT_EXTS.iter().any(|x| n.ends_with(&format!(".{x}")));
+            if ours && e.file_type().is_ok_and(|t| t.is_dir()) {
+                return Err(other(&e.path(), "a directory is in the way"));
+            }
+        }
+    }
+    if let Some((file, json)) = owned_by_another_set(prefix) {
+        return Err(other(
+            &file,
+            format!(
+                "it belongs to the set of {} (written by an earlier run), which a set at this \
+                 prefix would overwrite; choose another prefix",
+                json.display()
+            ),
+        ));
     }
     Ok(())
 }

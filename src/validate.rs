@@ -70,9 +70,22 @@ fn run_configured(
     )
 }
 
+/// Most points of the state table (`--state-points`).
+pub const MAX_STATE_POINTS: i64 = 100_000;
+
 /// The validation report: state differences after 1, 10 and 100 periods from the same start
 /// (`state_points` points spread over the sweep), and class agreement over the whole sweep.
-pub fn validate(cfg: &Config, state_points: usize) -> Result<String> {
+pub fn validate(cfg: &Config, state_points: i64) -> Result<String> {
+    // Checked before the adapter opens: no state table of nothing, none beyond memory.
+    if !(1..=MAX_STATE_POINTS).contains(&state_points) {
+        return Err(crate::error::OptionError::Range {
+            option: "state-points",
+            value: state_points.to_string(),
+            allowed: format!("1 to {MAX_STATE_POINTS}"),
+        }
+        .into());
+    }
+    let state_points = state_points as usize;
     let gpu = Engine::open(Backend::Gpu)?;
     if !matches!(gpu, Engine::Gpu(_)) {
         return Err(crate::engine::EngineError::NeedsGpu {

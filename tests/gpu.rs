@@ -324,11 +324,15 @@ fn small_map_classes_agree_with_cpu() {
         assert!(periodic.len() >= 40);
         assert!(pagree as f64 >= 0.95 * periodic.len() as f64);
         assert!(agree as f64 >= 0.95 * cells as f64);
+        // With the long look a transient can also end undecided on one side (a cycle tried,
+        // not confirmed, at the look's end) and chaotic on the other.
         for i in (0..cells).filter(|&i| cpu[i].class != gpu_classes[i]) {
             let pair = [cpu[i].class, gpu_classes[i]];
             assert!(
                 pair.contains(&Class::Chaotic)
-                    && pair.iter().any(|c| matches!(c, Class::Periodic(_))),
+                    && pair
+                        .iter()
+                        .any(|c| matches!(c, Class::Periodic(_) | Class::Unresolved)),
                 "cell {i}: {pair:?}"
             );
         }

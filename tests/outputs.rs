@@ -142,22 +142,136 @@ fn gone_pid() -> u32 {
 }
 
 #[test]
-fn a_lock_left_by_a_killed_run_is_taken_over_at_once() {
-    // A run killed during its commit leaves `.rattle-commit.lock` holding its process id: the
-    // next run sees that the process is gone and takes the lock over instead of waiting 60 s
-    // without a word.
-    let (d, cfg) = setup("stale-lock");
-    let pid = gone_pid();
-    let lock = d.join(".rattle-commit.lock");
-    std::fs::write(&lock, pid.to_string()).unwrap();
+fn a_commit_waits_for_the_directorys_lock_and_a_killed_holder_releases_it() {
+    // The commit lock is the operating system's lock on the output directory (`flock`): a run
+    // waits while another process holds it, and goes on as soon as that process ends, killed
+    // or not; a `.rattle-commit.lock` file of an older build blocks nothing.
+    let (d, cfg) = setup("dir-lock");
+    std::fs::write(d.join(".rattle-commit.lock"), "1").unwrap();
+    // `-o`: the lock is flock's own, not inherited by its command, so killing flock ends it.
+    let mut holder = std::process::Command::new("flock")
+        .arg("-o")
+        .arg(&*d)
+        .args(["sleep", "30"])
+        .spawn()
+        .expect("flock (util-linux) holds the directory's lock");
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let mut cmd = rattle();
+    cmd.args(["map", "--backend", "cpu", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(d.join("w"))
+        .stderr(std::process::Stdio::piped());
+    let child = cmd.spawn().unwrap();
+    // Held: after its computation the run waits, and says so, without committing.
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    assert!(!d.join("w.json").exists(), "committed under another's lock");
+    holder.kill().unwrap();
+    holder.wait().unwrap();
     let t = std::time::Instant::now();
-    let out = map(&cfg, &d.join("m"), &[]);
+    let out = child.wait_with_output().unwrap();
     let err = stderr(&out);
     assert!(out.status.success(), "{err}");
-    assert!(!err.contains("waiting"), "{err}");
-    // Not a speed claim: the old behaviour waited for the lock's 60 s age limit.
+    assert!(err.contains("waiting for another run"), "{err}");
+    // Not a speed claim: a lock that outlived its holder would keep it waiting forever.
     assert!(t.elapsed() < std::time::Duration::from_secs(30));
-    assert!(d.join("m.json").exists() && !lock.exists());
+    assert!(d.join("w.json").exists());
+}
+
+#[test]
+fn two_processes_committing_to_one_folder_at_once_leave_both_sets_whole() {
+    let (d, cfg) = setup("two-commits");
+    for trial in 0..4 {
+        let spawn = |p: &str| {
+            rattle()
+                .args(["map", "--backend", "cpu", "--config"])
+                .arg(&cfg)
+                .arg("--out")
+                .arg(d.join(p))
+                .stderr(std::process::Stdio::null())
+                .spawn()
+                .unwrap()
+        };
+        let (mut a, mut b) = (spawn("a"), spawn("b"));
+        assert!(a.wait().unwrap().success() && b.wait().unwrap().success());
+        for p in ["a", "b"] {
+            let j = common::json(&d.join(format!("{p}.json")));
+            for f in j["files"].as_array().unwrap() {
+                assert!(
+                    d.join(f.as_str().unwrap()).is_file(),
+                    "trial {trial}: {f} missing"
+                );
+            }
+        }
+        let left: Vec<_> = std::fs::read_dir(&d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .filter(|n| n.contains("partial"))
+            .collect();
+        assert!(left.is_empty(), "trial {trial}: {left:?}");
+    }
+}
+
+#[test]
+fn a_json_rattle_did_not_write_removes_nothing() {
+    // Reliability round 5, H2: any PREFIX.json with a `files` list was trusted, and a new set
+    // deleted the user's files it named. Only files a set of rattle's wrote, still as written
+    // (size and CRC in its `file_sums`), are removed.
+    let (d, cfg) = setup("foreign-json");
+    std::fs::write(d.join("m.json"), r#"{"files":["m.csv","m-raw.csv"]}"#).unwrap();
+    for f in ["m.csv", "m-raw.csv"] {
+        std::fs::write(d.join(f), "the user's own").unwrap();
+    }
+    assert!(map(&cfg, &d.join("m"), &[]).status.success());
+    for f in ["m.csv", "m-raw.csv"] {
+        assert_eq!(
+            std::fs::read_to_string(d.join(f)).unwrap(),
+            "the user's own"
+        );
+    }
+    // The same prefix, another command: the map's files go, except one edited since.
+    std::fs::write(d.join("m-class.npy"), "edited").unwrap();
+    ok(&mut bifurcation(&d.join("m"), 20));
+    assert!(
+        !d.join("m-lyapunov.npy").exists(),
+        "the map's own file stays"
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("m-class.npy")).unwrap(),
+        "edited"
+    );
+}
+
+#[test]
+fn a_prefix_that_would_write_over_another_sets_file_is_refused_before_computing() {
+    // Reliability round 5, M5: `map --compare B --out fig`, then `map --out fig-compare`
+    // overwrote fig's fig-compare.png silently.
+    let (d, cfg) = setup("collide");
+    let o = map(&cfg, &d.join("fig"), &["--compare", cfg.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let before = std::fs::read(d.join("fig-compare.png")).unwrap();
+    let t = std::time::Instant::now();
+    let o = map(&cfg, &d.join("fig-compare"), &[]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("fig.json"), "{}", stderr(&o));
+    assert!(t.elapsed().as_secs_f64() < 5.0);
+    assert_eq!(std::fs::read(d.join("fig-compare.png")).unwrap(), before);
+    assert!(!d.join("fig-compare.json").exists());
+    // Without the comparison, fig's set no longer has it: removed.
+    assert!(map(&cfg, &d.join("fig"), &[]).status.success());
+    assert!(!d.join("fig-compare.png").exists());
+}
+
+#[test]
+fn a_directory_named_like_a_layer_is_refused_before_computing() {
+    // Reliability round 5, L9: `mkdir x-class.npy` failed the map only after computing.
+    let (d, cfg) = setup("layer-dir");
+    std::fs::create_dir(d.join("x-class.npy")).unwrap();
+    let t = std::time::Instant::now();
+    let o = map(&cfg, &d.join("x"), &[]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("x-class.npy"), "{}", stderr(&o));
+    assert!(t.elapsed().as_secs_f64() < 5.0);
 }
 
 #[test]
@@ -262,7 +376,7 @@ fn an_interrupted_run_leaves_one_runs_whole_set() {
         })
         .collect();
     let (a, b) = (&sets[0].0, &sets[1].0);
-    assert_eq!(a.len(), 25);
+    assert_eq!(a.len(), 28);
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
     let full = sets[1].1;
     let work = d.join("work");

@@ -56,19 +56,58 @@ PathLike = Union[str, "os.PathLike[str]"]
 Progress = Union[None, bool, Callable[[int, int], Any]]
 
 
-def _value(v: Any) -> str:
-    """A Python value as the command line's `--set key=value` writes it."""
-    if isinstance(v, bool):
+def _toml_string(v: str) -> str:
+    """A TOML basic string (the escapes TOML requires: quote, backslash, control characters)."""
+    out = []
+    for ch in v:
+        o = ord(ch)
+        if ch == '"':
+            out.append('\\"')
+        elif ch == "\\":
+            out.append("\\\\")
+        elif o < 0x20 or o == 0x7F:
+            out.append(f"\\u{o:04x}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _value(v: Any, key: str = "") -> str:
+    """A Python value as a TOML value, typed as a user expects: bool and numpy bools as
+    booleans, ints and numpy integers as integers, floats and numpy floats as floats (nan, inf
+    included), strings and paths as strings, lists, tuples and numpy arrays as arrays."""
+    if isinstance(v, (bool, np.bool_)):
         return "true" if v else "false"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_item(x) for x in v) + "]"
-    return str(v)
-
-
-def _toml_item(v: Any) -> str:
+    if isinstance(v, (int, np.integer)):
+        n = int(v)
+        if not -(2**63) <= n < 2**63:
+            raise ConfigError(f"`{key}` = {n}: allowed integers of 64 bits")
+        return str(n)
+    if isinstance(v, (float, np.floating)):
+        x = float(v)
+        if x != x:
+            return "nan"
+        if x in (float("inf"), float("-inf")):
+            return "inf" if x > 0 else "-inf"
+        return repr(x)
     if isinstance(v, str):
-        return json.dumps(v)
-    return _value(v)
+        return _toml_string(v)
+    if isinstance(v, os.PathLike):
+        return _toml_string(os.fspath(v))
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x, key) for x in v) + "]"
+    raise ConfigError(
+        f"`{key}`: a {type(v).__name__} cannot be a config value "
+        "(give a bool, int, float, str, or a list or numpy array of them)"
+    )
+
+
+def _set(key: str, value: Any) -> str:
+    if not isinstance(key, str):
+        raise ConfigError(f"config keys are strings, not {type(key).__name__}: {key!r}")
+    return f"{key}={_value(value, key)}"
 
 
 class Config:
@@ -88,12 +127,12 @@ class Config:
     def set(self, key: str, value: Any) -> "Config":
         """Overrides `key` (the command line's `--set` key, e.g. `map.x_points`, or a model key
         such as `eta`); returns the config."""
-        self.sets.append(f"{key}={_value(value)}")
+        self.sets.append(_set(key, value))
         return self
 
     def _with(self, overrides: Dict[str, Any]) -> "Config":
         c = Config(self.path, self.toml)
-        c.sets = list(self.sets) + [f"{k}={_value(v)}" for k, v in overrides.items()]
+        c.sets = list(self.sets) + [_set(k, v) for k, v in overrides.items()]
         return c
 
     def __repr__(self) -> str:
@@ -113,6 +152,10 @@ def _progress(progress: Progress, what: str):
     """The callable the extension calls with (done, total), and what closes it."""
     if progress is None or progress is False:
         return None, lambda: None
+    if progress is not True and not callable(progress):
+        raise TypeError(
+            f"progress must be a callable (done, total), True or None, not {type(progress).__name__}"
+        )
     if progress is True:
         try:
             from tqdm.auto import tqdm  # type: ignore
@@ -449,7 +492,9 @@ def bench(
     (`rattle bench`): one dict per row (`backend`, `precision`, `steps_per_s`, `timings`, ...;
     `{"error": ...}` for a row that could not be measured)."""
     c = _config(config, toml, overrides)
-    return json.loads(_rattle.bench(c.path, c.toml, c.sets, points, periods, backends))
+    rows, ws = _rattle.bench(c.path, c.toml, c.sets, points, periods, backends)
+    _warn(ws)
+    return json.loads(rows)
 
 
 def validate(
@@ -462,4 +507,6 @@ def validate(
     """The same points on GPU and CPU (`rattle validate`): the agreement table, as text.
     Needs a GPU adapter (`RattleError` without one)."""
     c = _config(config, toml, overrides)
-    return _rattle.validate(c.path, c.toml, c.sets, state_points)
+    table, ws = _rattle.validate(c.path, c.toml, c.sets, state_points)
+    _warn(ws)
+    return table

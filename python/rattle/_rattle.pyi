@@ -62,10 +62,10 @@ def bench(
     path: Optional[str],
     text: Optional[str],
     sets: List[str],
-    points: int = 2000,
-    periods: int = 100,
+    points: Optional[int] = None,
+    periods: Optional[int] = None,
     backends: Optional[List[str]] = None,
-) -> str: ...
+) -> Tuple[str, List[str]]: ...
 def validate(
-    path: Optional[str], text: Optional[str], sets: List[str], state_points: int = 64
-) -> str: ...
+    path: Optional[str], text: Optional[str], sets: List[str], state_points: Optional[int] = None
+) -> Tuple[str, List[str]]: ...

@@ -9,8 +9,9 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 use rattle::config::{Backend, Config, ConfigError};
+use rattle::request::{Command, Request, Source};
 use rattle::engine::Engine;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
@@ -54,23 +55,60 @@ impl rattle::progress::Progress for Reporter {
     }
 }
 
-/// Where a config comes from: a TOML file or TOML text, with `--set` overrides.
-#[derive(Clone)]
-struct Source {
-    path: Option<String>,
-    text: Option<String>,
-    sets: Vec<String>,
+/// The request of a config: a TOML file or TOML text, with `key=value` overrides. Every
+/// command loads it through the library's one validation path ([`Request::load`]), as the
+/// command line does.
+fn request(path: Option<String>, text: Option<String>, sets: Vec<String>) -> Request {
+    let source = match (path, text) {
+        (Some(p), _) => Source::File(p.into()),
+        (None, Some(t)) => Source::Text(t),
+        (None, None) => Source::Text(String::new()),
+    };
+    Request::new(source, sets)
 }
 
-impl Source {
-    fn load(&self) -> rattle::Result<Config> {
-        Ok(match (&self.path, &self.text) {
-            (Some(p), _) => Config::load(Path::new(p), &self.sets)?,
-            (None, Some(t)) => Config::from_toml(t, &self.sets)?,
-            (None, None) => Config::from_toml("", &self.sets)?,
-        })
-    }
+/// The config for `cmd`, and its notes and warnings for Python's `warnings`.
+fn load(py: Python, r: &Request, cmd: Command) -> PyResult<(Config, Vec<String>)> {
+    let l = r.load(cmd).map_err(|e| to_py(py, e.into()))?;
+    Ok((l.cfg, said(l.notes, l.warnings)))
 }
+
+/// Notes and warnings, in the order the command line prints them.
+fn said(notes: Vec<String>, warnings: Vec<String>) -> Vec<String> {
+    notes
+        .into_iter()
+        .map(|n| format!("note: {n}"))
+        .chain(warnings)
+        .collect()
+}
+
+/// An integer option as a Python caller gives it: any int (out of 64 bits saturated, so that
+/// the library names it as out of range), else `ConfigError` naming the option.
+fn int_arg(py: Python, name: &'static str, v: Option<&Bound<PyAny>>) -> PyResult<Option<i64>> {
+    let Some(v) = v.filter(|v| !v.is_none()) else {
+        return Ok(None);
+    };
+    let is_int = v.is_instance_of::<pyo3::types::PyInt>()
+        && !v.is_instance_of::<pyo3::types::PyBool>()
+        || v.hasattr("__index__")? && !v.is_instance_of::<pyo3::types::PyBool>();
+    if !is_int {
+        let kind = v.get_type().name()?.to_string();
+        return Err(to_py(
+            py,
+            rattle::Error::Option(rattle::error::OptionError::Unsuitable {
+                option: name,
+                why: format!("an integer is wanted, not {kind}"),
+            }),
+        ));
+    }
+    let v = v.call_method0("__index__")?;
+    Ok(Some(match v.extract::<i64>() {
+        Ok(n) => n,
+        Err(_) if v.gt(0)? => i64::MAX,
+        Err(_) => i64::MIN,
+    }))
+}
+
 
 /// The package's exception for an error of the library: a config or option outside its range
 /// is `ConfigError` (a `ValueError`), one too large for memory `TooLargeError` (also a
@@ -86,8 +124,22 @@ fn to_py(py: Python, e: rattle::Error) -> PyErr {
         _ => "RattleError",
     };
     let msg = match &e {
-        E::Option(o) => o.render(&|name| format!("`{name}`")),
-        _ => e.to_string(),
+        // Python's keywords spell the options with underscores.
+        E::Option(o) => o.render(&|name| format!("`{}`", name.replace('-', "_"))),
+        _ => {
+            // With its causes, as the command line prints them ("cannot read config x: Is a
+            // directory").
+            let mut m = e.to_string();
+            let mut cause = std::error::Error::source(&e);
+            while let Some(c) = cause {
+                let c_text = c.to_string();
+                if !m.ends_with(&c_text) {
+                    m = format!("{m}: {c_text}");
+                }
+                cause = c.source();
+            }
+            m
+        }
     };
     match py
         .import("rattle._errors")
@@ -208,9 +260,6 @@ fn engine(cfg: &Config) -> rattle::Result<(Engine, Vec<String>)> {
     Ok((engine, warnings))
 }
 
-fn source(path: Option<String>, text: Option<String>, sets: Vec<String>) -> Source {
-    Source { path, text, sets }
-}
 
 /// `rattle point`: the report's JSON, and warnings.
 #[pyfunction]
@@ -222,14 +271,15 @@ fn point(
     sets: Vec<String>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<(String, Vec<String>)> {
-    let src = source(path, text, sets);
-    let cfg = src.load().map_err(|e| to_py(py, e))?;
-    detached(py, 1, progress, move |p| {
+    let (cfg, mut said) = load(py, &request(path, text, sets), Command::Point)?;
+    let (report, warnings) = detached(py, 1, progress, move |p| {
         let (engine, warnings) = engine(&cfg)?;
         p.set_units(1);
         let r = rattle::point::run(&engine, &cfg, p)?;
         Ok((serde_json::to_string(&r)?, warnings))
-    })
+    })?;
+    said.extend(warnings);
+    Ok((report, said))
 }
 
 /// A computed map: its layers as NPY bytes, its report, and its files on request.
@@ -243,13 +293,8 @@ struct MapData {
 impl MapData {
     /// Layer name -> the bytes of its NPY file.
     fn layers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let m = &self.result.cfg.map;
         let d = PyDict::new(py);
-        for (name, bytes) in self
-            .result
-            .fields
-            .npy_bytes((m.y_points as usize, m.x_points as usize))
-        {
+        for (name, bytes) in rattle::map::npy_layers(&self.result.cfg, &self.result.fields) {
             d.set_item(name, PyBytes::new(py, &bytes))?;
         }
         Ok(d)
@@ -298,13 +343,10 @@ fn map(
     sets: Vec<String>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<MapData> {
-    let src = source(path, text, sets);
-    let cfg = src.load().map_err(|e| to_py(py, e))?;
-    cfg.check_map().map_err(|e| to_py(py, e.into()))?;
+    let (cfg, mut warnings) = load(py, &request(path, text, sets), Command::Map)?;
     let o = rattle::map::MapOptions::default();
     o.check(&cfg).map_err(|e| to_py(py, e))?;
     let cells = rattle::map::cell_count(&cfg) as u64;
-    let mut warnings = cfg.without_effect(&[cfg.map.x, cfg.map.y]);
     let (result, w) = detached(py, cells, progress, move |p| {
         let (engine, warnings) = engine(&cfg)?;
         p.set_units(rattle::map::work(&engine, &cfg, &o));
@@ -379,10 +421,7 @@ fn bifurcation(
     sets: Vec<String>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<BifurcationData> {
-    let src = source(path, text, sets);
-    let cfg = src.load().map_err(|e| to_py(py, e))?;
-    cfg.check_sweep().map_err(|e| to_py(py, e.into()))?;
-    let mut warnings = cfg.without_effect(&[cfg.sweep.param]);
+    let (cfg, mut warnings) = load(py, &request(path, text, sets), Command::Sweep)?;
     let total = cfg.sweep.points as u64;
     let (b, w) = detached(py, total, progress, move |p| {
         let (engine, warnings) = engine(&cfg)?;
@@ -466,14 +505,17 @@ fn sensitivity(
     text: Option<String>,
     sets: Vec<String>,
     uncertain: Option<Vec<String>>,
-    samples: Option<usize>,
-    seed: Option<u32>,
+    samples: Option<Bound<PyAny>>,
+    seed: Option<Bound<PyAny>>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<SensitivityData> {
-    let src = source(path, text, sets);
-    let cfg = src.load().map_err(|e| to_py(py, e))?;
-    let o = rattle::sensitivity::Options::from_config(&cfg, uncertain.as_deref(), samples, seed)
+    let samples = int_arg(py, "samples", samples.as_ref())?;
+    let seed = int_arg(py, "seed", seed.as_ref())?;
+    let (l, o) = request(path, text, sets)
+        .sensitivity(uncertain.as_deref(), samples, seed)
         .map_err(|e| to_py(py, e))?;
+    let said = said(l.notes, l.warnings);
+    let cfg = l.cfg;
     let total = rattle::sensitivity::points(&o) as u64;
     let c = cfg.clone();
     let (study, backend, device, warnings) = detached(py, total, progress, move |p| {
@@ -483,6 +525,7 @@ fn sensitivity(
         let study = rattle::sensitivity::run(&engine, &c, &o, p)?;
         Ok((study, engine.name().to_string(), engine.device(), warnings))
     })?;
+    let warnings = said.into_iter().chain(warnings).collect();
     Ok(SensitivityData {
         study,
         cfg,
@@ -548,9 +591,7 @@ fn basin(
     sets: Vec<String>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<BasinData> {
-    let src = source(path, text, sets);
-    let cfg = src.load().map_err(|e| to_py(py, e))?;
-    cfg.check_basin().map_err(|e| to_py(py, e.into()))?;
+    let (cfg, said) = load(py, &request(path, text, sets), Command::Basin)?;
     let cells = u64::from(cfg.basin.x_points) * u64::from(cfg.basin.y_points);
     let c = cfg.clone();
     let (b, warnings) = detached(py, cells, progress, move |p| {
@@ -558,23 +599,27 @@ fn basin(
         p.set_units(rattle::basin::work(&engine, &c));
         Ok((rattle::basin::compute(&engine, &c, p)?, warnings))
     })?;
+    let warnings = said.into_iter().chain(warnings).collect();
     Ok(BasinData { b, cfg, warnings })
 }
 
 /// `rattle bench`: the rows of every backend and precision (JSON list; a row that could not be
 /// measured is `{"error": ...}`).
 #[pyfunction]
-#[pyo3(name = "bench", signature = (path, text, sets, points=2000, periods=100, backends=None))]
+#[pyo3(name = "bench", signature = (path, text, sets, points=None, periods=None, backends=None))]
 fn bench_rows(
     py: Python,
     path: Option<String>,
     text: Option<String>,
     sets: Vec<String>,
-    points: usize,
-    periods: u32,
+    points: Option<Bound<PyAny>>,
+    periods: Option<Bound<PyAny>>,
     backends: Option<Vec<String>>,
-) -> PyResult<String> {
-    let cfg = source(path, text, sets).load().map_err(|e| to_py(py, e))?;
+) -> PyResult<(String, Vec<String>)> {
+    let (cfg, said) = load(py, &request(path, text, sets), Command::Sweep)?;
+    let points = int_arg(py, "points", points.as_ref())?.unwrap_or(2000);
+    let periods = int_arg(py, "periods", periods.as_ref())?.unwrap_or(100);
+    let (points, periods) = rattle::bench::sizes(points, periods).map_err(|e| to_py(py, e))?;
     let backends: Vec<Backend> = match backends {
         None => Backend::ALL.to_vec(),
         Some(b) => b
@@ -583,8 +628,9 @@ fn bench_rows(
             .collect::<Result<_, _>>()
             .map_err(|e| to_py(py, ConfigError::Parse(format!("backends: {e}")).into()))?,
     };
-    detached(py, 1, None, move |_| {
-        let rows = rattle::bench::bench(&cfg, points, periods, &backends, false)?;
+    // The reporter is the bench's progress, so that Ctrl-C stops it at its next report.
+    let rows = detached(py, 1, None, move |p| {
+        let rows = rattle::bench::bench(&cfg, points, periods, &backends, false, p)?;
         let rows: Vec<serde_json::Value> = rows
             .into_iter()
             .map(|r| match r {
@@ -593,24 +639,26 @@ fn bench_rows(
             })
             .collect();
         Ok(serde_json::to_string(&rows)?)
-    })
+    })?;
+    Ok((rows, said))
 }
 
 /// `rattle validate`: the agreement table of GPU and CPU, as text.
 #[pyfunction]
-#[pyo3(signature = (path, text, sets, state_points=64))]
+#[pyo3(signature = (path, text, sets, state_points=None))]
 fn validate(
     py: Python,
     path: Option<String>,
     text: Option<String>,
     sets: Vec<String>,
-    state_points: usize,
-) -> PyResult<String> {
-    let cfg = source(path, text, sets).load().map_err(|e| to_py(py, e))?;
-    cfg.check_sweep().map_err(|e| to_py(py, e.into()))?;
-    detached(py, 1, None, move |_| {
+    state_points: Option<Bound<PyAny>>,
+) -> PyResult<(String, Vec<String>)> {
+    let (cfg, said) = load(py, &request(path, text, sets), Command::Sweep)?;
+    let state_points = int_arg(py, "state-points", state_points.as_ref())?.unwrap_or(64);
+    let table = detached(py, 1, None, move |_| {
         rattle::validate::validate(&cfg, state_points)
-    })
+    })?;
+    Ok((table, said))
 }
 
 #[pymodule]

@@ -255,3 +255,139 @@ def test_to_xarray_where_xarray_is_installed():
     ds = m.to_xarray()
     assert isinstance(ds, xr.Dataset) and ds["class"].shape == (6, 8)
     np.testing.assert_array_equal(ds["R"].values, m.x)
+
+
+# Reliability round 5: the package's edges, each against what the command line does.
+
+
+def test_validate_checks_state_points_before_anything_is_allocated():
+    # H1: 10**9 state points aborted the interpreter (8 GB allocated); 0 ran.
+    for n in (0, -3, 10**9, 2**70):
+        with pytest.raises(rattle.ConfigError, match="state_points"):
+            rattle.validate(FIG2, state_points=n)
+    r = cli("validate", "--config", FIG2, "--state-points", "1000000000")
+    assert r.returncode == 2 and "--state-points" in r.stderr and "1 to 100000" in r.stderr
+
+
+def test_a_json_rattle_did_not_write_deletes_nothing(tmp_path):
+    # H2: a user's PREFIX.json with a `files` list made a new set delete those files.
+    (tmp_path / "data.json").write_text('{"files": ["data.csv", "data-raw.csv"]}')
+    for n in ("data.csv", "data-raw.csv"):
+        (tmp_path / n).write_text("the user's own\n")
+    m = rattle.map(RL, **dict(SMALL, **{"map.x_points": 4, "map.y_points": 4}))
+    m.save(tmp_path / "data")
+    assert (tmp_path / "data.csv").read_text() == "the user's own\n"
+    assert (tmp_path / "data-raw.csv").read_text() == "the user's own\n"
+    # A file of rattle's own set, changed by hand since, is not its any more.
+    (tmp_path / "data-class.npy").write_bytes(b"edited")
+    rattle.bifurcation(FIG2, **{"sweep.points": 20, "method.backend": "cpu"}).save(tmp_path / "data")
+    assert (tmp_path / "data-class.npy").read_bytes() == b"edited"
+    assert not (tmp_path / "data-lyapunov.npy").exists()  # still rattle's: removed
+
+
+def test_overrides_are_checked_as_the_command_line_checks_them():
+    # M1: values for a parameter the command varies, and a key given twice, were dropped.
+    cases = [
+        (lambda: rattle.map(RL, R=0.55, **SMALL), ["R=0.55", "map.x"]),
+        (lambda: rattle.bifurcation(FIG2, eta=1.3), ["eta=1.3", "sweep.param"]),
+        (
+            lambda: rattle.sensitivity(
+                FIG2, **{"lambda": 0.05}, uncertain=["lambda=0.02+-0.005"]
+            ),
+            ["lambda=0.05", "uncertain"],
+        ),
+        (lambda: rattle.point(rattle.Config(FIG2).set("eta", 1.3), eta=1.4), ["both set"]),
+    ]
+    for call, words in cases:
+        with pytest.raises(rattle.ConfigError) as e:
+            call()
+        assert all(w in str(e.value) for w in words), str(e.value)
+    r = cli("bifurcation", "--config", FIG2, "--eta", "1.3", "--out", "/nonexistent/x")
+    assert r.returncode == 2 and "sweep.param" in r.stderr
+
+
+def test_each_command_checks_only_the_sections_it_reads():
+    # M2: `point` refused run.tangent = "spectrum" and long samples with sweep messages.
+    cpu = {"method.backend": "cpu", "run.transient_periods": 10}
+    p = rattle.point(FIG2, **dict(cpu, **{"run.tangent": "spectrum", "run.sample_periods": 20}))
+    assert p.lyapunov_spectrum is not None and len(p.lyapunov_spectrum) == 4
+    r = cli("point", "--config", FIG2, *sets({"run.tangent": '"spectrum"', "run.sample_periods": 70000}), "--set", "run.transient_periods=0", "--backend", "cpu", "--json")
+    assert r.returncode == 0, r.stderr
+    p = rattle.point(FIG2, **dict(cpu, **{"run.sample_periods": 70000, "run.transient_periods": 0}))
+    assert p.samples.shape[0] > 0
+
+
+def test_the_risk_layer_is_among_the_layers(tmp_path):
+    # M4: `.save()` wrote PREFIX-risk.npy, `.layers` had no `risk`.
+    m = rattle.map(RL, **dict(SMALL, **{"map.risk": [0.02, 0.005]}))
+    assert m.layers["risk"].shape == (32, 32)
+    m.save(tmp_path / "m")
+    np.testing.assert_array_equal(np.load(tmp_path / "m-risk.npy"), m.layers["risk"])
+    assert set(m.layers) == {p.name[2:-4] for p in tmp_path.glob("m-*.npy")}
+
+
+def test_python_values_become_the_toml_types_a_user_expects():
+    # M8: values went through str(): '2024' became an integer, numpy bools strings.
+    c = rattle.Config(FIG2)
+    c.set("map.title", "2024").set("run.early_stop", np.bool_(True))
+    c.set("eta", np.float32(1.5)).set("run.sample_periods", np.int64(10))
+    c.set("initial.y", np.array([0.0, 0.0, 0.0, 0.0]))
+    c.set("method.backend", "cpu").set("run.transient_periods", 10)
+    assert rattle.point(c).cls
+    with pytest.raises(rattle.ConfigError, match="map.title") as e:
+        rattle.point(FIG2, **{"map.title": 5})
+    assert "string" in str(e.value)
+    with pytest.raises(rattle.ConfigError, match="run.sample_periods"):
+        rattle.point(FIG2, **{"run.sample_periods": 2**70})
+    with pytest.raises(rattle.ConfigError, match="map.title"):
+        rattle.point(FIG2, **{"map.title": object()})
+    # A string with quotes, backslashes and a newline stays that string.
+    odd = 'a "b" \\ c\nd\x7f'
+    m = rattle.map(RL, **dict(SMALL, **{"map.x_points": 2, "map.y_points": 2, "map.title": odd}))
+    assert m.to_dict()["config"]["map"]["title"] == odd
+
+
+def test_errors_keep_their_cause(tmp_path):
+    # L1: "cannot read config /tmp" without the reason.
+    with pytest.raises(rattle.ConfigError, match="not a regular file"):
+        rattle.point(str(tmp_path))
+    with pytest.raises(rattle.ConfigError, match="No such file"):
+        rattle.point(str(tmp_path / "missing.toml"))
+
+
+def test_progress_is_checked_up_front():
+    # L6: progress=5 raised TypeError only once a long map had started.
+    with pytest.raises(TypeError, match="progress"):
+        rattle.map(RL, progress=5, **SMALL)
+
+
+def test_notes_come_as_warnings():
+    # L7: "model.l1 is ignored" under Coulomb friction was dropped.
+    with pytest.warns(RuntimeWarning, match="model.l1 is ignored"):
+        rattle.point(FIG2, l1=0.1, **{"method.backend": "cpu", "run.sample_periods": 10})
+    with pytest.warns(RuntimeWarning, match="run.overlap is ignored by point"):
+        rattle.point(FIG2, **{"run.overlap": 2, "method.backend": "cpu", "run.sample_periods": 10})
+
+
+def test_the_memory_refusal_counts_one_start(monkeypatch):
+    # L13: "with 0 start(s)" where the command line says 1.
+    monkeypatch.setenv("RATTLE_MEMORY_LIMIT", str(64 << 20))
+    with pytest.raises(rattle.TooLargeError) as e:
+        rattle.map(RL, **{"map.x_points": 2048, "map.y_points": 2048})
+    assert "with 1 start(s)" in str(e.value)
+
+
+def test_integer_options_out_of_range_are_config_errors():
+    # L14: OverflowError instead of ConfigError.
+    u = ["R=0.6+-0.01"]
+    for kw, name in [
+        (dict(samples=-1), "samples"),
+        (dict(seed=-1), "seed"),
+        (dict(seed=2**40), "seed"),
+        (dict(samples="many"), "samples"),
+    ]:
+        with pytest.raises(rattle.ConfigError, match=name):
+            rattle.sensitivity(FIG2, uncertain=u, **kw)
+    for kw, name in [(dict(points=-1), "points"), (dict(periods=2**70), "periods")]:
+        with pytest.raises(rattle.ConfigError, match=name):
+            rattle.bench(FIG2, backends=["cpu"], **kw)

@@ -10,6 +10,19 @@ impl Config {
         self.check_sweep()
     }
 
+    /// Checks what `cmd` reads: [`Config::check_base`] and the command's own section.
+    pub fn check_command(&self, cmd: crate::request::Command) -> Result<(), ConfigError> {
+        use crate::request::Command as C;
+        self.check_base()?;
+        match cmd {
+            C::Point | C::Plot => Ok(()),
+            C::Map => self.check_map(),
+            C::Sweep => self.check_sweep(),
+            C::Basin => self.check_basin(),
+            C::Sensitivity => self.check_tangent("`sensitivity`"),
+        }
+    }
+
     /// Checks model, initial state, method and run (what every command uses).
     pub fn check_base(&self) -> Result<(), ConfigError> {
         let m = &self.model;

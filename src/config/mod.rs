@@ -29,6 +29,10 @@ pub enum ConfigError {
         value: String,
         range: String,
     },
+    /// Overrides that contradict each other or the command (a key given twice, a value for a
+    /// parameter the command varies).
+    #[error("config error: {0}")]
+    Conflict(String),
     /// An error of a configuration other than the command's `--config`, with its file.
     #[error("{path}: {error}")]
     In {
@@ -432,18 +436,15 @@ impl Config {
         Ok(cfg)
     }
 
-    /// Reads `path` with `--set` overrides, then the typed command-line ones, and checks
-    /// what every command uses ([`Config::check_base`]).
-    pub fn load_with(path: &Path, set: &[String], o: &Overrides) -> Result<Config, ConfigError> {
-        let mut cfg = Self::read(path, set)?;
-        let m = &mut cfg.model;
+    /// This config with the typed command-line overrides applied (unchecked).
+    pub fn with_overrides(mut self, o: &Overrides) -> Config {
+        let m = &mut self.model;
         m.eta = o.eta.unwrap_or(m.eta);
         m.restitution = o.restitution.unwrap_or(m.restitution);
         m.lambda = o.lambda.unwrap_or(m.lambda);
-        cfg.method.precision = o.precision.unwrap_or(cfg.method.precision);
-        cfg.method.backend = o.backend.unwrap_or(cfg.method.backend);
-        cfg.check_base()?;
-        Ok(cfg)
+        self.method.precision = o.precision.unwrap_or(self.method.precision);
+        self.method.backend = o.backend.unwrap_or(self.method.backend);
+        self
     }
 
     /// [`Config::load`] without the validation, for callers that change typed fields first

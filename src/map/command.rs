@@ -12,8 +12,11 @@ use crate::error::OptionError;
 use crate::progress::Progress;
 use std::path::{Path, PathBuf};
 
+/// Most initial states per cell (`--starts`).
+pub const MAX_STARTS: usize = 64;
+
 /// How a map run is split and what it adds.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 pub struct MapOptions<'a> {
     /// Initial states per cell (`--starts`).
     pub starts: usize,
@@ -28,6 +31,29 @@ pub struct MapOptions<'a> {
     /// With `--refine`: a chaotic corner is clear above this multiple of `run.lyapunov_tol`
     /// (`--refine-clear`; [`super::coarse::CLEAR_CHAOTIC`] when not given).
     pub refine_clear: Option<f64>,
+}
+
+impl Default for MapOptions<'_> {
+    /// One start per cell, the whole map at once.
+    fn default() -> Self {
+        MapOptions {
+            starts: 1,
+            shard: None,
+            checkpoint: None,
+            compare: None,
+            refine: None,
+            refine_clear: None,
+        }
+    }
+}
+
+/// Whether `a` and `b` name one file (the same path, or both existing and one file).
+fn same_file(a: &Path, b: &Path) -> bool {
+    a == b
+        || matches!(
+            (std::fs::canonicalize(a), std::fs::canonicalize(b)),
+            (Ok(x), Ok(y)) if x == y
+        )
 }
 
 /// Parses `--shard I/N`.
@@ -68,6 +94,13 @@ impl MapOptions<'_> {
                 allowed,
             })
         };
+        if !(1..=MAX_STARTS).contains(&self.starts) {
+            return range(
+                "starts",
+                self.starts.to_string(),
+                format!("1 to {MAX_STARTS}"),
+            );
+        }
         if self.shard.is_some() && self.checkpoint.is_some() {
             return bad(OptionError::Conflict {
                 option: "shard",
@@ -513,6 +546,19 @@ pub fn run_shared(
 
 /// Merges part files into the files of a single run.
 pub fn merge_files(paths: &[PathBuf], out: &Path) -> crate::Result<MapSummary> {
+    // The merged set's JSON is PREFIX.json: a part named so would be replaced by it.
+    let json = crate::output::with_ext(out, "json");
+    if let Some(p) = paths.iter().find(|p| same_file(p, &json)) {
+        return Err(OptionError::Unsuitable {
+            option: "out",
+            why: format!(
+                "{} would replace the part {} that it merges; choose another prefix",
+                json.display(),
+                p.display()
+            ),
+        }
+        .into());
+    }
     let parts = paths
         .iter()
         .map(|p| read_part(p))

@@ -393,6 +393,31 @@ pub fn map_caption(cfg: &Config, fields: &Fields, report: &MapReport) -> String 
     )
 }
 
+/// The classes as the class image shows them (category codes).
+fn shown_cells(fields: &Fields) -> Vec<u16> {
+    fields
+        .classes()
+        .into_iter()
+        .zip(&fields.attractors)
+        .map(|(c, &a)| Shown::of(c, a).code())
+        .collect()
+}
+
+/// Every NPY layer of the set as (name, the bytes of its file): the fields' layers and the risk
+/// where `map.risk` is set, as [`write_outputs`] writes them.
+pub fn npy_layers(cfg: &Config, fields: &Fields) -> Vec<(&'static str, Vec<u8>)> {
+    let m = &cfg.map;
+    let (ny, nx) = (m.y_points as usize, m.x_points as usize);
+    let mut out = fields.npy_bytes((ny, nx));
+    if let Some((r, _)) = risk_of(cfg, &shown_cells(fields)) {
+        out.push((
+            "risk",
+            crate::output::npy_bytes(&[ny as u64, nx as u64], &r),
+        ));
+    }
+    out
+}
+
 /// Writes a map's set: the class image, the exponent, multiplier and risk images, one NPY per
 /// layer, the JSON.
 pub fn write_outputs(
@@ -405,12 +430,7 @@ pub fn write_outputs(
     let m = &cfg.map;
     let mut st = Staged::new();
     let images = Images { prefix, cfg };
-    let cells: Vec<u16> = fields
-        .classes()
-        .into_iter()
-        .zip(&fields.attractors)
-        .map(|(c, &a)| Shown::of(c, a).code())
-        .collect();
+    let cells = shown_cells(fields);
     images.classes(&mut st, &cells, report)?;
     let nan = |v: &[Option<f64>]| -> Vec<f64> { v.iter().map(|x| x.unwrap_or(f64::NAN)).collect() };
     let lyap = nan(&fields.lyapunov);

@@ -108,9 +108,9 @@ impl Part {
     /// Checks that the contents are possible: a config rattle accepts, array lengths, class
     /// codes, failure flags, attractor counts, the cell range of the shard.
     pub fn check(&self) -> Result<(), PartError> {
+        // What the map reads, as the map command checks it: a map uses no `[sweep]`.
         self.config
-            .check()
-            .and_then(|()| self.config.check_map())
+            .check_command(crate::request::Command::Map)
             .map_err(|e| PartError(e.to_string()))?;
         let f = &self.fields;
         let (i, n) = self.shard;
@@ -316,11 +316,25 @@ pub fn merge(mut parts: Vec<Part>) -> crate::Result<(Config, Fields, Vec<Part>)>
     let cells = cell_count(&parts[0].config);
     let mut at = 0;
     let mut fields = Fields::default();
-    for p in &parts {
+    for (k, p) in parts.iter().enumerate() {
+        if let Some(q) = parts[..k].iter().find(|q| q.shard == p.shard) {
+            return Err(crate::Error::Merge(format!(
+                "{} and {} are both shard {}/{n}: give each part once",
+                q.name(),
+                p.name(),
+                p.shard.0
+            )));
+        }
+        if p.range.0 < at {
+            return Err(crate::Error::Merge(format!(
+                "cells {}..{} duplicated (shard {}/{n} covers {}..{})",
+                p.range.0, at, p.shard.0, p.range.0, p.range.1
+            )));
+        }
         if p.range.0 != at || p.fields.len() != p.range.1 - p.range.0 {
             return Err(crate::Error::Merge(format!(
-                "cells {}..{} missing or duplicated (shard {}/{} covers {}..{})",
-                at, p.range.0, p.shard.0, n, p.range.0, p.range.1
+                "cells {}..{} missing (shard {}/{n} covers {}..{})",
+                at, p.range.0, p.shard.0, p.range.0, p.range.1
             )));
         }
         at = p.range.1;

@@ -66,8 +66,8 @@ pub fn caption(p: &PointPlot) -> String {
         title = model_line(c, true),
         how = crate::caption::computed_with(c, "cpu", &r.device),
         y0 = c.initial.y,
-        tr = c.run.transient_periods,
-        sa = c.run.sample_periods,
+        tr = p.transient,
+        sa = p.samples.len(),
         n = p.options.periods,
         from = sh.from,
         to = sh.to,
@@ -127,13 +127,13 @@ fn modes_phrase(p: &PointPlot) -> String {
 
 /// The nearly periodic episodes panel (d) found.
 fn episodes_phrase(p: &PointPlot) -> String {
-    let (c, l) = (&p.cfg, &p.laminar);
+    let l = &p.laminar;
     let lengths: Vec<u32> = l.episodes.iter().map(|e| e.length).collect();
     match lengths.as_slice() {
         [] => "no episode: no sampled period returns within the threshold".to_string(),
         [one] => format!(
             "1 episode of {one} periods{}",
-            if *one + l.lag == c.run.sample_periods {
+            if *one + l.lag == p.samples.len() as u32 {
                 " (every sampled period returns: periodic to within the threshold)"
             } else {
                 ""

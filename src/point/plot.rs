@@ -207,6 +207,9 @@ pub struct PointPlot {
     /// The configuration as run: CPU backend, f64.
     pub cfg: Config,
     pub options: PlotOptions,
+    /// Periods discarded before the samples: the configured transient, or longer where the
+    /// point ran on to decide.
+    pub transient: u32,
     /// Class, period, cycle and exponents of the point (CPU, f64).
     pub report: PointReport,
     /// Section states of every sampled period (k = 1..=S).
@@ -242,11 +245,14 @@ pub fn compute(cfg: &Config, o: &PlotOptions, progress: &dyn Progress) -> Result
     }
     let it = Integrator::<f64>::new(&cfg.params(), &cfg.settings());
     let mut st = it.start(cfg.initial.y);
-    for _ in 0..cfg.run.transient_periods {
+    // The figure shows the motion the class names: the sampled periods where the point's run
+    // ended (after the configured transient, or the longer horizon or long look it took).
+    let s = (report.samples.len() as u32).max(1);
+    let transient = report.periods.saturating_sub(s);
+    for _ in 0..transient {
         it.period(&mut st);
     }
-    let s = cfg.run.sample_periods;
-    let first = s - o.periods;
+    let first = s.saturating_sub(o.periods);
     let mut rec = Recorder {
         n: f64::from(it.steps_per_period()),
         period: 2.0 * std::f64::consts::PI / cfg.model.eta,
@@ -297,6 +303,7 @@ pub fn compute(cfg: &Config, o: &PlotOptions, progress: &dyn Progress) -> Result
     Ok(PointPlot {
         cfg,
         options: *o,
+        transient,
         report,
         samples,
         cycle_points,
@@ -503,7 +510,7 @@ pub fn write_outputs(prefix: &Path, p: &PointPlot) -> Result<Vec<PathBuf>> {
     let t = [
         format!("(a) z and v, last {} forcing periods", p.options.periods),
         "(b) phase portrait, same periods".to_string(),
-        format!("(c) section (y1, y2), {} periods", p.cfg.run.sample_periods),
+        format!("(c) section (y1, y2), {} periods", p.samples.len()),
         format!(
             "(d) y1 at the section; nearly periodic (lag {}, tol {:e})",
             l.lag, l.tol

@@ -43,6 +43,9 @@ pub const SCAN_SIGMAS: f64 = 4.0;
 pub const SECTIONS: usize = 8;
 /// Rounds of that sectioning: the bracket ends at SECTIONS^-ROUNDS = 2^-12 of a scan step.
 pub const ROUNDS: u32 = 4;
+/// The draws per matrix a study may take.
+const SAMPLES_ALLOWED: &str = "16 to 65536 (the Sobol sequence's length)";
+
 /// Bootstrap resamples of the Sobol indices.
 pub const RESAMPLES: usize = 200;
 
@@ -63,18 +66,35 @@ impl Options {
     pub fn from_config(
         cfg: &Config,
         uncertain: Option<&[String]>,
-        samples: Option<usize>,
-        seed: Option<u32>,
+        samples: Option<i64>,
+        seed: Option<i64>,
     ) -> Result<Options> {
         let s = &cfg.sensitivity;
+        // Any integer a caller gives (negative, beyond 32 bits) is named by its option.
+        let samples = match samples {
+            None => s.samples as usize,
+            Some(v) => usize::try_from(v).map_err(|_| OptionError::Range {
+                option: "samples",
+                value: v.to_string(),
+                allowed: SAMPLES_ALLOWED.into(),
+            })?,
+        };
+        let seed = match seed {
+            None => s.seed,
+            Some(v) => u32::try_from(v).map_err(|_| OptionError::Range {
+                option: "seed",
+                value: v.to_string(),
+                allowed: format!("0 to {}", u32::MAX),
+            })?,
+        };
         let o = Options {
             uncertain: uncertain
                 .unwrap_or(&s.uncertain)
                 .iter()
                 .map(|u| Uncertain::parse(u))
                 .collect::<std::result::Result<_, _>>()?,
-            samples: samples.unwrap_or(s.samples as usize),
-            seed: seed.unwrap_or(s.seed),
+            samples,
+            seed,
         };
         o.check()?;
         cfg.check_tangent("`sensitivity`")?;
@@ -131,7 +151,7 @@ impl Options {
             return Err(OptionError::Range {
                 option: "samples",
                 value: self.samples.to_string(),
-                allowed: "16 to 65536 (the Sobol sequence's length)".into(),
+                allowed: SAMPLES_ALLOWED.into(),
             }
             .into());
         }
