@@ -365,6 +365,20 @@ pub fn drive_stages<K: Keep>(
         let sub = lv.points(points);
         let mut live_pools: Vec<Pool> = live.iter().map(|&i| pools[i]).collect();
         let live_skip: Vec<[u32; 2]> = live.iter().map(|&i| skip[i]).collect();
+        // The periods beyond each point's configured run were not in the first count of the
+        // work: announced, so that progress grows with the work instead of stopping at 100%.
+        let configured = spec.periods();
+        let beyond: u64 = live
+            .iter()
+            .map(|&i| {
+                let before = starts[i].periods + elapsed;
+                let after = before + round.periods();
+                u64::from(after.saturating_sub(before.max(configured)))
+            })
+            .sum();
+        if beyond > 0 {
+            progress.more(beyond);
+        }
         let t0 = Instant::now();
         let decide0 = engine.decide_seconds();
         let run = StageRun {

@@ -22,6 +22,10 @@ fn run_typed<F: Real>(spec: &RunSpec, points: &Points, progress: &dyn Progress) 
     let idx: Vec<usize> = (0..points.len()).collect();
     idx.par_chunks(LANES)
         .flat_map_iter(|chunk| {
+            // A report of nothing before each batch: an interrupt raised by the progress (a
+            // Python caller's Ctrl-C) ends every batch not yet begun at once, instead of after
+            // the whole run (rayon finishes the other tasks before it rethrows).
+            progress.advance(0);
             let its: Vec<Integrator<F>> = chunk
                 .iter()
                 .map(|&i| Integrator::<F>::new(&points.params(&spec.params, i), &spec.settings))
@@ -31,7 +35,7 @@ fn run_typed<F: Real>(spec: &RunSpec, points: &Points, progress: &dyn Progress) 
                 .modes
                 .map(|_| chunk.iter().filter_map(|&i| points.mode0(i)).collect());
             let r = run_lanes(&its, &y0s, modes.as_deref(), spec.transient, spec.samples);
-            progress.advance(chunk.len() as u64);
+            progress.advance(chunk.len() as u64 * u64::from(spec.transient + spec.samples));
             r
         })
         .collect()

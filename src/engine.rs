@@ -41,6 +41,23 @@ pub enum EngineError {
 pub const OVERLAP_MIN_POINTS: usize = 4 * GPU_BLOCK;
 pub const OVERLAP_STREAMS: usize = 4;
 
+/// The streams a run of `points` on `backend` may use, known before an adapter is open (for
+/// the memory estimate): `run.overlap` where given, else [`OVERLAP_STREAMS`] on the GPU
+/// backend from [`OVERLAP_MIN_POINTS`] points (an upper bound: a software adapter runs one).
+pub fn planned_overlap(
+    backend: crate::config::Backend,
+    asked: Option<u32>,
+    points: usize,
+) -> usize {
+    match asked {
+        Some(k) => (k as usize).min(points).max(1),
+        None if backend == crate::config::Backend::Gpu && points >= OVERLAP_MIN_POINTS => {
+            OVERLAP_STREAMS
+        }
+        None => 1,
+    }
+}
+
 /// Points per CPU block of [`Engine::run_lean`]: samples of one block only are held.
 const CPU_BLOCK: usize = 4096;
 
@@ -175,10 +192,7 @@ impl Engine {
     /// Units of progress one point reports: forcing periods on the GPU, the whole point on
     /// the CPU.
     pub fn progress_per_point(&self, spec: &RunSpec) -> u64 {
-        match self {
-            Engine::Gpu(_) => spec.periods() as u64,
-            Engine::Cpu => 1,
-        }
+        spec.periods() as u64
     }
 
     /// Runs `points`, with their stroboscopic samples kept.

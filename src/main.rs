@@ -42,6 +42,20 @@ fn progress_bar(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
+/// The library's progress on a bar: work done, and work found on the way (the adaptive
+/// stages) lengthening it.
+struct Bar<'a>(&'a ProgressBar);
+
+impl rattle::progress::Progress for Bar<'_> {
+    fn advance(&self, n: u64) {
+        self.0.inc(n);
+    }
+
+    fn more(&self, n: u64) {
+        self.0.inc_length(n);
+    }
+}
+
 /// Messages of the library through `log`: information as plain lines, warnings and errors with
 /// their level, as users have always seen them; RUST_LOG changes the level (`RUST_LOG=warn`
 /// keeps the warnings only).
@@ -124,7 +138,7 @@ fn run(cli: Cli) -> Result<()> {
             let engine = Engine::open(cfg.method.backend)?;
             let what = bifurcation::work(&engine, &cfg, continuation);
             let pb = progress_bar(what, "bifurcation");
-            let b = bifurcation::run(&engine, &cfg, continuation, &|n| pb.inc(n))?;
+            let b = bifurcation::run(&engine, &cfg, continuation, &Bar(&pb))?;
             pb.finish_and_clear();
             eprint!("{}", b.summary());
             bifurcation::write_outputs(&out, &b)?
@@ -135,7 +149,7 @@ fn run(cli: Cli) -> Result<()> {
             check_prefix(&out, &["png", "npy", "json"])?;
             let engine = Engine::open(cfg.method.backend)?;
             let pb = progress_bar(rattle::basin::work(&engine, &cfg), "basin");
-            let b = rattle::basin::compute(&engine, &cfg, &|n| pb.inc(n))?;
+            let b = rattle::basin::compute(&engine, &cfg, &Bar(&pb))?;
             pb.finish_and_clear();
             eprint!("{}", b.summary());
             rattle::basin::write_outputs(&out, &cfg, &b)?
@@ -204,8 +218,8 @@ fn point_command(a: PointArgs) -> Result<Vec<PathBuf>> {
         laminar_tol: a.laminar_tol,
     };
     o.check(&cfg)?;
-    let pb = progress_bar(1, "point");
-    let p = compute(&cfg, &o, &|n| pb.inc(n))?;
+    let pb = progress_bar(Engine::Cpu.progress_per_point(&RunSpec::new(&cfg)), "point");
+    let p = compute(&cfg, &o, &Bar(&pb))?;
     pb.finish_and_clear();
     eprint!("{}", p.summary());
     Ok(write_outputs(&out, &p)?)
@@ -223,6 +237,10 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
         cfg.check_map()?;
     }
     check_prefix(&a.out, &["png", "json"])?;
+    if a.compare.is_some() {
+        let compared = rattle::output::with_suffix(&a.out, "compare");
+        rattle::output::check_not_owned(&rattle::output::with_ext(&compared, "png"))?;
+    }
     // The other config keeps its own eta; every other override applies.
     let c = Common {
         eta: None,
@@ -261,7 +279,7 @@ fn sensitivity_command(a: SensitivityArgs) -> Result<Vec<PathBuf>> {
     let spec = RunSpec::new(&cfg);
     let work = rattle::sensitivity::points(&o) as u64 * engine.progress_per_point(&spec);
     let pb = progress_bar(work, "sensitivity");
-    let study = rattle::sensitivity::run(&engine, &cfg, &o, &|n| pb.inc(n))?;
+    let study = rattle::sensitivity::run(&engine, &cfg, &o, &Bar(&pb))?;
     pb.finish_and_clear();
     eprintln!(
         "sensitivity: {} points on {} ({}, {}) in {}",
@@ -304,7 +322,7 @@ fn figure_command(a: FigureArgs) -> Result<Vec<PathBuf>> {
             c.method.precision = a.precision.unwrap_or(c.method.precision);
         },
         out,
-        &|n| pb.inc(n),
+        &Bar(&pb),
     )?;
     pb.finish_and_clear();
     Ok(files)
@@ -332,7 +350,7 @@ fn point(cfg: &Config, as_json: bool) -> Result<Vec<PathBuf>> {
     let engine = Engine::open(cfg.method.backend)?;
     let per_point = engine.progress_per_point(&RunSpec::new(cfg));
     let pb = progress_bar(per_point, "point");
-    let r = rattle::point::run(&engine, cfg, &|n| pb.inc(n))?;
+    let r = rattle::point::run(&engine, cfg, &Bar(&pb))?;
     pb.finish_and_clear();
     if as_json {
         say(format_args!(
@@ -351,7 +369,7 @@ fn map_cmd(cfg: &Config, out: &Path, o: &MapOptions, adapters: Adapters) -> Resu
     } else {
         let engine = Engine::open(cfg.method.backend)?;
         let pb = progress_bar(map::work(&engine, cfg, o), "map");
-        let s = map::run(&engine, cfg, out, o, &|n| pb.inc(n))?;
+        let s = map::run(&engine, cfg, out, o, &Bar(&pb))?;
         pb.finish_and_clear();
         s
     };

@@ -142,6 +142,25 @@ fn listed_by(json: &Path) -> Vec<PathBuf> {
         .collect()
 }
 
+/// Refuses, before computing, a file a set would write (`fig-compare.png` of `map --compare
+/// --out fig`) that another set at its own prefix (`fig-compare.json`) still owns.
+pub fn check_not_owned(file: &Path) -> Result<(), OutputError> {
+    let Some(stem) = file.file_stem() else {
+        return Ok(());
+    };
+    let json = file.with_file_name(format!("{}.json", stem.to_string_lossy()));
+    if json != file && listed_by(&json).iter().any(|f| f == file) {
+        return Err(other(
+            file,
+            format!(
+                "it belongs to the set of {} (written by an earlier run); choose another prefix",
+                json.display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// A file of another set that a set at `prefix` would write over: one that the JSON of a
 /// shorter prefix (`fig.json` for `fig-compare`) lists as its own, still as it wrote it, and
 /// whose name begins with `prefix`'s (`fig-compare.png`). Returns the file and that JSON.

@@ -260,6 +260,13 @@ fn a_prefix_that_would_write_over_another_sets_file_is_refused_before_computing(
     // Without the comparison, fig's set no longer has it: removed.
     assert!(map(&cfg, &d.join("fig"), &[]).status.success());
     assert!(!d.join("fig-compare.png").exists());
+    // The other way round: fig-compare's own set first, then a comparison at fig.
+    assert!(map(&cfg, &d.join("fig-compare"), &[]).status.success());
+    let before = std::fs::read(d.join("fig-compare.png")).unwrap();
+    let o = map(&cfg, &d.join("fig"), &["--compare", cfg.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("fig-compare.json"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(d.join("fig-compare.png")).unwrap(), before);
 }
 
 #[test]
@@ -404,6 +411,13 @@ fn an_interrupted_run_leaves_one_runs_whole_set() {
             .args(["-INT", &child.id().to_string()])
             .status();
         child.wait().unwrap();
+        // The interrupt removed the run's temporary files (reliability round 5, L2).
+        let partial: Vec<_> = std::fs::read_dir(&work)
+            .unwrap()
+            .filter_map(|e| e.ok()?.file_name().into_string().ok())
+            .filter(|n| n.ends_with(".partial"))
+            .collect();
+        assert!(partial.is_empty(), "interrupt {k}: left {partial:?}");
         let now = output_set(&work);
         if now == *a {
             whole_a += 1;

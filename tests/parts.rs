@@ -83,7 +83,12 @@ fn merge_refuses_parts_of_different_runs() {
     assert!(o.status.success());
     let o = merge(&parts, &d.join("merged"));
     assert!(!o.status.success());
-    assert!(stderr(&o).contains("config"), "{}", stderr(&o));
+    // Named by its key and both values (reliability round 5, L8: "a different config").
+    assert!(
+        stderr(&o).contains("`method.steps_per_period` = 128 (this run: 64)"),
+        "{}",
+        stderr(&o)
+    );
     // So is another precision.
     let o = rattle()
         .args(["map", "--backend", "cpu", "--precision", "f32", "--config"])
@@ -350,4 +355,43 @@ fn a_fifo_is_refused_as_a_config_and_replaced_as_a_checkpoint_part() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("s.part-1-of-2.json"), "{}", stderr(&o));
     assert!(stderr(&o).contains("regular file"), "{}", stderr(&o));
+}
+
+#[test]
+fn parts_that_differ_only_in_their_streams_merge_into_the_same_numbers() {
+    // Reliability round 5, L8: parts computed with other `run.overlap` (the same numbers) were
+    // refused as another run's. A 2 x 6 map on the CPU in f64, its shards with 1 and 3 streams.
+    let (d, cfg) = setup("overlap-merge");
+    let text = std::fs::read_to_string(&cfg)
+        .unwrap()
+        .replace("x_points = 1", "x_points = 2")
+        .replace("y_points = 3", "y_points = 6");
+    std::fs::write(&cfg, text).unwrap();
+    let shard = |p: &str, i: usize, k: &str| {
+        let o = map(
+            &cfg,
+            &d.join(p),
+            &[
+                "--shard",
+                &format!("{i}/2"),
+                "--set",
+                &format!("run.overlap={k}"),
+            ],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        d.join(format!("{p}.part-{i}-of-2.json"))
+    };
+    let one = [shard("a", 0, "1"), shard("a", 1, "1")];
+    let mixed = [shard("b", 0, "3"), shard("b", 1, "1")];
+    let o = merge(&one, &d.join("one"));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = merge(&mixed, &d.join("mixed"));
+    assert!(o.status.success(), "{}", stderr(&o));
+    for layer in ["class", "lyapunov", "period", "settle"] {
+        assert_eq!(
+            std::fs::read(d.join(format!("one-{layer}.npy"))).unwrap(),
+            std::fs::read(d.join(format!("mixed-{layer}.npy"))).unwrap(),
+            "{layer}"
+        );
+    }
 }

@@ -24,7 +24,9 @@ struct Cancelled;
 #[derive(Default)]
 struct Reporter {
     done: AtomicU64,
+    /// The engine's units first counted, and those found since ([`Progress::more`]).
     units: AtomicU64,
+    found: AtomicU64,
     cancel: AtomicBool,
 }
 
@@ -33,16 +35,21 @@ impl Reporter {
         self.units.store(n.max(1), Ordering::Relaxed);
     }
 
-    /// Progress in the caller's units (cells, points) of `total`.
-    fn scaled(&self, total: u64) -> u64 {
-        let (d, u) = (
+    /// (done, total) in the caller's units (cells, points), `total` counted first: the total
+    /// grows with the work the run finds it needs (the adaptive stages), `done` never goes back
+    /// and never passes the total.
+    fn scaled(&self, total: u64) -> (u64, u64) {
+        let (d, u, f) = (
             self.done.load(Ordering::Relaxed),
             self.units.load(Ordering::Relaxed),
+            self.found.load(Ordering::Relaxed),
         );
         if u == 0 {
-            return 0;
+            return (0, total);
         }
-        ((d as u128 * total as u128 / u as u128) as u64).min(total)
+        let scale = |x: u64| (x as u128 * total as u128 / u as u128) as u64;
+        let all = scale(u + f).max(total);
+        (scale(d).min(all), all)
     }
 }
 
@@ -52,6 +59,10 @@ impl rattle::progress::Progress for Reporter {
             std::panic::panic_any(Cancelled);
         }
         self.done.fetch_add(n, Ordering::Relaxed);
+    }
+
+    fn more(&self, n: u64) {
+        self.found.fetch_add(n, Ordering::Relaxed);
     }
 }
 
@@ -208,7 +219,7 @@ fn detached<T: Send + 'static>(
                         continue;
                     }
                     if let Some(cb) = &progress
-                        && let Err(e) = cb.call1(py, (reporter.scaled(total), total))
+                        && let Err(e) = cb.call1(py, reporter.scaled(total))
                     {
                         // A callback that raises ends the computation as an interrupt does.
                         reporter.cancel.store(true, Ordering::Relaxed);
@@ -274,7 +285,7 @@ fn point(
     let (cfg, mut said) = load(py, &request(path, text, sets), Command::Point)?;
     let (report, warnings) = detached(py, 1, progress, move |p| {
         let (engine, warnings) = engine(&cfg)?;
-        p.set_units(1);
+        p.set_units(engine.progress_per_point(&rattle::spec::RunSpec::new(&cfg)));
         let r = rattle::point::run(&engine, &cfg, p)?;
         Ok((serde_json::to_string(&r)?, warnings))
     })?;

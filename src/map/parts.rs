@@ -80,11 +80,10 @@ impl Part {
         backend: &str,
         n: usize,
     ) -> Option<String> {
-        let json = |c: &Config| serde_json::to_value(c).ok();
         if self.version != version {
             Some(format!("version {} (this run: {version})", self.version))
-        } else if json(&self.config) != json(cfg) {
-            Some("a different config".into())
+        } else if let Some(d) = config_difference(&self.config, cfg) {
+            Some(d)
         } else if self.starts != starts {
             Some(format!("--starts {} (this run: {starts})", self.starts))
         } else if self.backend != backend {
@@ -263,6 +262,36 @@ pub fn write_part(path: &Path, part: &Part) -> crate::Result<()> {
     drop(w);
     st.commit()?;
     Ok(())
+}
+
+/// The first key in which two parts' configs differ, with both values (`model.eta = 1.3 (this
+/// run: 1.4)`), or None. `run.overlap` is not compared: how many streams ran changes no number
+/// of the map (tests/parts.rs).
+fn config_difference(a: &Config, b: &Config) -> Option<String> {
+    fn walk(key: &str, a: &serde_json::Value, b: &serde_json::Value) -> Option<String> {
+        use serde_json::Value as V;
+        match (a, b) {
+            (V::Object(x), V::Object(y)) => {
+                let keys: std::collections::BTreeSet<&String> = x.keys().chain(y.keys()).collect();
+                keys.into_iter().find_map(|k| {
+                    let sub = if key.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{key}.{k}")
+                    };
+                    if sub == "run.overlap" {
+                        return None;
+                    }
+                    let null = V::Null;
+                    walk(&sub, x.get(k).unwrap_or(&null), y.get(k).unwrap_or(&null))
+                })
+            }
+            _ if a == b => None,
+            _ => Some(format!("a different config: `{key}` = {a} (this run: {b})")),
+        }
+    }
+    let (a, b) = (serde_json::to_value(a).ok()?, serde_json::to_value(b).ok()?);
+    walk("", &a, &b)
 }
 
 pub fn read_part(path: &Path) -> crate::Result<Part> {
