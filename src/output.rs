@@ -39,11 +39,7 @@ pub fn save_npy<T: npyz::AutoSerialize + Copy>(
     shape: &[u64],
     data: &[T],
 ) -> std::io::Result<()> {
-    write_npy(
-        std::io::BufWriter::new(std::fs::File::create(path)?),
-        shape,
-        data,
-    )
+    write_npy(std::io::BufWriter::new(create(path)?), shape, data)
 }
 
 /// The bytes of the NPY file [`save_npy`] writes (the Python package's arrays).
@@ -199,6 +195,25 @@ fn pending() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     PENDING.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// Set by an interrupt once it has removed the pending files: no temporary file is created
+/// after it ([`create`]).
+static ENDING: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Creates a staged temporary file. Creation and an interrupt's removal exclude each other
+/// (both under [`PENDING`]'s lock), and after an interrupt no file is created: the thread waits
+/// for the process to end. So an interrupted run leaves no `.partial`, even one being created
+/// at that instant; what a writer writes after the removal goes to an unlinked file.
+pub fn create(tmp: &Path) -> std::io::Result<std::fs::File> {
+    let guard = pending();
+    if ENDING.load(Ordering::SeqCst) {
+        drop(guard);
+        loop {
+            std::thread::park();
+        }
+    }
+    std::fs::File::create(tmp)
+}
+
 fn forget(tmps: &[PathBuf]) {
     pending().retain(|p| !tmps.contains(p));
 }
@@ -208,9 +223,11 @@ fn forget(tmps: &[PathBuf]) {
 /// then leaves no `.partial` file.
 pub fn interrupt_guard() -> std::sync::MutexGuard<'static, ()> {
     let held = RENAMING.lock().unwrap_or_else(|e| e.into_inner());
-    for p in pending().drain(..) {
+    let mut pending = pending();
+    for p in pending.drain(..) {
         let _ = std::fs::remove_file(p);
     }
+    ENDING.store(true, Ordering::SeqCst);
     held
 }
 
@@ -240,7 +257,8 @@ impl Staged {
     /// Writes bytes to a staged file.
     pub fn write(&mut self, final_path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
         let tmp = self.path(final_path);
-        std::fs::write(&tmp, bytes).map_err(io(final_path))
+        std::io::Write::write_all(&mut create(&tmp).map_err(io(final_path))?, bytes)
+            .map_err(io(final_path))
     }
 
     /// Writes `value` as pretty JSON to a staged file, through a `serde_json::Value` (whose

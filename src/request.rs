@@ -42,7 +42,7 @@ impl Command {
         match self {
             Command::Point | Command::Plot => "point",
             Command::Map => "map",
-            Command::Sweep => "the sweeps",
+            Command::Sweep => "a sweep",
             Command::Basin => "basin",
             Command::Sensitivity => "sensitivity",
         }
@@ -135,7 +135,7 @@ impl Request {
         let mut notes = cfg.notes();
         if !cmd.streams() && cfg.run.overlap.is_some() {
             notes.push(format!(
-                "run.overlap is ignored by {}, which runs no streams",
+                "run.overlap is ignored by {} (it runs no streams)",
                 cmd.name()
             ));
         }

@@ -546,7 +546,9 @@ pub fn write_outputs(
 /// The study's rows as CSV, one line per row.
 fn write_csv(st: &mut Staged, csv_path: &Path, rows: &[Row]) -> Result<()> {
     let err = |e| Error::csv(csv_path, e);
-    let mut w = csv::Writer::from_path(st.path(csv_path)).map_err(err)?;
+    let mut w = csv::Writer::from_writer(
+        crate::output::create(&st.path(csv_path)).map_err(|e| err(e.into()))?,
+    );
     for r in rows {
         w.serialize(r).map_err(err)?;
     }

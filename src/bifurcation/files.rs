@@ -302,7 +302,9 @@ fn write_csv(staged: &mut Staged, out: &Path, b: &Bifurcation) -> Result<()> {
     let csv_path = with_ext(out, "csv");
     {
         let err = |e| Error::csv(&csv_path, e);
-        let mut w = csv::Writer::from_path(staged.path(&csv_path)).map_err(err)?;
+        let mut w = csv::Writer::from_writer(
+            crate::output::create(&staged.path(&csv_path)).map_err(|e| err(e.into()))?,
+        );
         let mut head = vec![cfg.sweep.param.name(), "sample", "y1", "y2", "y3", "y4"];
         if cont {
             head.insert(0, "direction");
@@ -457,7 +459,7 @@ pub fn write_outputs(out: &Path, b: &Bifurcation) -> Result<Vec<PathBuf>> {
         source,
     };
     let mut w =
-        std::io::BufWriter::new(std::fs::File::create(staged.path(&json_path)).map_err(io)?);
+        std::io::BufWriter::new(crate::output::create(&staged.path(&json_path)).map_err(io)?);
     serde_json::to_writer_pretty(&mut w, &j)?;
     w.flush().map_err(io)?;
     drop(w);

@@ -251,7 +251,7 @@ pub fn write_part(path: &Path, part: &Part) -> crate::Result<()> {
         path: path.display().to_string(),
         source,
     };
-    let f = std::fs::File::create(st.path(path)).map_err(io)?;
+    let f = crate::output::create(&st.path(path)).map_err(io)?;
     let mut w = std::io::BufWriter::new(f);
     let sealed = Sealed {
         part,

@@ -265,12 +265,16 @@ pub fn line_plot_svg(path: &Path, plot: &LinePlot) -> Result<(), RenderError> {
     let prepared = prepare(plot)?;
     check_size("image", plot.width, plot.height)?;
     ensure_font()?;
-    let root = SVGBackend::new(path, (plot.width, plot.height)).into_drawing_area();
-    draw_line_plot(&root, plot, &prepared)?;
-    root.present().map_err(|e| RenderError::Io {
-        path: path.display().to_string(),
-        msg: e.to_string(),
-    })
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (plot.width, plot.height)).into_drawing_area();
+        draw_line_plot(&root, plot, &prepared)?;
+        root.present().map_err(|e| RenderError::Io {
+            path: path.display().to_string(),
+            msg: e.to_string(),
+        })?;
+    }
+    super::write_svg(path, &svg)
 }
 
 /// Points in axis coordinates and the axis ranges.

@@ -119,16 +119,32 @@ where
         draw(&root)?;
         root.present().map_err(draw_err)?;
     }
-    // The format is explicit because staged paths end in `.partial`.
-    image::save_buffer_with_format(
-        path,
+    let io = |e: String| RenderError::Io {
+        path: path.display().to_string(),
+        msg: e,
+    };
+    let mut png = Vec::new();
+    image::write_buffer_with_format(
+        &mut std::io::Cursor::new(&mut png),
         &buf,
         width,
         height,
         image::ExtendedColorType::Rgb8,
         image::ImageFormat::Png,
     )
-    .map_err(|e| RenderError::Io {
+    .map_err(|e| io(e.to_string()))?;
+    write_file(path, &png).map_err(|e| io(e.to_string()))
+}
+
+/// Writes a rendered file through the output sets' guarded creation ([`crate::output::create`]).
+fn write_file(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    crate::output::create(path)?.write_all(bytes)
+}
+
+/// Writes an SVG document rendered into a string.
+pub(crate) fn write_svg(path: &Path, svg: &str) -> Result<(), RenderError> {
+    write_file(path, svg.as_bytes()).map_err(|e| RenderError::Io {
         path: path.display().to_string(),
         msg: e.to_string(),
     })

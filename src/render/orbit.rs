@@ -76,12 +76,16 @@ pub fn point_figure_svg(path: &Path, fig: &PointFigure) -> Result<(), RenderErro
     check(fig)?;
     check_size("image", fig.width, fig.height)?;
     ensure_font()?;
-    let root = SVGBackend::new(path, (fig.width, fig.height)).into_drawing_area();
-    draw(&root, fig)?;
-    root.present().map_err(|e| RenderError::Io {
-        path: path.display().to_string(),
-        msg: e.to_string(),
-    })
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (fig.width, fig.height)).into_drawing_area();
+        draw(&root, fig)?;
+        root.present().map_err(|e| RenderError::Io {
+            path: path.display().to_string(),
+            msg: e.to_string(),
+        })?;
+    }
+    super::write_svg(path, &svg)
 }
 
 fn check(fig: &PointFigure) -> Result<(), RenderError> {

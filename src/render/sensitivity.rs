@@ -58,12 +58,16 @@ pub fn sensitivity_png(path: &Path, f: &SensitivityFigure) -> Result<(), RenderE
 pub fn sensitivity_svg(path: &Path, f: &SensitivityFigure) -> Result<(), RenderError> {
     check_size("image", f.width, f.height)?;
     ensure_font()?;
-    let root = SVGBackend::new(path, (f.width, f.height)).into_drawing_area();
-    draw(&root, f)?;
-    root.present().map_err(|e| RenderError::Io {
-        path: path.display().to_string(),
-        msg: e.to_string(),
-    })
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (f.width, f.height)).into_drawing_area();
+        draw(&root, f)?;
+        root.present().map_err(|e| RenderError::Io {
+            path: path.display().to_string(),
+            msg: e.to_string(),
+        })?;
+    }
+    super::write_svg(path, &svg)
 }
 
 fn draw<DB: DrawingBackend>(

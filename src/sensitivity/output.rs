@@ -136,7 +136,9 @@ pub fn write_outputs(
     let csv_path = with_ext(out, "csv");
     {
         let err = |e| Error::csv(&csv_path, e);
-        let mut w = csv::Writer::from_path(staged.path(&csv_path)).map_err(err)?;
+        let mut w = csv::Writer::from_writer(
+            crate::output::create(&staged.path(&csv_path)).map_err(|e| err(e.into()))?,
+        );
         let mut head = vec!["set".to_string(), "row".to_string()];
         head.extend(s.uncertain.iter().map(|u| u.param.name().to_string()));
         head.extend(
