@@ -37,7 +37,7 @@ pub enum Decider<'a> {
 }
 
 /// Trials of one call below which `run.decide = "auto"` leaves Newton on the host
-/// (docs/performance.md).
+/// (docs/performance-log.md).
 pub const DEVICE_MIN_TRIALS: usize = 8192;
 
 impl Decider<'_> {

@@ -8,7 +8,7 @@ library (no files unless `.save(prefix)` is called, which writes the command lin
     m = rattle.map("configs/r_lambda.toml", **{"map.x_points": 64, "map.y_points": 64})
     m.layers["class"], m.x, m.y                           # numpy arrays
     b = rattle.bifurcation("configs/fig2.toml")           # b.values, b.y (section samples)
-    s = rattle.sensitivity("configs/sensitivity_fig2.toml", samples=64)
+    s = rattle.sensitivity("configs/fig2.toml", uncertain=["R=0.6+-0.01"], samples=64)
 
 A config is a TOML file's path, a `Config` (from a path or TOML text, with `.set(key, value)`),
 or TOML text through `toml=`; keyword overrides use the keys of the command line's `--set`

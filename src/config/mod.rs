@@ -274,7 +274,7 @@ impl Tangent {
 pub enum Decide {
     /// On a GPU adapter that is a device of its own; on the host where the adapter runs on
     /// the host's own cores (lavapipe: the host's lanes are faster there, measured in
-    /// docs/performance.md).
+    /// docs/performance-log.md).
     #[default]
     Auto,
     /// On the GPU adapter (the cpu backend decides on the host).

@@ -121,7 +121,7 @@ fn slip_field<F: Real, const N: usize, const COULOMB: bool>(
         let w = s[l] * v;
         // model::friction at w. With Coulomb friction the general law is fs + (+-0) + 0 w^2:
         // fk for a finite w, NaN for an infinite or NaN one, and so is fk + 0 w, bit for bit,
-        // without the division and the max (+14% cpu steps/s, docs/performance.md).
+        // without the division and the max (+14% cpu steps/s, docs/performance-log.md).
         let law = if COULOMB {
             crate::model::coulomb_friction(q.fk[l], w)
         } else {
