@@ -99,9 +99,8 @@ fn int_arg(py: Python, name: &'static str, v: Option<&Bound<PyAny>>) -> PyResult
     let Some(v) = v.filter(|v| !v.is_none()) else {
         return Ok(None);
     };
-    let is_int = v.is_instance_of::<pyo3::types::PyInt>()
-        && !v.is_instance_of::<pyo3::types::PyBool>()
-        || v.hasattr("__index__")? && !v.is_instance_of::<pyo3::types::PyBool>();
+    // Python ints and numpy integers (anything with `__index__`), not bools.
+    let is_int = !v.is_instance_of::<pyo3::types::PyBool>() && v.hasattr("__index__")?;
     if !is_int {
         let kind = v.get_type().name()?.to_string();
         return Err(to_py(

@@ -6,8 +6,8 @@ use plotters::coord::Shift;
 use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
 use plotters::prelude::*;
 
-use super::{FONT, RenderError, check_range, draw_err, ensure_font, extent, fmt_tick, invalid};
-use super::{check_size, layout, pad, render_png};
+use super::{FONT, RenderError, check_range, draw_err, extent, fmt_tick, invalid};
+use super::{layout, pad, render_png, render_svg};
 
 /// Okabe-Ito colours (black last; yellow left out, too pale on white): distinguishable with
 /// the common colour-vision deficiencies. Markers and dashes tell lines apart as well.
@@ -263,18 +263,9 @@ pub fn line_plot_png(path: &Path, plot: &LinePlot) -> Result<(), RenderError> {
 /// The same chart as SVG (vector: lines and text stay sharp at any print size).
 pub fn line_plot_svg(path: &Path, plot: &LinePlot) -> Result<(), RenderError> {
     let prepared = prepare(plot)?;
-    check_size("image", plot.width, plot.height)?;
-    ensure_font()?;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (plot.width, plot.height)).into_drawing_area();
-        draw_line_plot(&root, plot, &prepared)?;
-        root.present().map_err(|e| RenderError::Io {
-            path: path.display().to_string(),
-            msg: e.to_string(),
-        })?;
-    }
-    super::write_svg(path, &svg)
+    render_svg(path, plot.width, plot.height, |root| {
+        draw_line_plot(root, plot, &prepared)
+    })
 }
 
 /// Points in axis coordinates and the axis ranges.

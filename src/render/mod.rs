@@ -56,6 +56,7 @@ pub enum RenderError {
 }
 
 type Area<'b> = DrawingArea<BitMapBackend<'b>, Shift>;
+type SvgArea<'b> = DrawingArea<SVGBackend<'b>, Shift>;
 
 fn draw_err<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) -> RenderError {
     RenderError::Draw(e.to_string())
@@ -142,12 +143,25 @@ fn write_file(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     crate::output::create(path)?.write_all(bytes)
 }
 
-/// Writes an SVG document rendered into a string.
-pub(crate) fn write_svg(path: &Path, svg: &str) -> Result<(), RenderError> {
-    write_file(path, svg.as_bytes()).map_err(|e| RenderError::Io {
+/// Renders with `draw` into an SVG document and writes it to `path` (vector: lines and text
+/// stay sharp at any print size).
+fn render_svg<F>(path: &Path, width: u32, height: u32, draw: F) -> Result<(), RenderError>
+where
+    F: FnOnce(&SvgArea<'_>) -> Result<(), RenderError>,
+{
+    check_size("image", width, height)?;
+    ensure_font()?;
+    let io = |e: String| RenderError::Io {
         path: path.display().to_string(),
-        msg: e.to_string(),
-    })
+        msg: e,
+    };
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
+        draw(&root)?;
+        root.present().map_err(|e| io(e.to_string()))?;
+    }
+    write_file(path, svg.as_bytes()).map_err(|e| io(e.to_string()))
 }
 
 /// Font sizes and label areas scaled with the drawing area, so that 2x2

@@ -11,8 +11,8 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::{
-    FONT, Layout, RenderError, check_range, check_size, draw_err, ensure_font, extent, fmt_tick,
-    invalid, layout, pad, render_png,
+    FONT, Layout, RenderError, check_range, draw_err, extent, fmt_tick, invalid, layout, pad,
+    render_png,
 };
 
 /// Okabe-Ito colours, as in the line charts (distinguishable with the common colour-vision
@@ -74,18 +74,7 @@ pub fn point_figure_png(path: &Path, fig: &PointFigure) -> Result<(), RenderErro
 /// The same figure as SVG (vector: lines and text stay sharp at any print size).
 pub fn point_figure_svg(path: &Path, fig: &PointFigure) -> Result<(), RenderError> {
     check(fig)?;
-    check_size("image", fig.width, fig.height)?;
-    ensure_font()?;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (fig.width, fig.height)).into_drawing_area();
-        draw(&root, fig)?;
-        root.present().map_err(|e| RenderError::Io {
-            path: path.display().to_string(),
-            msg: e.to_string(),
-        })?;
-    }
-    super::write_svg(path, &svg)
+    super::render_svg(path, fig.width, fig.height, |root| draw(root, fig))
 }
 
 fn check(fig: &PointFigure) -> Result<(), RenderError> {

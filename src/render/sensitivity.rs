@@ -2,9 +2,7 @@
 //! the samples over the two most influential parameters on the class map of that plane, and
 //! histograms of the largest exponent and of the mean impact speed.
 
-use super::{
-    FONT, RenderError, check_size, draw_err, ensure_font, extent, layout, pad, render_png,
-};
+use super::{FONT, RenderError, draw_err, extent, layout, pad, render_png};
 use crate::class::Class;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -56,18 +54,7 @@ pub fn sensitivity_png(path: &Path, f: &SensitivityFigure) -> Result<(), RenderE
 }
 
 pub fn sensitivity_svg(path: &Path, f: &SensitivityFigure) -> Result<(), RenderError> {
-    check_size("image", f.width, f.height)?;
-    ensure_font()?;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (f.width, f.height)).into_drawing_area();
-        draw(&root, f)?;
-        root.present().map_err(|e| RenderError::Io {
-            path: path.display().to_string(),
-            msg: e.to_string(),
-        })?;
-    }
-    super::write_svg(path, &svg)
+    super::render_svg(path, f.width, f.height, |root| draw(root, f))
 }
 
 fn draw<DB: DrawingBackend>(
