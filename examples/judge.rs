@@ -6,9 +6,10 @@
 //! `cargo run --release --example judge -- CONFIG CLASS_NPY SAMPLE SEED OUT_CSV`
 //!
 //! `rejudge:FIXTURE.csv` as SAMPLE re-judges the rows of an earlier fixture whose verdict was
-//! `chaotic` or `unclear` (the rule below for chaos once returned at the first chaotic window,
-//! 3000 periods in: a chaotic transient then passed for chaos) and keeps the other rows as
-//! they are (a periodic, quasi-periodic or impact-free verdict is final when it is reached).
+//! `chaotic`, `unclear` or a period above 1 (the rule below for chaos once returned at the first
+//! chaotic window, 3000 periods in: a chaotic transient then passed for chaos; the rule for a
+//! period once took a slowly converging cycle for one of twice its period) and keeps the other
+//! rows as they are (period 1, quasi-periodic and impact-free verdicts are final when reached).
 //!
 //! CLASS_NPY is a map's `PREFIX-class.npy` over the config's [map] grid (`-` with `rejudge:`). SAMPLE `s30` draws 30
 //! cells of each map class group (chaotic, periodic of period 1-4, periodic of period 5 or more,
@@ -20,7 +21,8 @@
 //!   the last window only (a chaotic transient can end tens of thousands of periods in);
 //! - periodic: the window's last 256 sections repeat with the smallest lag n <= 128 to 1e-9 of
 //!   max(1, range), and a neighbour 1e-8 away converges onto it (a negative exponent); a cycle
-//!   that still converges slowly (its alternating part repeats at twice the lag sooner) waits
+//!   that still converges slowly (its alternating part repeats at twice the lag sooner: the
+//!   difference at a proper divisor of the lag still halves or more over the window) waits
 //!   for a later window;
 //! - chaotic: the two-trajectory exponent (a neighbour 1e-8 away in y1, renormalised every
 //!   period) exceeds 0.002 per unit time over the window and over each of its halves;
@@ -166,7 +168,27 @@ fn window(
                 .all(|k| (0..4).all(|c| (samples[k][c] - samples[k - n][c]).abs() <= tol))
         })
     };
+    // The largest difference at lag `d` over the sections `k0..k0 + 256`.
+    let spread = |d: usize, k0: usize| {
+        (k0..k0 + 256)
+            .flat_map(|k| (0..4).map(move |c| (k, c)))
+            .map(|(k, c)| (samples[k][c] - samples[k - d][c]).abs())
+            .fold(0.0f64, f64::max)
+    };
+    // A cycle of period d whose multiplier is near -1 (or a complex pair near the unit circle)
+    // converges so slowly that its sections repeat to 1e-9 at a multiple of d sooner than at d:
+    // while the difference at a proper divisor d still shrinks over the window (to half or less
+    // from its first 256 sections to its last), the motion is converging onto period d, not
+    // on a cycle of the longer period, and the verdict waits for a later window.
+    let converging = |n: usize| {
+        (1..n)
+            .filter(|&d| n.is_multiple_of(d))
+            .any(|d| spread(d, len - 256) < 0.5 * spread(d, n))
+    };
     let class = if let Some(n) = lag(1e-9).filter(|_| lyap < 0.0) {
+        if converging(n) {
+            return Ok(("unclear".into(), 0, lyap, lyap1, digits));
+        }
         return Ok((format!("period-{n}"), n as u32, lyap, lyap1, digits));
     } else if lyap > 0.002 && lyap1 > 0.002 && lyap2 > 0.002 {
         "chaotic"
@@ -211,7 +233,10 @@ fn main() -> anyhow::Result<()> {
             let row = row?;
             let c = row[1].parse::<usize>()? * nx + row[0].parse::<usize>()?;
             order.push(c);
-            if &row[5] == "chaotic" || &row[5] == "unclear" {
+            let rerun = &row[5] == "chaotic"
+                || &row[5] == "unclear"
+                || row[5].strip_prefix("period-").is_some_and(|n| n != "1");
+            if rerun {
                 let g: &str = match &row[4] {
                     "chaotic" => "chaotic",
                     "periodic" => "periodic",

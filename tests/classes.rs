@@ -378,13 +378,16 @@ fn check_decided(
 
 #[test]
 fn map_classes_agree_with_the_judge_on_the_cpu() {
+    // 4 of the strata's 119 judged cells are wrong in f64 (3.4%, the target 3%): chaotic
+    // transients longer than the look (3600 periods) on this path that the judge's path left
+    // within 3 x 10^4 (lavapipe's f32 paths leave 3 of them in time; docs/classes.md).
     check(
         R_LAMBDA,
         "r_lambda",
         &Engine::Cpu,
         Precision::F64,
         0.90,
-        0.09,
+        0.034,
     );
 }
 
@@ -392,15 +395,11 @@ fn map_classes_agree_with_the_judge_on_the_cpu() {
 fn map_classes_agree_with_the_judge_on_the_gpu() {
     // Fails, not skips, without an adapter when RATTLE_REQUIRE_GPU=1 (CI). The fixtures' cells
     // are computed without their neighbours, so every chaotic-looking one gets the whole long
-    // look (run.look). Of the strata's 9-10 wrong cells (f32 and f64 alike) 5 are cycles near a
-    // period doubling that the exact system has doubled and the map's N = 128 not (period 5
-    // against 10, 3 against 6), 2 are coexisting cycles reached on different paths (period 2
-    // against 50), 2-3 chaotic transients longer than the look: the 3% target is missed there
-    // (docs/classes.md).
+    // look (run.look). The target: >= 90% right, <= 3% wrong.
     let Some(engine) = common::gpu_engine() else {
         return;
     };
-    check(R_LAMBDA, "r_lambda", &engine, Precision::F32, 0.90, 0.09);
+    check(R_LAMBDA, "r_lambda", &engine, Precision::F32, 0.90, 0.03);
 }
 
 // The stick-slip maps nobody tuned the classes on: a Stribeck map and the eta x lambda map,
@@ -409,10 +408,12 @@ fn map_classes_agree_with_the_judge_on_the_gpu() {
 #[test]
 fn stick_slip_map_classes_agree_with_the_judge_on_the_cpu() {
     let cpu = &Engine::Cpu;
-    // The eta x lambda strata leave 7 of 119 judged cells undecided (unresolved, the judge
-    // definite): 107 right is 89.9%, so that fixture's floor is 89% (docs/classes.md).
     check(STRIBECK, "stribeck", cpu, Precision::F64, 0.90, 0.03);
-    check(ETA_LAMBDA, "eta_lambda", cpu, Precision::F64, 0.89, 0.05);
+    // 5 of the eta x lambda uniform sample's 110 are wrong in f64 (4.5%, the target 3%): a cell
+    // at a period doubling (period 1 against 2), coexisting cycles reached on different paths
+    // (period 26, |mu| 0.06, against 10) and 3 chaotic transients longer than the look on this
+    // path (docs/classes.md).
+    check(ETA_LAMBDA, "eta_lambda", cpu, Precision::F64, 0.90, 0.046);
 }
 
 #[test]
@@ -421,12 +422,14 @@ fn stick_slip_map_classes_agree_with_the_judge_on_the_gpu() {
         return;
     };
     check(STRIBECK, "stribeck", &engine, Precision::F32, 0.90, 0.03);
-    // 3-5 judged cells of each eta x lambda fixture are wrong: cycles near a period doubling
-    // that the exact system has already doubled (period 1 against 2, 8 against 16, 14 against
-    // 28), and chaotic transients longer than the look (3600 periods) that the judge's path
-    // left within 3 x 10^4: the 3% target is missed there (docs/classes.md).
-    let f32 = Precision::F32;
-    check(ETA_LAMBDA, "eta_lambda", &engine, f32, 0.89, 0.05);
+    check(
+        ETA_LAMBDA,
+        "eta_lambda",
+        &engine,
+        Precision::F32,
+        0.90,
+        0.03,
+    );
 }
 
 #[test]
@@ -437,9 +440,9 @@ fn map_classes_decided_on_the_device_agree_with_the_judge() {
         return;
     };
     let device = (Precision::F32, Decide::Device, None);
-    check_decided(R_LAMBDA, "r_lambda", &engine, device, 0.90, 0.09);
+    check_decided(R_LAMBDA, "r_lambda", &engine, device, 0.90, 0.03);
     check_decided(STRIBECK, "stribeck", &engine, device, 0.90, 0.03);
-    check_decided(ETA_LAMBDA, "eta_lambda", &engine, device, 0.89, 0.05);
+    check_decided(ETA_LAMBDA, "eta_lambda", &engine, device, 0.90, 0.03);
 }
 
 #[test]
@@ -459,9 +462,9 @@ fn map_classes_decided_in_f32_on_the_device_agree_with_the_judge() {
     ));
     let before = engine.decide_seconds();
     let device = (Precision::F32, Decide::Device, Some(Precision::F32));
-    check_decided(R_LAMBDA, "r_lambda", &engine, device, 0.90, 0.09);
+    check_decided(R_LAMBDA, "r_lambda", &engine, device, 0.90, 0.03);
     check_decided(STRIBECK, "stribeck", &engine, device, 0.90, 0.03);
-    check_decided(ETA_LAMBDA, "eta_lambda", &engine, device, 0.89, 0.05);
+    check_decided(ETA_LAMBDA, "eta_lambda", &engine, device, 0.90, 0.03);
     assert!(
         engine.decide_seconds() > before,
         "no Newton trial ran on the device"

@@ -193,6 +193,55 @@ pub(super) fn multiplier_caption(cfg: &Config, values: &[f64]) -> Option<String>
     ))
 }
 
+/// The caption of PREFIX-settle.png: how long the cells took to settle, by the kind of
+/// attractor they reached.
+pub(super) fn settle_caption(cfg: &Config, f: &super::fields::Fields) -> Option<String> {
+    let chaotic = Class::Chaotic.code();
+    let (mut on, mut ch): (Vec<u32>, Vec<u32>) = (Vec::new(), Vec::new());
+    let mut whole = 0;
+    for (((&s, &c), &i), &l) in f
+        .settle
+        .iter()
+        .zip(&f.class)
+        .zip(&f.inferred)
+        .zip(&f.looked)
+    {
+        if i != 0 {
+            continue;
+        }
+        if c == chaotic {
+            ch.push(s);
+            whole += usize::from(l == 2);
+        } else {
+            on.push(s);
+        }
+    }
+    if on.is_empty() && ch.is_empty() {
+        return None;
+    }
+    on.sort_unstable();
+    let q = |v: &[u32], p: usize| v.get((v.len().saturating_sub(1)) * p / 100).copied();
+    let long = cfg.run.transient_periods + cfg.run.sample_periods;
+    let late = on.iter().filter(|&&s| s >= long).count();
+    Some(format!(
+        "Periods until the motion was on its attractor at each of {grid} (log scale): for a \
+         periodic, quasi-periodic or impact-free cell the periods before the window that showed \
+         its attractor (an upper bound), for a chaotic cell the length of its look (chaos is \
+         known to last that long, no longer); grey: inferred cells. {n} non-chaotic cells: \
+         median {med}, 99th percentile {p99}, longest {max}; {late} of them settled only after \
+         the configured {long} periods. {c} chaotic cells, {whole} of them chaotic through the \
+         whole look ({look} periods; the others uncontested, chaotic after the configured \
+         periods or the adaptive horizon). Raster image, 1100 x 800 px ({RASTER}).",
+        grid = grid_phrase(cfg),
+        n = on.len(),
+        med = q(&on, 50).map_or("-".into(), |v| v.to_string()),
+        p99 = q(&on, 99).map_or("-".into(), |v| v.to_string()),
+        max = on.last().map_or("-".into(), |v| v.to_string()),
+        c = ch.len(),
+        look = cfg.run.look,
+    ))
+}
+
 /// The caption of PREFIX-compare.png.
 pub fn compare_caption(cfg: &Config, other: &Config, a: &[Class], b: &[Class]) -> String {
     let n = a.len().max(1);

@@ -1,7 +1,9 @@
 //! The files of a finished map: class and exponent images, one NPY per field, the JSON report.
 
 use super::Fields;
-use super::caption::{caption, lyapunov_caption, model_diff, multiplier_caption, title};
+use super::caption::{
+    caption, lyapunov_caption, model_diff, multiplier_caption, settle_caption, title,
+};
 use crate::class::Class;
 use crate::class::{PERIOD_FAMILIES, Shown};
 use crate::config::Config;
@@ -134,6 +136,7 @@ struct MapJson<'a> {
     /// The same for PREFIX-lyapunov.png and PREFIX-multiplier.png (null where not drawn).
     caption_lyapunov: Option<String>,
     caption_multiplier: Option<String>,
+    caption_settle: Option<String>,
     version: &'a str,
     config: &'a Config,
     class_counts: BTreeMap<String, usize>,
@@ -168,7 +171,15 @@ impl Images<'_> {
     }
 
     /// The class map, PREFIX.png (`cells`: category codes).
-    fn classes(&self, st: &mut Staged, cells: &[u16], report: &MapReport) -> crate::Result<()> {
+    /// `coexist`: cells with a stable cycle carried from a neighbour beside their attractor,
+    /// and how many of them are chaotic.
+    fn classes(
+        &self,
+        st: &mut Staged,
+        cells: &[u16],
+        report: &MapReport,
+        coexist: (usize, usize),
+    ) -> crate::Result<()> {
         let m = &self.cfg.map;
         let (nx, ny) = (m.x_points as usize, m.y_points as usize);
         let cats = categories();
@@ -179,7 +190,7 @@ impl Images<'_> {
         let fams = families();
         let fam_refs: Vec<(&str, u16, u16)> =
             fams.iter().map(|(l, a, b)| (l.as_str(), *a, *b)).collect();
-        let note = report.refine.as_ref().map(|r| {
+        let inferred = report.refine.as_ref().map(|r| {
             format!(
                 "cells inferred from block corners\n(coarse spacing {}): {} ({})",
                 r.spacing,
@@ -187,6 +198,23 @@ impl Images<'_> {
                 grouped(r.cells_inferred)
             )
         });
+        // What coexists is not a class of its own: the legend counts it (the layer says where).
+        let beside = (coexist.0 > 0).then(|| {
+            format!(
+                "beside a stable cycle carried from\na neighbour ({}-coexist.npy):\n{} ({}), \
+                 {} of them chaotic",
+                self.prefix
+                    .file_name()
+                    .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
+                percent(coexist.0, nx * ny),
+                grouped(coexist.0),
+                grouped(coexist.1)
+            )
+        });
+        let note = match (inferred, beside) {
+            (Some(a), Some(b)) => Some(format!("{a}\n{b}")),
+            (a, b) => a.or(b),
+        };
         let (xr, yr) = self.ranges();
         category_map_png(
             &st.path(&with_ext(self.prefix, "png")),
@@ -372,7 +400,19 @@ pub fn map_caption(cfg: &Config, fields: &Fields, report: &MapReport) -> String 
         .zip(&fields.attractors)
         .filter(|&(c, &a)| Shown::of(c, a) == Shown::Coexisting)
         .count();
-    let look = super::caption::LookSeen {
+    caption(
+        cfg,
+        report,
+        &fields.counts(),
+        &fields.rule_counts(),
+        coexisting,
+        look_seen(fields),
+    )
+}
+
+/// What the long look saw over the map's cells.
+fn look_seen(fields: &Fields) -> super::caption::LookSeen {
+    super::caption::LookSeen {
         contested: fields.looked.iter().filter(|&&l| l == 2).count(),
         uncontested: fields.looked.iter().filter(|&&l| l == 1).count(),
         coexist: fields.coexist.iter().filter(|&&c| c > 0).count(),
@@ -382,15 +422,7 @@ pub fn map_caption(cfg: &Config, fields: &Fields, report: &MapReport) -> String 
             .zip(&fields.class)
             .filter(|&(&c, &k)| c > 0 && k == Class::Chaotic.code())
             .count(),
-    };
-    caption(
-        cfg,
-        report,
-        &fields.counts(),
-        &fields.rule_counts(),
-        coexisting,
-        look,
-    )
+    }
 }
 
 /// The classes as the class image shows them (category codes).
@@ -418,7 +450,7 @@ pub fn npy_layers(cfg: &Config, fields: &Fields) -> Vec<(&'static str, Vec<u8>)>
     out
 }
 
-/// Writes a map's set: the class image, the exponent, multiplier and risk images, one NPY per
+/// Writes a map's set: the class image, the exponent, multiplier, settle and risk images, one NPY per
 /// layer, the JSON.
 pub fn write_outputs(
     prefix: &Path,
@@ -431,7 +463,13 @@ pub fn write_outputs(
     let mut st = Staged::new();
     let images = Images { prefix, cfg };
     let cells = shown_cells(fields);
-    images.classes(&mut st, &cells, report)?;
+    let look = look_seen(fields);
+    images.classes(
+        &mut st,
+        &cells,
+        report,
+        (look.coexist, look.coexist_chaotic),
+    )?;
     let nan = |v: &[Option<f64>]| -> Vec<f64> { v.iter().map(|x| x.unwrap_or(f64::NAN)).collect() };
     let lyap = nan(&fields.lyapunov);
     let lim = exponent_limit(&lyap);
@@ -460,6 +498,33 @@ pub fn write_outputs(
             center: None,
         },
     )?;
+    // Settle times span 10 to 10^4 periods: drawn on a log scale; inferred cells (settle 0,
+    // never integrated) grey.
+    let settle: Vec<f64> = fields
+        .settle
+        .iter()
+        .zip(&fields.inferred)
+        .map(|(&s, &i)| {
+            if i != 0 {
+                f64::NAN
+            } else {
+                f64::from(s.max(1)).log10()
+            }
+        })
+        .collect();
+    images.scalar(
+        &mut st,
+        "settle",
+        &Scalar {
+            title: format!(
+                "periods until on the attractor over {} and {} (chaotic: the look's length)",
+                m.x, m.y
+            ),
+            values: &settle,
+            colorbar_label: "log10 of the periods before the attractor was shown",
+            center: None,
+        },
+    )?;
     let risk = risk_of(cfg, &cells);
     risk_image(&mut st, &images, risk.as_ref())?;
     let grid = (m.y_points as usize, m.x_points as usize);
@@ -478,6 +543,7 @@ pub fn write_outputs(
         caption: map_caption(cfg, fields, report),
         caption_lyapunov: lyapunov_caption(cfg, &lyap, lim),
         caption_multiplier: multiplier_caption(cfg, &mult),
+        caption_settle: settle_caption(cfg, fields),
         report,
         version: report
             .version
