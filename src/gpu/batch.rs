@@ -330,23 +330,35 @@ impl<F: Real + Pod> Batch<F> {
         let fsz = size_of::<F>() as u64;
         // The state only: the tangent vector is the kernel's business. The ring always: the
         // last section values and the torus test's sums are evidence. One submission and
-        // one wait for all of them.
+        // one wait for all of them. The ring starts zeroed for each job and holds at most its
+        // sampled periods' values (slots 0..samples): the slots beyond were never written and
+        // are not read (a map's 100 sampled periods use 100 of the 256).
+        let values = (job.spec.samples as usize).min(TAIL as usize);
         let mut parts = vec![
-            (&self.ys, (Y_MAIN + STATE_DIM) as u64 * m * fsz),
-            (&self.ring, m * R_SLOTS as u64 * fsz),
-            (&self.us, U_SLOTS as u64 * m * 4),
+            (&self.ys, 0, (Y_MAIN + STATE_DIM) as u64 * m * fsz),
+            (&self.ring, 0, values as u64 * m * fsz),
+            (
+                &self.ring,
+                TAIL as u64 * m * fsz,
+                (R_SLOTS - TAIL) as u64 * m * fsz,
+            ),
+            (&self.us, 0, U_SLOTS as u64 * m * 4),
         ];
         if job.store_samples {
-            parts.push((&self.samples, m * plan.store_bytes));
+            parts.push((&self.samples, 0, m * plan.store_bytes));
         }
         gpu.read_storages(&parts, |p| ReadBack {
             start: self.range.start,
             m: self.range.len(),
             ys: bytemuck::pod_collect_to_vec(p[0]),
-            ring: bytemuck::pod_collect_to_vec(p[1]),
-            us: bytemuck::pod_collect_to_vec(p[2]),
+            values,
+            ring: [p[1], p[2]]
+                .iter()
+                .flat_map(|b| bytemuck::pod_collect_to_vec::<u8, F>(b))
+                .collect(),
+            us: bytemuck::pod_collect_to_vec(p[3]),
             samples: p
-                .get(3)
+                .get(4)
                 .map_or_else(Vec::new, |s| bytemuck::pod_collect_to_vec(s)),
         })
     }
@@ -366,6 +378,8 @@ pub(super) struct ReadBack<F> {
     m: usize,
     ys: Vec<F>,
     us: Vec<u32>,
+    /// The ring's first `values` value slots, then its slots from TAIL on ([`Self::ring`]).
+    values: usize,
     ring: Vec<F>,
     /// Empty unless the job stores samples.
     samples: Vec<F>,
@@ -374,6 +388,17 @@ pub(super) struct ReadBack<F> {
 impl<F: Real> ReadBack<F> {
     fn u(&self, slot: u32, i: usize) -> u32 {
         self.us[at(slot, self.m, i)]
+    }
+
+    /// Ring slot `slot` of point `i`: a value slot below `values`, or a slot from TAIL on.
+    fn ring(&self, slot: u32, i: usize) -> f64 {
+        let s = if slot < TAIL {
+            debug_assert!((slot as usize) < self.values);
+            slot as usize
+        } else {
+            self.values + (slot - TAIL) as usize
+        };
+        self.ring[s * self.m + i].to_f64()
     }
 
     /// Indices in the job of the points whose loops the driver cut short.
@@ -406,12 +431,11 @@ impl<F: Real> ReadBack<F> {
                 cpu_rerun: false,
                 // The kernel keeps means per sampled period over the periods it sampled.
                 impact_speed: [
-                    self.ring[at(R_IMPACT_SPEED_SUM, self.m, i)].to_f64() * sampled,
-                    self.ring[at(R_IMPACT_SPEED_MAX, self.m, i)].to_f64(),
+                    self.ring(R_IMPACT_SPEED_SUM, i) * sampled,
+                    self.ring(R_IMPACT_SPEED_MAX, i),
                 ],
-                dissipated: [R_LOSS_IMPACTS, R_LOSS_FRICTION]
-                    .map(|s| self.ring[at(s, self.m, i)].to_f64() * sampled),
-                stuck_steps: self.ring[at(R_STUCK, self.m, i)].to_f64() * sampled,
+                dissipated: [R_LOSS_IMPACTS, R_LOSS_FRICTION].map(|s| self.ring(s, i) * sampled),
+                stuck_steps: self.ring(R_STUCK, i) * sampled,
             };
             let samples = if job.store_samples {
                 (0..n_samples)
@@ -427,7 +451,7 @@ impl<F: Real> ReadBack<F> {
             let period = PeriodDetector::period_from(possible, count);
             // Mean log growth per unit time over the sampled periods, and its batch-means
             // error (the kernel's blocks complete as Growth's do over `count` periods).
-            let ring = |slot| self.ring[at(slot, self.m, i)].to_f64();
+            let ring = |slot| self.ring(slot, i);
             let lyapunov = if spec.settings.lyapunov && u(U_TAN_BAD) == 0 && count > 0 {
                 let eta = job.points.params(&spec.params, self.start + i).eta;
                 let period = 2.0 * std::f64::consts::PI / eta;

@@ -288,6 +288,7 @@ impl Kernels {
         cache
             .entry((precision, rung, variant, source.clone(), entry.to_string()))
             .or_insert_with(|| {
+                let t0 = std::time::Instant::now();
                 let source = if source.is_empty() {
                     shader_source(precision)
                 } else {
@@ -297,7 +298,7 @@ impl Kernels {
                     label: Some(entry),
                     source: wgpu::ShaderSource::Wgsl(source.into()),
                 });
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(entry),
                     layout: Some(layout),
                     module: &module,
@@ -307,7 +308,13 @@ impl Kernels {
                         ..Default::default()
                     },
                     cache: None,
-                })
+                });
+                // Start-up is part of every short run's wall (docs/performance.md).
+                log::debug!(
+                    "pipeline {entry} ({precision:?}, {rung:?}, {variant:?}) built in {:.3} s",
+                    t0.elapsed().as_secs_f64()
+                );
+                pipeline
             })
             .clone()
     }

@@ -190,7 +190,13 @@ pub fn describe(info: &wgpu::AdapterInfo) -> String {
 impl Gpu {
     /// Opens the adapter chosen from the environment with its real limits.
     pub fn new() -> Result<Gpu, GpuError> {
-        Gpu::open(select(&instance())?)
+        let t0 = std::time::Instant::now();
+        let gpu = Gpu::open(select(&instance())?);
+        log::debug!(
+            "adapter and device opened in {:.3} s",
+            t0.elapsed().as_secs_f64()
+        );
+        gpu
     }
 
     /// Opens every adapter of the selected backends (for `--adapters all`).
@@ -354,6 +360,7 @@ impl Gpu {
         let mut results = Vec::with_capacity(n);
         let mut truncated = Vec::new();
         for range in plan.batches(n) {
+            let points = range.len();
             let t_batch = Instant::now();
             timings.batches += 1;
             let pipelines = (&pipeline, transient.as_ref());
@@ -376,7 +383,12 @@ impl Gpu {
             let t_read = Instant::now();
             let read = batch.read_back(self, job, &plan)?;
             truncated.extend(read.truncated());
+            let t_decode = Instant::now();
             read.decode(job, &mut results);
+            log::debug!(
+                "batch of {points} points decoded in {:.4} s",
+                t_decode.elapsed().as_secs_f64()
+            );
             timings.readback_s += t_read.elapsed().as_secs_f64();
         }
         timings.kernel_s = timer.and_then(|t| t.seconds());
@@ -418,23 +430,25 @@ impl Gpu {
 
     /// Copies a storage buffer to a mappable one and reads it.
     fn read_storage<T: Pod>(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<T>, GpuError> {
-        self.read_storages(&[(src, size)], |p| bytemuck::pod_collect_to_vec(p[0]))
+        self.read_storages(&[(src, 0, size)], |p| bytemuck::pod_collect_to_vec(p[0]))
     }
 
-    /// Copies the first `size` bytes of each buffer of `parts`, one after the other, to one
-    /// mappable buffer in one submission, and hands `read` each part's bytes: one wait and
-    /// one mapping for all of them.
+    /// Copies `size` bytes from `offset` of each buffer of `parts` (buffer, offset, size), one
+    /// after the other, to one mappable buffer in one submission, and hands `read` each part's
+    /// bytes: one wait and one mapping for all of them.
     fn read_storages<R>(
         &self,
-        parts: &[(&wgpu::Buffer, u64)],
+        parts: &[(&wgpu::Buffer, u64, u64)],
         read: impl FnOnce(&[&[u8]]) -> R,
     ) -> Result<R, GpuError> {
-        let total: u64 = parts.iter().map(|p| p.1).sum();
-        let dst = self.readback_buffer(total);
+        let total: u64 = parts.iter().map(|p| p.2).sum();
+        let dst = self.readback_buffer(total.max(4));
         let mut enc = self.device.create_command_encoder(&Default::default());
         let mut at = 0;
-        for &(src, size) in parts {
-            enc.copy_buffer_to_buffer(src, 0, &dst, at, size);
+        for &(src, offset, size) in parts {
+            if size > 0 {
+                enc.copy_buffer_to_buffer(src, offset, &dst, at, size);
+            }
             at += size;
         }
         let index = self.queue.submit([enc.finish()]);
@@ -442,7 +456,7 @@ impl Gpu {
             let mut rest = all;
             let split: Vec<&[u8]> = parts
                 .iter()
-                .map(|&(_, size)| {
+                .map(|&(_, _, size)| {
                     let (part, tail) = rest.split_at(size as usize);
                     rest = tail;
                     part
@@ -471,6 +485,7 @@ impl Gpu {
         index: wgpu::SubmissionIndex,
         read: impl FnOnce(&[u8]) -> R,
     ) -> Result<R, GpuError> {
+        let t0 = Instant::now();
         let slice = buf.slice(0..size);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -480,6 +495,7 @@ impl Gpu {
         rx.recv()
             .map_err(|e| self.fail(format!("readback: {e}")))?
             .map_err(|e| self.fail(format!("readback: {e}")))?;
+        let t1 = Instant::now();
         let out = {
             let view = slice
                 .get_mapped_range()
@@ -487,6 +503,11 @@ impl Gpu {
             read(&view)
         };
         buf.unmap();
+        log::debug!(
+            "readback of {size} bytes: copy and map {:.4} s, read {:.4} s",
+            (t1 - t0).as_secs_f64(),
+            t1.elapsed().as_secs_f64()
+        );
         Ok(out)
     }
 }
