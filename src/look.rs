@@ -166,6 +166,7 @@ pub fn carry(
     let mut seed: Vec<Option<Seed>> = seeds.to_vec();
     let mut front: Vec<usize> = (0..n).filter(|&i| seed[i].is_some()).collect();
     let mut rounds = 0;
+    let (t0, mut trials) = (std::time::Instant::now(), 0);
     while !front.is_empty() {
         rounds += 1;
         let mut idx = Vec::new();
@@ -191,6 +192,7 @@ pub fn carry(
             }
         }
         let mut next = Vec::new();
+        trials += tasks.len();
         for (t, task) in idx.into_iter().zip(decider.refine(settings, tasks)) {
             let c = task.cycle();
             if got[t].is_none() && c.is_stable() {
@@ -202,8 +204,9 @@ pub fn carry(
         front = next;
     }
     log::debug!(
-        "carry: {} points gained a stable cycle in {rounds} rounds",
-        got.iter().filter(|c| c.is_some()).count()
+        "carry: {} points gained a stable cycle in {rounds} rounds, {trials} trials, {:.3} s",
+        got.iter().filter(|c| c.is_some()).count(),
+        t0.elapsed().as_secs_f64()
     );
     got
 }

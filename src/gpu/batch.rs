@@ -350,16 +350,11 @@ impl<F: Real + Pod> Batch<F> {
         gpu.read_storages(&parts, |p| ReadBack {
             start: self.range.start,
             m: self.range.len(),
-            ys: bytemuck::pod_collect_to_vec(p[0]),
+            ys: super::collect(p[0]),
             values,
-            ring: [p[1], p[2]]
-                .iter()
-                .flat_map(|b| bytemuck::pod_collect_to_vec::<u8, F>(b))
-                .collect(),
-            us: bytemuck::pod_collect_to_vec(p[3]),
-            samples: p
-                .get(4)
-                .map_or_else(Vec::new, |s| bytemuck::pod_collect_to_vec(s)),
+            ring: [super::collect::<F>(p[1]), super::collect(p[2])].concat(),
+            us: super::collect(p[3]),
+            samples: p.get(4).map_or_else(Vec::new, |s| super::collect(s)),
         })
     }
 }

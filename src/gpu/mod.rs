@@ -187,6 +187,23 @@ pub fn describe(info: &wgpu::AdapterInfo) -> String {
     )
 }
 
+/// The values of `bytes`, copied out of a mapped readback buffer. A large buffer is copied in
+/// parallel chunks: on the NVIDIA driver one thread reads freshly mapped memory at about
+/// 0.7 GB/s (a 172 MB readback took 0.24 s to copy and 0.004 s to transfer).
+pub(super) fn collect<T: Pod>(bytes: &[u8]) -> Vec<T> {
+    use rayon::prelude::*;
+    const CHUNK: usize = 1 << 20;
+    if bytes.len() < 4 * CHUNK || !bytes.len().is_multiple_of(size_of::<T>()) {
+        return bytemuck::pod_collect_to_vec(bytes);
+    }
+    let mut out: Vec<T> = bytemuck::zeroed_vec(bytes.len() / size_of::<T>());
+    let dst: &mut [u8] = bytemuck::cast_slice_mut(&mut out);
+    dst.par_chunks_mut(CHUNK)
+        .zip(bytes.par_chunks(CHUNK))
+        .for_each(|(d, s)| d.copy_from_slice(s));
+    out
+}
+
 impl Gpu {
     /// Opens the adapter chosen from the environment with its real limits.
     pub fn new() -> Result<Gpu, GpuError> {
@@ -430,7 +447,7 @@ impl Gpu {
 
     /// Copies a storage buffer to a mappable one and reads it.
     fn read_storage<T: Pod>(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<T>, GpuError> {
-        self.read_storages(&[(src, 0, size)], |p| bytemuck::pod_collect_to_vec(p[0]))
+        self.read_storages(&[(src, 0, size)], |p| collect(p[0]))
     }
 
     /// Copies `size` bytes from `offset` of each buffer of `parts` (buffer, offset, size), one
@@ -473,7 +490,7 @@ impl Gpu {
         size: u64,
         index: wgpu::SubmissionIndex,
     ) -> Result<Vec<T>, GpuError> {
-        self.map_buffer(buf, size, index, bytemuck::pod_collect_to_vec::<u8, T>)
+        self.map_buffer(buf, size, index, collect::<T>)
     }
 
     /// Maps `buf`, last written by submission `index`, and hands its first `size` bytes to
