@@ -76,7 +76,15 @@ fn init_log() {
         .init();
 }
 
+/// When the process reached `main` (debug lines time a run's start-up and teardown from it).
+static START: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+
+fn since_start() -> f64 {
+    START.get().map_or(0.0, |t| t.elapsed().as_secs_f64())
+}
+
 fn main() {
+    START.get_or_init(std::time::Instant::now);
     init_log();
     // Ctrl-C or SIGTERM: wait for a set being renamed into place, then end (the commit lock is
     // released by the next run, which sees that this process is gone).
@@ -84,7 +92,9 @@ fn main() {
         let _held = rattle::output::interrupt_guard();
         std::process::exit(rattle::output::INTERRUPTED);
     });
-    if let Err(e) = run(Cli::parse()) {
+    let result = run(Cli::parse());
+    log::debug!("finished {:.3} s after the start", since_start());
+    if let Err(e) = result {
         // A reader that went away (`rattle point | head -1`) ends the output, quietly, as Unix
         // tools do; the files, if any, were written before anything was printed.
         let closed = e
@@ -141,7 +151,9 @@ fn run(cli: Cli) -> Result<()> {
             let b = bifurcation::run(&engine, &cfg, continuation, &Bar(&pb))?;
             pb.finish_and_clear();
             eprint!("{}", b.summary());
-            bifurcation::write_outputs(&out, &b)?
+            let files = bifurcation::write_outputs(&out, &b)?;
+            log::debug!("outputs written {:.3} s after the start", since_start());
+            files
         }
         Cmd::Map(a) => map_command(a)?,
         Cmd::Basin { common, out } => {

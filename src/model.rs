@@ -329,6 +329,7 @@ pub fn inv_one_plus_mu<F: Real>(p: &Params<F>) -> F {
     F::one() / (F::one() + p.mu)
 }
 
+#[inline(always)]
 pub fn field<F: Real>(p: &Params<F>, y: &[F; 4], mode: Mode, c: F) -> [F; 4] {
     match mode {
         Mode::SlipPos | Mode::SlipNeg => {
