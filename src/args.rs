@@ -147,6 +147,10 @@ pub struct MapArgs {
     /// quasi-periodic specks inside chaotic bands).
     #[arg(long, value_name = "X")]
     pub refine_clear: Option<f64>,
+    /// Locate and type where neighbouring cells' attractors differ (period doubling, fold,
+    /// Neimark-Sacker, coexistence, undetermined): PREFIX-boundaries.png, .csv and .json.
+    #[arg(long)]
+    pub boundaries: bool,
 }
 
 /// The arguments of `rattle sensitivity`.

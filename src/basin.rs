@@ -571,6 +571,8 @@ pub fn write_outputs(prefix: &Path, cfg: &Config, b: &Basin) -> Result<Vec<PathB
             families: &[],
             member_label: &|c| c.to_string(),
             note: None,
+            curves: &[],
+            curve_legend: &[],
             width: WIDTH,
             height: HEIGHT,
         },

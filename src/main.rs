@@ -249,6 +249,19 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
         cfg.check_map()?;
     }
     check_prefix(&a.out, &["png", "json"])?;
+    if a.boundaries {
+        if a.shard.is_some() {
+            return Err(OptionError::Unsuitable {
+                option: "boundaries",
+                why: "it needs the whole map's layers, and a shard writes a part (run the map \
+                      without --shard, or with --checkpoint)"
+                    .into(),
+            }
+            .into());
+        }
+        let b = rattle::output::with_suffix(&a.out, "boundaries");
+        check_prefix(&b, &["png", "csv", "json"])?;
+    }
     if a.compare.is_some() {
         let compared = rattle::output::with_suffix(&a.out, "compare");
         rattle::output::check_not_owned(&rattle::output::with_ext(&compared, "png"))?;
@@ -274,7 +287,45 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
         refine: a.refine,
         refine_clear: a.refine_clear,
     };
-    map_cmd(&cfg, &a.out, &opts, a.adapters)
+    let mut files = map_cmd(&cfg, &a.out, &opts, a.adapters)?;
+    if a.boundaries {
+        files.extend(boundaries(&cfg, &a.out)?);
+    }
+    Ok(files)
+}
+
+/// `--boundaries`: located and typed from the layers the map just wrote.
+fn boundaries(cfg: &Config, out: &Path) -> Result<Vec<PathBuf>> {
+    fn layer<T: npyz::Deserialize>(out: &Path, name: &str) -> Result<Vec<T>> {
+        let path = rattle::output::with_ext(&rattle::output::with_suffix(out, name), "npy");
+        let bytes = std::fs::read(&path).with_context(|| format!("{}", path.display()))?;
+        Ok(npyz::NpyFile::new(&bytes[..])?.into_vec()?)
+    }
+    let class: Vec<i32> = layer(out, "class")?;
+    let coexist: Vec<i32> = layer(out, "coexist")?;
+    let state: Vec<f64> = layer(out, "state")?;
+    let mode: Vec<u8> = layer(out, "mode")?;
+    let attractors: Vec<u8> = layer(out, "attractors")?;
+    let b = map::boundaries::locate(
+        cfg,
+        &map::boundaries::Cells {
+            class: &class,
+            coexist: &coexist,
+            state: &state,
+            mode: &mode,
+        },
+    );
+    let located = b.points.iter().filter(|p| p.located).count();
+    eprintln!(
+        "boundaries: {} edges between classes, {located} changes located, {} curves \
+         ({} Newton trials, {} continuations) in {:.2} s",
+        b.edges,
+        b.curves.len(),
+        b.trials,
+        b.continuations,
+        b.seconds
+    );
+    Ok(map::write_boundaries(out, cfg, &class, &attractors, &b)?)
 }
 
 /// `rattle sensitivity`: the uncertain parameters checked before computing, then the study.

@@ -116,6 +116,60 @@ pub fn bifurcation_points(
     found.into_iter().map(|(_, b)| b).collect()
 }
 
+/// A stable cycle to continue from `from` to `to` in `param` (the other parameters `base`'s),
+/// for [`locate_changes`].
+pub struct Change<'a> {
+    pub base: Params<f64>,
+    pub param: Param,
+    pub from: f64,
+    pub cycle: &'a Cycle,
+    pub to: f64,
+}
+
+/// What the continuation of a [`Change`] found.
+#[derive(Clone, Debug)]
+pub enum Found {
+    /// Where the cycle stops being stable between `from` and `to`, typed.
+    Located(BifurcationPoint),
+    /// The cycle is still stable at `to`: it coexists there with whatever `to`'s own
+    /// trajectory reached.
+    StableThere,
+    /// The continuation could not start (the cycle not stable at `from`).
+    Nothing,
+}
+
+/// Continues each stable cycle of `changes` towards its `to` and locates where it stops being
+/// stable (the search of [`bifurcation_points`]: Newton from the last stable cycle, bisection to
+/// 2^-20 of the interval, the kind from the last stable cycle's critical multiplier), all of
+/// them at once on the host's lanes.
+pub fn locate_changes(settings: &Settings, changes: &[Change]) -> Vec<Found> {
+    let tasks: Vec<Option<Locate>> = changes
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let from = Branch {
+                value: c.from,
+                cycle: Some(c.cycle).filter(|c| c.is_stable()),
+                impact_free: None,
+                impacts: true,
+            };
+            Locate::new(&c.base, c.param, settings, &from, c.to, i)
+        })
+        .collect();
+    let mut out = vec![Found::Nothing; changes.len()];
+    let tasks = run_parallel(tasks.into_iter().flatten().collect(), |t| {
+        u64::from(t.start.period)
+    });
+    for t in tasks {
+        out[t.pair] = match t.found {
+            Some(p) => Found::Located(p),
+            None if t.done && t.step == 0 => Found::StableThere,
+            None => Found::Nothing,
+        };
+    }
+    out
+}
+
 /// Stop-free periods that settle an impact-free motion at a new parameter value (its
 /// contracting multipliers are well inside the circle; the start is the motion at a value a
 /// bisection step away).

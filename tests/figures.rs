@@ -129,6 +129,8 @@ fn class_legend_explains_every_colour() {
         families: &fam_refs,
         member_label: &|c| (c + 1).to_string(),
         note: None,
+        curves: &[],
+        curve_legend: &[],
         width: 1100,
         height: 800,
     };

@@ -128,7 +128,7 @@ pub(super) fn caption(
 }
 
 /// The grid and model of a map, for the captions of its images.
-fn grid_phrase(cfg: &Config) -> String {
+pub(super) fn grid_phrase(cfg: &Config) -> String {
     let m = &cfg.map;
     format!(
         "{nx} x {ny} cell centres: {x} from {x0} to {x1} (horizontal) and {y} from {y0} to {y1} \

@@ -173,6 +173,7 @@ pub fn coarse_grid<E>(
                             s.multiplier = f64::NAN;
                             s.periods = 0;
                             s.settle = 0;
+                            s.final_y = [f64::NAN; 4];
                             s.coexist = None;
                             s.looked = crate::look::Look::None;
                             known[c] = Some((s, 1));

@@ -187,6 +187,10 @@ map_layers! {
     settle: [u32; 1] = |c| [c.settle];
     /// The period of a stable cycle carried from a neighbouring cell that exists at this cell's parameters beside the attractor its trajectory reached (0: none found).
     coexist: [i32; 1] = |c| [c.coexist.map_or(0, |k| k.period as i32)];
+    /// The state (y1..y4) at the end of the cell's run, on its attractor: the start of a boundary's Newton continuation (`--boundaries`); NaN for inferred cells.
+    state: [Option<f64>; 4] = |c| c.final_y.map(finite);
+    /// The motion's mode at the end of the run (0 slip with v > 0, 1 slip with v < 0, 2 stick, 3 and 4 locked at the stop z = +r, -r).
+    mode: [u8; 1] = |c| [c.final_mode as u8];
     /// The long look after the cell looked chaotic: 0 none (it did not look chaotic after the configured periods), 1 none beyond them (it did, uncontested), 2 all of it, up to `run.look` periods (contested: a stable cycle carried to its parameters, a quasi-periodic or impact-free neighbour, or neighbours not computed).
     looked: [u8; 1] = |c| [c.looked.code()];
 }

@@ -21,6 +21,20 @@ pub fn category(c: Class) -> u16 {
     Shown::of(c, 1).code()
 }
 
+/// The class map's legend entries as [`CategoryMap`] borrows them.
+#[allow(clippy::type_complexity)]
+fn legend_refs<'a>(
+    cats: &'a [(u16, String, [u8; 3])],
+    fams: &'a [(String, u16, u16)],
+) -> (Vec<(u16, &'a str, [u8; 3])>, Vec<(&'a str, u16, u16)>) {
+    (
+        cats.iter()
+            .map(|(c, l, rgb)| (*c, l.as_str(), *rgb))
+            .collect(),
+        fams.iter().map(|(l, a, b)| (l.as_str(), *a, *b)).collect(),
+    )
+}
+
 /// (code, label, colour) of every class, in legend order (period families first).
 fn categories() -> Vec<(u16, String, [u8; 3])> {
     Shown::all()
@@ -182,14 +196,8 @@ impl Images<'_> {
     ) -> crate::Result<()> {
         let m = &self.cfg.map;
         let (nx, ny) = (m.x_points as usize, m.y_points as usize);
-        let cats = categories();
-        let cat_refs: Vec<(u16, &str, [u8; 3])> = cats
-            .iter()
-            .map(|(c, l, rgb)| (*c, l.as_str(), *rgb))
-            .collect();
-        let fams = families();
-        let fam_refs: Vec<(&str, u16, u16)> =
-            fams.iter().map(|(l, a, b)| (l.as_str(), *a, *b)).collect();
+        let (cats, fams) = (categories(), families());
+        let (cat_refs, fam_refs) = legend_refs(&cats, &fams);
         let inferred = report.refine.as_ref().map(|r| {
             format!(
                 "cells inferred from block corners\n(coarse spacing {}): {} ({})",
@@ -231,6 +239,8 @@ impl Images<'_> {
                 families: &fam_refs,
                 member_label: &|c| c.to_string(),
                 note: note.as_deref(),
+                curves: &[],
+                curve_legend: &[],
                 width: 1100,
                 height: 800,
             },
@@ -629,9 +639,131 @@ pub fn write_compare(
             families: &[],
             member_label: &|c| c.to_string(),
             note: None,
+            curves: &[],
+            curve_legend: &[],
             width: 1100,
             height: 800,
         },
     )?;
+    Ok(st.commit()?)
+}
+
+/// The boundaries' JSON (`PREFIX-boundaries.json`).
+#[derive(Serialize)]
+struct BoundariesJson<'a> {
+    caption: String,
+    #[serde(flatten)]
+    boundaries: &'a super::boundaries::Boundaries,
+    files: Vec<String>,
+    version: &'static str,
+}
+
+/// Writes the boundaries of the map of `cfg` (`class` and `attractors`: its layers) as their
+/// own set: `PREFIX-boundaries.png` (the class map with the curves over it),
+/// `PREFIX-boundaries.csv` (the points) and `PREFIX-boundaries.json` (curves and points).
+pub fn write_boundaries(
+    prefix: &Path,
+    cfg: &Config,
+    class: &[i32],
+    attractors: &[u8],
+    b: &super::boundaries::Boundaries,
+) -> crate::Result<Vec<PathBuf>> {
+    use super::boundaries::Type;
+    let base = crate::output::with_suffix(prefix, "boundaries");
+    let m = &cfg.map;
+    let mut st = Staged::new();
+    let cells: Vec<u16> = class
+        .iter()
+        .zip(attractors)
+        .map(|(&c, &a)| Shown::of(Class::from_code(c), a).code())
+        .collect();
+    let (cats, fams) = (categories(), families());
+    let (cat_refs, fam_refs) = legend_refs(&cats, &fams);
+    // Coexistence and undetermined edges are counted, not drawn: they are pixel edges.
+    let drawn = |t: Type| !matches!(t, Type::Coexistence | Type::Undetermined);
+    let curves: Vec<(&[[f64; 2]], [u8; 3])> = b
+        .curves
+        .iter()
+        .filter(|c| drawn(c.ty))
+        .map(|c| (&c.points[..], c.ty.rgb()))
+        .collect();
+    let count = |t: Type| b.points.iter().filter(|p| p.ty == t).count();
+    let legend: Vec<(String, [u8; 3])> = Type::ALL
+        .iter()
+        .filter(|&&t| drawn(t) && count(t) > 0)
+        .map(|&t| (format!("{}: {} points", t.name(), count(t)), t.rgb()))
+        .collect();
+    let note = format!(
+        "{} edges between classes:\ncoexistence {}, undetermined {}",
+        grouped(b.edges),
+        grouped(count(Type::Coexistence)),
+        grouped(count(Type::Undetermined))
+    );
+    let ordered = |a: f64, b: f64| (a.min(b), a.max(b));
+    category_map_png(
+        &st.path(&with_ext(&base, "png")),
+        &CategoryMap {
+            title: &title(cfg),
+            x_label: &m.x.label(),
+            y_label: &m.y.label(),
+            x_range: ordered(m.x_from, m.x_to),
+            y_range: ordered(m.y_from, m.y_to),
+            nx: m.x_points as usize,
+            ny: m.y_points as usize,
+            cells: &cells,
+            categories: &cat_refs,
+            families: &fam_refs,
+            member_label: &|c| c.to_string(),
+            note: Some(&note),
+            curves: &curves,
+            curve_legend: &legend,
+            width: 1100,
+            height: 800,
+        },
+    )?;
+    let mut csv = format!(
+        "{},{},type,class_a,class_b,uncertainty,located,period\n",
+        m.x.name(),
+        m.y.name()
+    );
+    for p in &b.points {
+        csv.push_str(&format!(
+            "{},{},{},{},{},{},{},{}\n",
+            p.x,
+            p.y,
+            p.ty.name(),
+            p.classes[0],
+            p.classes[1],
+            p.uncertainty,
+            p.located,
+            p.period
+        ));
+    }
+    st.write(&with_ext(&base, "csv"), csv.as_bytes())?;
+    let json_path = with_ext(&base, "json");
+    let files = st.manifest(&json_path);
+    let located = b.points.iter().filter(|p| p.located).count();
+    let j = BoundariesJson {
+        caption: format!(
+            "Boundaries of the class map of {grid}: each of the {e} edges between neighbouring \
+             cells of different classes, typed. Where a side landed on a stable cycle, Newton's \
+             method continues that cycle from its own cell towards the other cell's parameters \
+             and locates where it stops being stable to 2^-20 of the edge ({located} points \
+             located): a real multiplier through -1 is a period doubling, through +1 a fold, a \
+             complex pair a Neimark-Sacker point, a cycle ending with its multipliers inside the \
+             circle (grazing, stick onset or crisis, not told apart) undetermined; where the \
+             cycle is still stable at the other cell's parameters, the two attractors coexist \
+             (a basin boundary: coexistence); edges without a stable cycle on either side are \
+             undetermined and not located. Curves join the points of one type between one pair \
+             of classes on edges of one grid square; coexistence and undetermined edges are \
+             counted, not drawn.",
+            grid = super::caption::grid_phrase(cfg),
+            e = b.edges,
+        ),
+        boundaries: b,
+        files,
+        version: env!("CARGO_PKG_VERSION"),
+    };
+    st.write(&json_path, &serde_json::to_vec_pretty(&j)?)?;
     Ok(st.commit()?)
 }

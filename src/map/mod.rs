@@ -3,6 +3,7 @@
 //! ([`command`], [`parts`]), coarse-to-fine ([`coarse`]) and the final PNG / NPY / JSON files
 //! ([`files`]).
 
+pub mod boundaries;
 mod caption;
 pub mod coarse;
 mod command;
@@ -18,7 +19,7 @@ pub use command::{
 pub use fields::{Fields, Layer};
 pub use files::{
     CoarseReport, CompareReport, MapReport, MapTimings, category, map_caption, npy_layers,
-    write_compare, write_outputs,
+    write_boundaries, write_compare, write_outputs,
 };
 pub use parts::{Part, compute_part, merge, part_path, read_part, write_part};
 

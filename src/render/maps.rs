@@ -24,6 +24,9 @@ const RD_BU: [RGBColor; 5] = [
 /// Draws a map chart whose plotting area shows `color(ix, iy)` of the grid
 /// cell under each pixel centre. Returns the plotting area's vertical pixel
 /// range, so side bars can be aligned with it.
+/// A polyline in parameter coordinates and its colour, drawn over a map.
+pub type Curve<'a> = (&'a [[f64; 2]], [u8; 3]);
+
 fn draw_grid_map(
     area: &Area<'_>,
     title: &str,
@@ -31,7 +34,7 @@ fn draw_grid_map(
     ranges: ((f64, f64), (f64, f64)),
     (nx, ny): (usize, usize),
     l: &Layout,
-    color: impl Fn(usize, usize) -> RGBColor,
+    (color, curves): (impl Fn(usize, usize) -> RGBColor, &[Curve<'_>]),
 ) -> Result<std::ops::Range<i32>, RenderError> {
     let (w, h) = area.dim_in_pixel();
     check_size("map area (image minus legend or colour bar)", w, h)?;
@@ -49,6 +52,22 @@ fn draw_grid_map(
         |v: &f64| fmt_tick(*v, y1 - y0),
     );
     draw_axes(&mut chart, l, labels, (&fx, &fy), false)?;
+    for (pts, c) in curves {
+        let style = rgb(*c).stroke_width(2);
+        if pts.len() == 1 {
+            chart
+                .draw_series(std::iter::once(Circle::new(
+                    (pts[0][0], pts[0][1]),
+                    2,
+                    style,
+                )))
+                .map_err(draw_err)?;
+        } else {
+            chart
+                .draw_series(LineSeries::new(pts.iter().map(|p| (p[0], p[1])), style))
+                .map_err(draw_err)?;
+        }
+    }
     Ok(chart.plotting_area().get_pixel_range().1)
 }
 
@@ -73,6 +92,10 @@ pub struct CategoryMap<'a> {
     pub member_label: &'a dyn Fn(u16) -> String,
     /// Lines under the legend (e.g. how many cells a refined map inferred).
     pub note: Option<&'a str>,
+    /// Polylines drawn over the cells in parameter coordinates, with their colour.
+    pub curves: &'a [Curve<'a>],
+    /// The curves' legend rows under the note: (label, colour).
+    pub curve_legend: &'a [(String, [u8; 3])],
     pub width: u32,
     pub height: u32,
 }
@@ -137,7 +160,15 @@ pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderErro
         let labels = (map.x_label, map.y_label);
         let ranges = (map.x_range, map.y_range);
         let dims = (map.nx, map.ny);
-        let yr = draw_grid_map(&left, map.title, labels, ranges, dims, &l, color)?;
+        let yr = draw_grid_map(
+            &left,
+            map.title,
+            labels,
+            ranges,
+            dims,
+            &l,
+            (color, map.curves),
+        )?;
         let legend = Legend {
             map,
             counts: &counts,
@@ -345,6 +376,20 @@ impl Legend<'_> {
                 y += 0.8 * row_h;
             }
         }
+        if !self.map.curve_legend.is_empty() {
+            y += 0.3 * row_h;
+        }
+        for (label, c) in self.map.curve_legend {
+            let mid = (y + 0.5 * f64::from(s)) as i32;
+            right
+                .draw(&PathElement::new(
+                    vec![(4, mid), (4 + s, mid)],
+                    rgb(*c).stroke_width(3),
+                ))
+                .map_err(draw_err)?;
+            text(label.clone(), 4 + s + 3, y + 0.1 * font_px, &small)?;
+            y += 0.9 * row_h;
+        }
         Ok(())
     }
 }
@@ -398,7 +443,7 @@ pub fn scalar_map_png(path: &Path, map: &ScalarMap) -> Result<(), RenderError> {
         let labels = (map.x_label, map.y_label);
         let ranges = (map.x_range, map.y_range);
         let dims = (map.nx, map.ny);
-        let yr = draw_grid_map(&left, map.title, labels, ranges, dims, &l, color)?;
+        let yr = draw_grid_map(&left, map.title, labels, ranges, dims, &l, (color, &[]))?;
 
         // Colour bar whose plotting area spans the same rows as the map.
         let mut bar = ChartBuilder::on(&right)
@@ -453,6 +498,8 @@ mod tests {
             families: &[],
             member_label: &|c| c.to_string(),
             note: None,
+            curves: &[],
+            curve_legend: &[],
             width: 800,
             height: 600,
         };

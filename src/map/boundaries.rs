@@ -1,0 +1,347 @@
+//! Typed boundaries of a map (`rattle map --boundaries`): where two neighbouring cells'
+//! attractors differ, the change is located along their edge and typed from what changes.
+//!
+//! A side that landed on a stable cycle is continued by Newton's method from its own cycle
+//! towards the other cell's parameters (the search of the sweeps' stability changes,
+//! [`crate::stability::locate_changes`], to 2^-20 of the edge), so that each side starts from
+//! its own attractor. Where the cycle loses stability on the edge, the last stable cycle's
+//! critical multiplier types the change: through -1 a period doubling, through +1 a fold, a
+//! complex pair a Neimark-Sacker point; a cycle that ends with every multiplier well inside
+//! the circle (a grazing, a stick onset or a crisis, not told apart yet) is `undetermined`.
+//! Where the cycle is still stable at the other cell's parameters (or the map's carry found
+//! it there), both attractors coexist across the edge: a basin boundary (`coexistence`), not a
+//! bifurcation. An edge with no stable cycle on either side is `undetermined`, not located.
+
+use crate::class::Class;
+use crate::config::Config;
+use crate::cycles::{Cycle, Refine};
+use crate::decide::Decider;
+use crate::method::{Integrator, PointState};
+use crate::model::{Mode, Params};
+use crate::stability::{Change, Found, Kind, locate_changes};
+use serde::Serialize;
+use std::collections::HashMap;
+
+/// The type of a boundary point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Type {
+    PeriodDoubling,
+    Fold,
+    NeimarkSacker,
+    Coexistence,
+    Undetermined,
+}
+
+impl Type {
+    pub const ALL: [Type; 5] = [
+        Type::PeriodDoubling,
+        Type::Fold,
+        Type::NeimarkSacker,
+        Type::Coexistence,
+        Type::Undetermined,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Type::PeriodDoubling => "period_doubling",
+            Type::Fold => "fold",
+            Type::NeimarkSacker => "neimark_sacker",
+            Type::Coexistence => "coexistence",
+            Type::Undetermined => "undetermined",
+        }
+    }
+
+    /// The curve's colour over the class map.
+    pub fn rgb(self) -> [u8; 3] {
+        match self {
+            Type::PeriodDoubling => [230, 25, 75],
+            Type::Fold => [255, 225, 25],
+            Type::NeimarkSacker => [0, 200, 255],
+            Type::Coexistence => [255, 255, 255],
+            Type::Undetermined => [150, 150, 150],
+        }
+    }
+}
+
+/// One boundary point on the edge between cells `a` and `b` (row-major indices, `a < b`).
+#[derive(Clone, Debug, Serialize)]
+pub struct Point {
+    pub x: f64,
+    pub y: f64,
+    #[serde(rename = "type")]
+    pub ty: Type,
+    /// The class names of `a` and `b`.
+    pub classes: [String; 2],
+    /// Half the width of the interval that holds the change along the edge (half the edge
+    /// where it is not located: coexistence, undetermined).
+    pub uncertainty: f64,
+    /// Whether a change was located on the edge (a multiplier's crossing or a cycle's end).
+    pub located: bool,
+    /// The period of the cycle whose loss of stability was located (0: none).
+    pub period: u32,
+    pub cells: [usize; 2],
+}
+
+/// A polyline through the points of one type between one pair of classes on neighbouring
+/// edges (edges of one grid square).
+#[derive(Clone, Debug, Serialize)]
+pub struct Curve {
+    #[serde(rename = "type")]
+    pub ty: Type,
+    pub classes: [String; 2],
+    pub points: Vec<[f64; 2]>,
+}
+
+/// The boundaries of a map.
+#[derive(Clone, Debug, Serialize)]
+pub struct Boundaries {
+    pub x_param: &'static str,
+    pub y_param: &'static str,
+    /// Edges between cells of different classes.
+    pub edges: usize,
+    pub curves: Vec<Curve>,
+    pub points: Vec<Point>,
+    /// Newton trials of the cells' own cycles, and continuations along edges.
+    pub trials: usize,
+    pub continuations: usize,
+    pub seconds: f64,
+}
+
+/// One cell's layers as the map wrote them.
+pub struct Cells<'a> {
+    pub class: &'a [i32],
+    pub coexist: &'a [i32],
+    /// Four values a cell (NaN where not known).
+    pub state: &'a [f64],
+    pub mode: &'a [u8],
+}
+
+/// Locates and types the boundaries of the map of `cfg` from its cells' layers.
+pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
+    let t0 = std::time::Instant::now();
+    let m = &cfg.map;
+    let (nx, ny) = (m.x_points as usize, m.y_points as usize);
+    let xs = Config::map_axis(m.x_from, m.x_to, m.x_points);
+    let ys = Config::map_axis(m.y_from, m.y_to, m.y_points);
+    let settings = cfg.settings();
+    let params = |c: usize| -> Params<f64> {
+        let mut p = cfg.params();
+        m.x.set(&mut p, xs[c % nx]);
+        m.y.set(&mut p, ys[c / nx]);
+        p
+    };
+    // Edges whose cells' classes differ: (a, b, along x).
+    let mut edges = Vec::new();
+    for iy in 0..ny {
+        for ix in 0..nx {
+            let a = iy * nx + ix;
+            if ix + 1 < nx && cells.class[a] != cells.class[a + 1] {
+                edges.push((a, a + 1, true));
+            }
+            if iy + 1 < ny && cells.class[a] != cells.class[a + nx] {
+                edges.push((a, a + nx, false));
+            }
+        }
+    }
+    // The stable cycle of every periodic cell on an edge, refined from its final state.
+    let periodic = |c: usize| {
+        cells.class[c] > 0 && cells.state[4 * c..4 * c + 4].iter().all(|v| v.is_finite())
+    };
+    let mut sides: Vec<usize> = edges
+        .iter()
+        .flat_map(|&(a, b, _)| [a, b])
+        .filter(|&c| periodic(c))
+        .collect();
+    sides.sort_unstable();
+    sides.dedup();
+    let tasks: Vec<Refine> = sides
+        .iter()
+        .map(|&c| {
+            let mut y = [0.0; 4];
+            y.copy_from_slice(&cells.state[4 * c..4 * c + 4]);
+            let start = PointState {
+                y,
+                mode: Mode::from_u32(u32::from(cells.mode[c])),
+                diag: Default::default(),
+            };
+            Refine::new(
+                Integrator::<f64>::new(&params(c), &settings),
+                &start,
+                cells.class[c] as u32,
+            )
+        })
+        .collect();
+    let trials = tasks.len();
+    let cycles: HashMap<usize, Cycle> = sides
+        .iter()
+        .zip(Decider::Host.refine(&settings, tasks))
+        .map(|(&c, t)| (c, t.cycle()))
+        .filter(|(c, cy)| cy.is_stable() && cy.period == cells.class[*c] as u32)
+        .collect();
+    // A continuation from each side with a stable cycle, unless the map's carry already found
+    // that cycle stable at the other side's parameters.
+    let mut changes = Vec::new();
+    let mut owner = Vec::new();
+    for (k, &(a, b, along_x)) in edges.iter().enumerate() {
+        for (from, to) in [(a, b), (b, a)] {
+            let Some(cycle) = cycles.get(&from) else {
+                continue;
+            };
+            if cells.coexist[to] == cells.class[from] {
+                continue;
+            }
+            let (param, v) = if along_x {
+                (m.x, (xs[from % nx], xs[to % nx]))
+            } else {
+                (m.y, (ys[from / nx], ys[to / nx]))
+            };
+            changes.push(Change {
+                base: params(from),
+                param,
+                from: v.0,
+                cycle,
+                to: v.1,
+            });
+            owner.push(k);
+        }
+    }
+    let found = locate_changes(&settings, &changes);
+    let continuations = changes.len();
+    let mut per_edge: Vec<Vec<(&Found, u32)>> = vec![Vec::new(); edges.len()];
+    for ((k, f), c) in owner.iter().zip(&found).zip(&changes) {
+        per_edge[*k].push((f, c.cycle.period));
+    }
+    let name = |c: usize| Class::from_code(cells.class[c]).name();
+    let points: Vec<Point> = edges
+        .iter()
+        .zip(&per_edge)
+        .map(|(&(a, b, along_x), f)| {
+            let (mx, my) = (
+                0.5 * (xs[a % nx] + xs[b % nx]),
+                0.5 * (ys[a / nx] + ys[b / nx]),
+            );
+            let half = if along_x {
+                0.5 * (xs[b % nx] - xs[a % nx]).abs()
+            } else {
+                0.5 * (ys[b / nx] - ys[a / nx]).abs()
+            };
+            let carried = (cells.class[a] > 0 && cells.coexist[b] == cells.class[a])
+                || (cells.class[b] > 0 && cells.coexist[a] == cells.class[b]);
+            // A multiplier's crossing first, then a cycle's end, then coexistence.
+            let located = f
+                .iter()
+                .filter_map(|(f, n)| match f {
+                    Found::Located(p) => Some((p, *n)),
+                    _ => None,
+                })
+                .min_by_key(|(p, _)| p.kind == Kind::NonSmooth);
+            let stable_there = f.iter().any(|(f, _)| matches!(f, Found::StableThere));
+            let (ty, x, y, uncertainty, located, period) = match located {
+                Some((p, n)) => {
+                    let ty = match p.kind {
+                        Kind::PeriodDoubling => Type::PeriodDoubling,
+                        Kind::Fold => Type::Fold,
+                        Kind::NeimarkSacker => Type::NeimarkSacker,
+                        _ => Type::Undetermined,
+                    };
+                    let (x, y) = if along_x {
+                        (p.value, my)
+                    } else {
+                        (mx, p.value)
+                    };
+                    (ty, x, y, p.uncertainty, true, n)
+                }
+                None if carried || stable_there => (Type::Coexistence, mx, my, half, false, 0),
+                None => (Type::Undetermined, mx, my, half, false, 0),
+            };
+            Point {
+                x,
+                y,
+                ty,
+                classes: [name(a).to_string(), name(b).to_string()],
+                uncertainty,
+                located,
+                period,
+                cells: [a, b],
+            }
+        })
+        .collect();
+    let curves = curves(&points, &edges, nx);
+    Boundaries {
+        x_param: m.x.name(),
+        y_param: m.y.name(),
+        edges: edges.len(),
+        curves,
+        points,
+        trials,
+        continuations,
+        seconds: t0.elapsed().as_secs_f64(),
+    }
+}
+
+/// Joins the points into polylines: two points are neighbours where their edges belong to
+/// one grid square (the four cells around a grid vertex) and they have the same type and the
+/// same pair of classes; each chain of neighbours is one curve.
+fn curves(points: &[Point], edges: &[(usize, usize, bool)], nx: usize) -> Vec<Curve> {
+    // The squares (lower-left cell) an edge borders.
+    let squares = |&(a, _, along_x): &(usize, usize, bool)| -> Vec<usize> {
+        let mut s = vec![a];
+        if along_x && a >= nx {
+            s.push(a - nx);
+        } else if !along_x && a % nx > 0 {
+            s.push(a - 1);
+        }
+        s
+    };
+    let key = |p: &Point| {
+        let mut c = p.classes.clone();
+        c.sort();
+        (p.ty, c)
+    };
+    let mut by_square: HashMap<usize, Vec<usize>> = HashMap::new();
+    for (i, e) in edges.iter().enumerate() {
+        for s in squares(e) {
+            by_square.entry(s).or_default().push(i);
+        }
+    }
+    let mut next: Vec<Vec<usize>> = vec![Vec::new(); points.len()];
+    for members in by_square.values() {
+        for (k, &i) in members.iter().enumerate() {
+            for &j in &members[k + 1..] {
+                if key(&points[i]) == key(&points[j]) && !next[i].contains(&j) {
+                    next[i].push(j);
+                    next[j].push(i);
+                }
+            }
+        }
+    }
+    // Chains: from each end (a point with other than two neighbours) first, then what is left
+    // (closed loops), each point in one curve.
+    let mut used = vec![false; points.len()];
+    let mut out = Vec::new();
+    let starts: Vec<usize> = (0..points.len())
+        .filter(|&i| next[i].len() != 2)
+        .chain(0..points.len())
+        .collect();
+    for s in starts {
+        if used[s] {
+            continue;
+        }
+        let mut chain = vec![s];
+        used[s] = true;
+        let mut at = s;
+        while let Some(&n) = next[at].iter().find(|&&n| !used[n]) {
+            used[n] = true;
+            chain.push(n);
+            at = n;
+        }
+        let p = &points[s];
+        out.push(Curve {
+            ty: p.ty,
+            classes: p.classes.clone(),
+            points: chain.iter().map(|&i| [points[i].x, points[i].y]).collect(),
+        });
+    }
+    out
+}
