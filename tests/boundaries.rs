@@ -62,6 +62,23 @@ fn boundaries_meet_fig2s_bifurcations_and_the_reference_confirms_each_side() {
         .arg("--out")
         .arg(d.join("l")));
     let b = json(&d.join("l-boundaries.json"));
+    // The same run again gives the same points and curves (no order of a hash map in them).
+    ok(rattle()
+        .args([
+            "map",
+            "--backend",
+            "cpu",
+            "--precision",
+            "f64",
+            "--boundaries",
+        ])
+        .arg("--config")
+        .arg(&cfg_path)
+        .arg("--out")
+        .arg(d.join("again")));
+    let again = json(&d.join("again-boundaries.json"));
+    assert_eq!(b["curves"], again["curves"]);
+    assert_eq!(b["points"], again["points"]);
     // The sweep's located points (docs/paper.md, tests/tangent.rs): period doubling at
     // 1.37059, Neimark-Sacker at 1.71577 on lambda = 0.02.
     let pd = crossing(&b, "period_doubling");

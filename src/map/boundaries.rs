@@ -20,7 +20,7 @@ use crate::method::{Integrator, PointState};
 use crate::model::{Mode, Params};
 use crate::stability::{Change, Found, Kind, locate_changes};
 use serde::Serialize;
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 
 /// The type of a boundary point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -299,7 +299,8 @@ fn curves(points: &[Point], edges: &[(usize, usize, bool)], nx: usize) -> Vec<Cu
         c.sort();
         (p.ty, c)
     };
-    let mut by_square: HashMap<usize, Vec<usize>> = HashMap::new();
+    // Ordered, so that the curves are the same from run to run.
+    let mut by_square: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
     for (i, e) in edges.iter().enumerate() {
         for s in squares(e) {
             by_square.entry(s).or_default().push(i);
