@@ -250,6 +250,28 @@ class Map:
             return layers[name]
         raise AttributeError(name)
 
+    def boundaries(self) -> dict:
+        """The typed boundaries between the classes (`rattle map --boundaries`, docs/maps.md):
+        `points` as arrays (`x`, `y`, `type`, `class_a`, `class_b`, `uncertainty`, `located`,
+        `period`), `curves` as a list of dicts with `type`, `classes` and `points` (an array of
+        shape (k, 2) in parameter values), and the counts (`edges`, `trials`,
+        `continuations`, `seconds`)."""
+        j = json.loads(self._data.boundaries())
+        pts = j["points"]
+        j["points"] = {
+            "x": np.asarray([p["x"] for p in pts], dtype=float),
+            "y": np.asarray([p["y"] for p in pts], dtype=float),
+            "type": np.asarray([p["type"] for p in pts], dtype=str),
+            "class_a": np.asarray([p["classes"][0] for p in pts], dtype=str),
+            "class_b": np.asarray([p["classes"][1] for p in pts], dtype=str),
+            "uncertainty": np.asarray([p["uncertainty"] for p in pts], dtype=float),
+            "located": np.asarray([p["located"] for p in pts], dtype=bool),
+            "period": np.asarray([p["period"] for p in pts], dtype=int),
+        }
+        for c in j["curves"]:
+            c["points"] = np.asarray(c["points"], dtype=float).reshape(-1, 2)
+        return j
+
     def to_dict(self) -> dict:
         d = dict(self._json)
         d["layers"] = {k: v.tolist() for k, v in self.layers.items()}

@@ -9,8 +9,8 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 use rattle::config::{Backend, Config, ConfigError};
-use rattle::request::{Command, Request, Source};
 use rattle::engine::Engine;
+use rattle::request::{Command, Request, Source};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -118,7 +118,6 @@ fn int_arg(py: Python, name: &'static str, v: Option<&Bound<PyAny>>) -> PyResult
         Err(_) => i64::MIN,
     }))
 }
-
 
 /// The package's exception for an error of the library: a config or option outside its range
 /// is `ConfigError` (a `ValueError`), one too large for memory `TooLargeError` (also a
@@ -270,7 +269,6 @@ fn engine(cfg: &Config) -> rattle::Result<(Engine, Vec<String>)> {
     Ok((engine, warnings))
 }
 
-
 /// `rattle point`: the report's JSON, and warnings.
 #[pyfunction]
 #[pyo3(signature = (path, text, sets, progress=None))]
@@ -330,6 +328,25 @@ impl MapData {
     #[getter]
     fn warnings(&self) -> Vec<String> {
         self.warnings.clone()
+    }
+
+    /// The typed boundaries between the map's classes (`rattle map --boundaries`), as the
+    /// JSON of PREFIX-boundaries.json without its caption and files.
+    fn boundaries(&self, py: Python) -> PyResult<String> {
+        let (cfg, f) = (&self.result.cfg, &self.result.fields);
+        let b = guarded(py, || {
+            let state: Vec<f64> = f.state.iter().map(|v| v.unwrap_or(f64::NAN)).collect();
+            Ok(rattle::map::boundaries::locate(
+                cfg,
+                &rattle::map::boundaries::Cells {
+                    class: &f.class,
+                    coexist: &f.coexist,
+                    state: &state,
+                    mode: &f.mode,
+                },
+            ))
+        })?;
+        serde_json::to_string(&b).map_err(|e| to_py(py, rattle::Error::from(e)))
     }
 
     /// Writes the command line's files under `prefix`; returns their paths.

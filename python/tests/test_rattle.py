@@ -414,3 +414,32 @@ def test_a_raising_callback_with_streams_prints_no_panic():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and "stopped" in r.stdout, r.stderr
     assert "panicked" not in r.stderr, r.stderr
+
+
+def test_boundaries_are_the_command_lines(tmp_path):
+    # Map.boundaries() locates what `rattle map --boundaries` writes: the same points, the same
+    # curves, as arrays; Fig. 2's period doubling crosses lambda = 0.02 at 1.37059.
+    fig2 = Path(FIG2).read_text().split("[sweep]")[0]
+    cfg = tmp_path / "line.toml"
+    cfg.write_text(
+        fig2
+        + '\n[map]\nx = "eta"\nx_from = 1.30\nx_to = 1.80\nx_points = 64\n'
+        + 'y = "lambda"\ny_from = 0.0185\ny_to = 0.0215\ny_points = 4\n'
+    )
+    m = rattle.map(str(cfg), **{"method.backend": "cpu", "method.precision": "f64"})
+    b = m.boundaries()
+    r = cli("map", "--config", str(cfg), "--backend", "cpu", "--precision", "f64",
+            "--boundaries", "--out", str(tmp_path / "l"))
+    assert r.returncode == 0, r.stderr
+    j = json.loads((tmp_path / "l-boundaries.json").read_text())
+    np.testing.assert_array_equal(b["points"]["x"], [p["x"] for p in j["points"]])
+    np.testing.assert_array_equal(b["points"]["type"], [p["type"] for p in j["points"]])
+    assert len(b["curves"]) == len(j["curves"])
+    for c, d in zip(b["curves"], j["curves"]):
+        assert c["type"] == d["type"] and c["classes"] == d["classes"]
+        np.testing.assert_array_equal(c["points"], np.asarray(d["points"]))
+    pd = (b["points"]["type"] == "period_doubling") & b["points"]["located"]
+    x, y = b["points"]["x"][pd], b["points"]["y"][pd]
+    lo, hi = np.argmax(np.where(y < 0.02, y, -1)), np.argmin(np.where(y > 0.02, y, 1))
+    eta = x[lo] + (0.02 - y[lo]) / (y[hi] - y[lo]) * (x[hi] - x[lo])
+    assert abs(eta - 1.37059) < 1e-4, eta
