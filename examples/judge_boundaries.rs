@@ -52,7 +52,7 @@ fn main() -> anyhow::Result<()> {
         located.swap(i, j);
     }
     located.truncate(count);
-    let judge = |p: &serde_json::Value| -> [(String, Option<usize>, bool); 2] {
+    let judge = |p: &serde_json::Value| -> [(String, Option<usize>); 2] {
         let cells = [0, 1].map(|k| p["cells"][k].as_u64().unwrap() as usize);
         let along_x = cells[1] == cells[0] + 1;
         let (x, y) = (p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap());
@@ -75,7 +75,7 @@ fn main() -> anyhow::Result<()> {
             let cell = cells[side];
             let r = match DryReference::new(&params, 1024, zeno) {
                 Ok(r) => r,
-                Err(_) => return (class, None, false),
+                Err(_) => return (class, None),
             };
             let mut y0 = [0.0; 4];
             y0.copy_from_slice(&state[4 * cell..4 * cell + 4]);
@@ -84,17 +84,17 @@ fn main() -> anyhow::Result<()> {
                 .run(&mut st, 20_000, None)
                 .and_then(|_| r.run(&mut st, 256, None));
             let Ok(s) = run else {
-                return (class, None, false);
+                return (class, None);
             };
             let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
             let lag = (1..=128).find(|&n| {
                 (n..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() < 1e-6 * scale))
             });
-            (class, lag, true)
+            (class, lag)
         })
     };
     // The side the cycle was continued from: the one whose class has the point's period.
-    let right = |p: &serde_json::Value, v: &[(String, Option<usize>, bool); 2]| -> bool {
+    let right = |p: &serde_json::Value, v: &[(String, Option<usize>); 2]| -> bool {
         let n = p["period"].as_u64().unwrap() as usize;
         let name = format!("period-{n}");
         let Some(from) = (0..2).find(|&k| v[k].0 == name) else {

@@ -88,21 +88,30 @@ pub fn bifurcation_points(
             (None, None) => None,
         })
         .collect();
-    let tasks: Vec<Locate> = pairs
+    let changes: Vec<Change> = pairs
         .iter()
-        .filter_map(|&(i, up)| {
+        .map(|&(i, up)| {
             let (from, to) = if up {
                 (&points[i], &points[i + 1])
             } else {
                 (&points[i + 1], &points[i])
             };
-            Locate::new(base, param, settings, from, to.value, i)
+            Change {
+                base: *base,
+                param,
+                from: from.value,
+                cycle: stable(from).expect("a pair's first side is stable"),
+                to: to.value,
+            }
         })
         .collect();
-    let tasks = run_parallel(tasks, |t| u64::from(t.start.period));
-    let mut found: Vec<(usize, BifurcationPoint)> = tasks
-        .into_iter()
-        .filter_map(|t| Some((t.pair, t.found?)))
+    let mut found: Vec<(usize, BifurcationPoint)> = pairs
+        .iter()
+        .zip(locate_changes(settings, &changes))
+        .filter_map(|(&(i, _), f)| match f {
+            Found::Located(p) => Some((i, p)),
+            _ => None,
+        })
         .collect();
     // A pair seen from both sides (e.g. period-1 stable below, period-2 stable above) is one
     // bifurcation: keep the first found per interval.

@@ -48,35 +48,25 @@ fn crossing(b: &serde_json::Value, ty: &str) -> f64 {
 fn boundaries_meet_fig2s_bifurcations_and_the_reference_confirms_each_side() {
     let d = scratch("boundaries");
     let cfg_path = line_config(&d);
-    ok(rattle()
-        .args([
-            "map",
-            "--backend",
-            "cpu",
-            "--precision",
-            "f64",
-            "--boundaries",
-        ])
-        .arg("--config")
-        .arg(&cfg_path)
-        .arg("--out")
-        .arg(d.join("l")));
-    let b = json(&d.join("l-boundaries.json"));
+    let boundaries = |out: &str| {
+        ok(rattle()
+            .args([
+                "map",
+                "--backend",
+                "cpu",
+                "--precision",
+                "f64",
+                "--boundaries",
+            ])
+            .arg("--config")
+            .arg(&cfg_path)
+            .arg("--out")
+            .arg(d.join(out)));
+        json(&d.join(format!("{out}-boundaries.json")))
+    };
+    let b = boundaries("l");
     // The same run again gives the same points and curves (no order of a hash map in them).
-    ok(rattle()
-        .args([
-            "map",
-            "--backend",
-            "cpu",
-            "--precision",
-            "f64",
-            "--boundaries",
-        ])
-        .arg("--config")
-        .arg(&cfg_path)
-        .arg("--out")
-        .arg(d.join("again")));
-    let again = json(&d.join("again-boundaries.json"));
+    let again = boundaries("again");
     assert_eq!(b["curves"], again["curves"]);
     assert_eq!(b["points"], again["points"]);
     // The sweep's located points (docs/paper.md, tests/tangent.rs): period doubling at
