@@ -71,6 +71,7 @@ fn main() -> anyhow::Result<()> {
                     &cfg,
                     judged.iter().map(|j| j.0),
                     1,
+                    true,
                     &Silent,
                 )?;
                 let secs = t.elapsed().as_secs_f64();

@@ -14,7 +14,6 @@
 use crate::class::{Class, Shown};
 use crate::config::{Config, StateCoord};
 use crate::cycles::{Cycle, modulus};
-use crate::decide::{Trials, confirm_all};
 use crate::engine::Engine;
 use crate::error::Result;
 use crate::method::{Integrator, PointState, Split, Timings};
@@ -319,27 +318,26 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
     let mut found: Vec<Found> = Vec::new();
     let mut timings = Timings::default();
     let mut host_s = 0.0;
-    let decider = engine.decider(cfg.run.decide, cfg.run.decide_precision);
     for start in (0..grid.len()).step_by(chunk) {
         let end = (start + chunk).min(grid.len());
         let y0s: Vec<[f64; 4]> = (start..end).map(|c| grid.state(c)).collect();
-        let (results, t) = engine.run(&spec, &Points::states(&y0s), progress)?;
-        timings.add(&t);
+        // The one driver every command asks: early rounds, the adaptive horizon and the long
+        // look, so that a start whose motion settles on a cycle within the look gets that
+        // cycle's id, not a chaotic one. The starts of a basin are not neighbours in parameter
+        // space: nothing is carried between them.
+        let a = crate::adaptive::run_samples(
+            engine,
+            &spec,
+            &Points::states(&y0s),
+            cfg.run.early_stop,
+            &crate::carry::Neighbours::none(y0s.len()),
+            progress,
+        )?;
+        timings.add(&a.timings);
         let t1 = Instant::now();
-        let on_device = engine.decide_seconds();
-        let classes: Vec<Class> = results.iter().map(|r| r.class(spec.period_tol)).collect();
-        let verdicts = confirm_all(
-            decider,
-            |_| spec.params,
-            &spec.settings,
-            &results,
-            &classes,
-            &[],
-            Trials::All,
-        );
         // In grid order, so that the first cell of each attractor (its representative) and
         // hence every id are the same on every run.
-        for (k, (v, r)) in verdicts.into_iter().zip(&results).enumerate() {
+        for (k, (v, r)) in a.verdicts.into_iter().zip(&a.results).enumerate() {
             let ipp = r.impacts_per_period();
             ids.push(assign(
                 &mut found,
@@ -351,9 +349,7 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
                 ipp,
             ));
         }
-        let device = engine.decide_seconds() - on_device;
-        timings.decide_s += device;
-        host_s += t1.elapsed().as_secs_f64() - device;
+        host_s += t1.elapsed().as_secs_f64();
     }
     let t_order = Instant::now();
     let failed = ids.iter().filter(|&&i| i < 0).count();

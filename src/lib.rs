@@ -3,6 +3,7 @@
 //! One module per concept: [`model`] (equations), [`method`] (the CPU integrator and its tangent
 //! dynamics, twin of the kernel's pieces in `shaders/`), [`cpu`] and [`gpu`] (the backends) under
 //! [`engine`], [`class`], [`classify`], [`decide`], [`cycles`] and [`stability`] (what a run is),
+//! [`adaptive`] (the one driver every command asks: horizon, long look) and [`carry`],
 //! [`bifurcation`], [`map`], [`basin`] and [`point`] (the commands), [`config`], [`render`],
 //! [`output`].
 
@@ -12,6 +13,7 @@ pub mod basin;
 pub mod bench;
 pub mod bifurcation;
 pub mod caption;
+pub mod carry;
 pub mod class;
 pub mod classify;
 pub mod config;
@@ -21,7 +23,7 @@ pub mod decide;
 pub mod engine;
 pub mod error;
 pub mod gpu;
-pub mod look;
+
 pub mod map;
 pub mod memory;
 pub mod method;

@@ -15,39 +15,7 @@ pub enum Source {
     Text(String),
 }
 
-/// What a command reads of its configuration.
-#[derive(Clone, Copy, Debug)]
-pub enum Command {
-    /// `point`: the model, the method and the run.
-    Point,
-    /// `point --plot`: as `point`, integrated in CPU f64 whatever the config names.
-    Plot,
-    /// `map` (and the other config of `--compare`): with `[map]`, its axes varied.
-    Map,
-    /// The commands that sweep (`bifurcation`, `accuracy`, `validate`, `bench`): with `[sweep]`.
-    Sweep,
-    /// `basin`: with `[basin]`.
-    Basin,
-    /// `sensitivity`: its uncertain parameters varied ([`Request::sensitivity`]).
-    Sensitivity,
-}
-
-impl Command {
-    /// Whether the command runs the adaptive driver's streams (`run.overlap`).
-    fn streams(self) -> bool {
-        matches!(self, Command::Map | Command::Sensitivity)
-    }
-
-    fn name(self) -> &'static str {
-        match self {
-            Command::Point | Command::Plot => "point",
-            Command::Map => "map",
-            Command::Sweep => "a sweep",
-            Command::Basin => "basin",
-            Command::Sensitivity => "sensitivity",
-        }
-    }
-}
+pub use crate::config::Command;
 
 /// A configuration as asked for: its source, `key=value` overrides in order (section keys or
 /// bare model keys), and the command line's typed flags.

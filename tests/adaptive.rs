@@ -123,8 +123,8 @@ fn early_stop_map_agrees_with_the_brute_force_map() {
     assert!(short >= b.len() / 5);
     for (x, y) in b.iter().zip(&e) {
         // Brute force runs every cell for the configured periods; only a cell undecided there
-        // runs on (the adaptive horizon, up to 10 x), or one contested chaotic-looking (the
-        // long look, run.look more at most).
+        // runs on (the adaptive horizon, up to 10 x), or one chaotic-looking (the long
+        // look, run.look more at most).
         let look = rattle::config::RunConfig::default().look;
         assert!((360..=3600 + look).contains(&x.0.periods), "{:?}", x.0);
         if y.0.periods < 360 {
@@ -213,5 +213,51 @@ fn impact_free_cells_of_a_map_leave_early_as_sweep_points_do() {
         assert_eq!(y.0.class, Class::NoImpact, "{:?}", y.0);
         assert_eq!(x.0.periods, 360);
         assert!(y.0.periods < 360, "{:?}", y.0);
+    }
+}
+
+#[test]
+fn the_look_never_runs_past_run_look_and_every_window_is_whole() {
+    // The look's stages from any start: they end at 3, 9, 27 ... times the configured periods
+    // and at `run.look`, never beyond it (a point the adaptive horizon ran on starts later and
+    // stops at the same total), each with a window of the configured sampled periods; a look
+    // with no room for one window beyond the start is no look (issue: `run.look=151` with 150
+    // configured periods made a window of one period and failed the map).
+    let mut cfg = Config::default();
+    for (transient, samples, look) in [
+        (300, 100, 3600),
+        (100, 50, 151),
+        (100, 50, 152),
+        (20, 16, 5000),
+    ] {
+        cfg.run.transient_periods = transient;
+        cfg.run.sample_periods = samples;
+        cfg.run.look = look;
+        let spec = rattle::spec::RunSpec::new(&cfg);
+        let configured = transient + samples;
+        for from in configured..configured * 10 {
+            let stages = rattle::adaptive::look_stages(&spec, from);
+            let mut end = from;
+            for s in &stages {
+                let rattle::adaptive::Stage::Look(t, w) = *s else {
+                    panic!("{s:?} is not a stage of the look");
+                };
+                assert_eq!(w, samples, "{s:?} from {from}");
+                end += t + w;
+            }
+            assert!(
+                end <= look.max(from),
+                "from {from}: the look ends at {end} > {look}"
+            );
+            if from + samples <= look {
+                assert!(
+                    !stages.is_empty(),
+                    "from {from}: room for a window, no look"
+                );
+                assert_eq!(end, look, "from {from}: the whole look ends at run.look");
+            } else {
+                assert!(stages.is_empty(), "from {from}: {stages:?}");
+            }
+        }
     }
 }

@@ -191,3 +191,65 @@ fn gpu_and_cpu_find_the_same_basins() {
         }
     }
 }
+
+#[test]
+fn a_start_that_settles_on_a_cycle_within_the_look_gets_that_cycle_not_a_chaotic_id() {
+    // At eta = 1.26, R = 0.5756, lambda = 0 (a cell of the R x lambda map whose motion from
+    // rest looks chaotic after 400 periods and lands on a period-5 cycle after 1100) most
+    // starts run through a chaotic transient longer than the configured 300 + 100 periods.
+    // Without the look the basin calls them a chaotic attractor; basins run the one driver,
+    // so with the default look every start that settles on a cycle within 3600 periods gets
+    // that cycle's id, and no chaotic id is left.
+    let d = scratch("basin_look");
+    let run = |out: &str, look: &str| {
+        let o = rattle()
+            .args([
+                "basin",
+                "--backend",
+                "cpu",
+                "--precision",
+                "f64",
+                "--config",
+            ])
+            .arg(config("basin.toml"))
+            .args([
+                "--set",
+                "eta=1.26",
+                "--set",
+                "R=0.5756",
+                "--set",
+                "lambda=0.0",
+            ])
+            .args(["--set", "basin.x_points=8", "--set", "basin.y_points=8"])
+            .args(["--set", &format!("run.look={look}")])
+            .arg("--out")
+            .arg(d.join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let j = json(&d.join(format!("{out}.json")));
+        j["attractors"].as_array().unwrap().clone()
+    };
+    let cells = |atts: &[Value], class: &str| -> u64 {
+        atts.iter()
+            .filter(|a| a["class"] == class)
+            .map(|a| a["cells"].as_u64().unwrap())
+            .sum()
+    };
+    let off = run("off", "0");
+    let on = run("on", "3600");
+    eprintln!(
+        "look off: {} chaotic starts of 64; look on: {}",
+        cells(&off, "chaotic"),
+        cells(&on, "chaotic")
+    );
+    assert!(
+        cells(&off, "chaotic") >= 8,
+        "the configured run alone should leave chaotic transients here: {off:?}"
+    );
+    assert_eq!(cells(&on, "chaotic"), 0, "{on:?}");
+    for a in &on {
+        assert_eq!(a["period"].as_u64(), Some(5), "{a}");
+        assert!(a["leading_modulus"].as_f64().unwrap() < 1.0, "{a}");
+    }
+}

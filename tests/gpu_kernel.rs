@@ -410,7 +410,7 @@ fn newton_on_the_device_ends_each_trial_as_the_host_does() {
     // iterations and mode must agree; the cycle point and multipliers to round-off of the
     // flows (lavapipe: see the printed figures). Periods 2-12 at period-1 points converge to
     // the period-1 cycle, whose least period the device's pass finds.
-    use rattle::decide::Decider;
+    use rattle::engine::Decider;
     let Some(g) = gpu() else { return };
     let g = g.lock().unwrap();
     if !g.has_f64() {
@@ -463,12 +463,12 @@ fn newton_on_the_device_ends_each_trial_as_the_host_does() {
 fn newton_in_f32_on_the_device_finds_the_hosts_cycles() {
     // Newton's device part in f32 (adapters without f64, `run.decide_precision = "f32"`): the
     // device iterates to f32's floor and the host judges every trial in f64 from there (a
-    // fresh f64 trial from an iterate within decide::F32_POLISH of its image, else the host's
+    // fresh f64 trial from an iterate within engine::F32_POLISH of its image, else the host's
     // step from the device's iterate). Against the host alone on the trials of the f64 test:
     // the same trials converge, to the same cycle (period, mode, point, multipliers), and
     // the host's share is smaller (its flows counted by the iterations it reports; lavapipe:
     // 25 cycles, points 5.5e-10, multipliers 1.1e-8, 37 host iterations against 68).
-    use rattle::decide::Decider;
+    use rattle::engine::Decider;
     let Some(g) = gpu() else { return };
     let g = g.lock().unwrap();
     let s = Settings::default();

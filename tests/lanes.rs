@@ -6,7 +6,8 @@
 
 use rattle::class::Class;
 use rattle::cycles::{Cycle, Refine, refine};
-use rattle::decide::{Decider, Proposal, Trials, confirm, confirm_many};
+use rattle::decide::{Proposal, Trials, confirm, confirm_many};
+use rattle::engine::Decider;
 use rattle::method::{
     FlowTask, ImpactMethod, Integrator, LANES, PointState, RunResult, Settings, batches, run_flows,
     run_flows_portable, run_lanes, run_lanes_portable,

@@ -22,24 +22,17 @@ fn sharded_and_merged_map_equals_the_single_run() {
     let d = scratch("shard");
     let cfg = d.join("small.toml");
     std::fs::write(&cfg, small()).unwrap();
-    // Without the long look: a shard decides the look of its edge cells with their neighbours
-    // in the other shards unknown (contested), so its classes can differ there (docs/maps.md).
+    // With the defaults, the long look included: every cell's look is its own evidence, and
+    // the stable cycles are carried over the whole grid when the parts are joined, so the
+    // merged and checkpointed maps are the single run's byte for byte, every layer.
     let map = |extra: &[&str], out: &Path| {
         let mut c = rattle();
-        c.args([
-            "map",
-            "--backend",
-            "cpu",
-            "--precision",
-            "f64",
-            "--set",
-            "run.look=0",
-        ])
-        .arg("--config")
-        .arg(&cfg)
-        .arg("--out")
-        .arg(out)
-        .args(extra);
+        c.args(["map", "--backend", "cpu", "--precision", "f64"])
+            .arg("--config")
+            .arg(&cfg)
+            .arg("--out")
+            .arg(out)
+            .args(extra);
         ok(&mut c)
     };
     map(&[], &d.join("whole"));
@@ -65,8 +58,6 @@ fn sharded_and_merged_map_equals_the_single_run() {
             "f64",
             "--checkpoint",
             "3",
-            "--set",
-            "run.look=0",
             "--config",
         ])
         .arg(&cfg)
@@ -76,14 +67,12 @@ fn sharded_and_merged_map_equals_the_single_run() {
         .unwrap();
     assert!(out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("shard 1/3 already done"));
-    for field in [
-        "class",
-        "period",
-        "impacts_per_period",
-        "lyapunov",
-        "impacts",
-        "overflows",
-    ] {
+    let looked = std::fs::read(d.join("whole-looked.npy")).unwrap();
+    assert!(
+        looked[looked.len() - 63..].contains(&2),
+        "no cell of the test map got the long look: the test would not test it"
+    );
+    for (field, _, _) in rattle::map::Fields::LAYERS {
         let a = std::fs::read(d.join(format!("whole-{field}.npy"))).unwrap();
         let b = std::fs::read(d.join(format!("merged-{field}.npy"))).unwrap();
         let c = std::fs::read(d.join(format!("ck-{field}.npy"))).unwrap();
@@ -550,7 +539,7 @@ fn cell(class: Class, lyapunov: f64, multiplier: f64) -> (rattle::decide::Summar
             periods: 400,
             settle: 300,
             coexist: None,
-            looked: rattle::look::Look::None,
+            looked: rattle::decide::Look::None,
             impact_speed: [f64::NAN; 2],
             dissipation: [0.0; 2],
             stick_fraction: 0.0,

@@ -412,11 +412,8 @@ fn json(
             setup_s: b.timings.map(|t| t.setup_s),
             integration_s: b.integration_s,
             newton_s: b.newton_s,
-            device_decide_s: b
-                .timings
-                .filter(|_| b.cfg.run.early_stop)
-                .map(|t| t.decide_s),
-            host_s: b.timings.filter(|_| b.cfg.run.early_stop).map(|t| t.host_s),
+            device_decide_s: b.timings.map(|t| t.decide_s),
+            host_s: b.timings.map(|t| t.host_s),
             bifurcations_s: b.bifurcations_s,
             files_s,
             readback_s: b.timings.map(|t| t.readback_s),

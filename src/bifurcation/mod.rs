@@ -5,7 +5,8 @@
 use crate::class::Class;
 use crate::config::Config;
 use crate::cycles::Cycle;
-use crate::decide::{Decider, Trials, confirm_all};
+use crate::decide::{Trials, confirm_all};
+use crate::engine::Decider;
 use crate::engine::Engine;
 use crate::engine::{EngineError, Timings};
 use crate::error::Result;
@@ -238,11 +239,20 @@ pub fn run(
     let spec = RunSpec::new(cfg);
     let newton_s;
     let (runs, timings): (Vec<(Option<Direction>, Vec<SweepPoint>)>, _) = match continuation {
-        None if cfg.run.early_stop => {
+        None => {
+            // `run.early_stop = false` leaves out the early rounds only: every point still
+            // gets the adaptive horizon and the long look, as on a map (docs/classes.md).
             let vary = [cfg.sweep.param];
-            let nb = crate::look::Neighbours::line(values.len());
+            let nb = crate::carry::Neighbours::line(values.len());
             let points = Points::along(&vary, &values);
-            let a = crate::adaptive::run(engine, &spec, &points, &nb, progress)?;
+            let a = crate::adaptive::run_samples(
+                engine,
+                &spec,
+                &points,
+                cfg.run.early_stop,
+                &nb,
+                progress,
+            )?;
             newton_s = a.newton_s;
             let points = values
                 .iter()
@@ -258,14 +268,6 @@ pub fn run(
                 })
                 .collect();
             (vec![(None, points)], Some(a.timings))
-        }
-        None => {
-            let vary = [cfg.sweep.param];
-            let (r, t) = engine.run(&spec, &Points::along(&vary, &values), progress)?;
-            let tn = Instant::now();
-            let points = finish(cfg, r);
-            newton_s = tn.elapsed().as_secs_f64();
-            (vec![(None, points)], Some(t))
         }
         Some(c) => {
             let dirs = c.directions();

@@ -11,8 +11,8 @@ impl Config {
     }
 
     /// Checks what `cmd` reads: [`Config::check_base`] and the command's own section.
-    pub fn check_command(&self, cmd: crate::request::Command) -> Result<(), ConfigError> {
-        use crate::request::Command as C;
+    pub fn check_command(&self, cmd: Command) -> Result<(), ConfigError> {
+        use Command as C;
         self.check_base()?;
         match cmd {
             C::Point | C::Plot => Ok(()),
@@ -256,5 +256,39 @@ impl Config {
             ));
         }
         Ok(())
+    }
+}
+
+/// What a command reads of its configuration.
+#[derive(Clone, Copy, Debug)]
+pub enum Command {
+    /// `point`: the model, the method and the run.
+    Point,
+    /// `point --plot`: as `point`, integrated in CPU f64 whatever the config names.
+    Plot,
+    /// `map` (and the other config of `--compare`): with `[map]`, its axes varied.
+    Map,
+    /// The commands that sweep (`bifurcation`, `accuracy`, `validate`, `bench`): with `[sweep]`.
+    Sweep,
+    /// `basin`: with `[basin]`.
+    Basin,
+    /// `sensitivity`: its uncertain parameters varied (`Request::sensitivity`).
+    Sensitivity,
+}
+
+impl Command {
+    /// Whether the command runs the adaptive driver's streams (`run.overlap`).
+    pub(crate) fn streams(self) -> bool {
+        matches!(self, Command::Map | Command::Sensitivity)
+    }
+
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Command::Point | Command::Plot => "point",
+            Command::Map => "map",
+            Command::Sweep => "a sweep",
+            Command::Basin => "basin",
+            Command::Sensitivity => "sensitivity",
+        }
     }
 }

@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 mod checks;
+pub use checks::Command;
 mod grids;
 mod overrides;
 
@@ -305,15 +306,15 @@ pub struct RunConfig {
     /// windows, up to this many times the configured periods in all (1: never).
     pub horizon: u32,
     /// The longest look, in forcing periods from the start, at a point that still looks
-    /// chaotic after the configured periods and is contested (a stable cycle at its parameters,
-    /// a quasi-periodic or impact-free neighbour, or neighbours unknown; [`crate::look`]). At most the configured periods: no look, and no cycles
-    /// carried between points.
+    /// chaotic after the configured periods ([`crate::adaptive::look`]: the first stage only
+    /// where its neighbours all look chaotic too). No room for one sampled window beyond the
+    /// configured periods: no look, and no cycles carried between points.
     pub look: u32,
     /// Where Newton's flows run ([`Decide`]).
     pub decide: Decide,
     /// The arithmetic of Newton's part on a GPU adapter (`run.decide`): unset, f64 where the
     /// adapter has it and f32 where it has not; f32 also where asked (GPUs whose f64 is slow).
-    /// The host judges every f32 trial in f64 (`decide::refine_on_device`).
+    /// The host judges every f32 trial in f64 (`engine::refine_on_device`).
     pub decide_precision: Option<Precision>,
     /// Streams of a map's or study's points run at once, so that the host decides one while
     /// the device integrates another; unset: 4 for runs of 2^19 points or more on a GPU

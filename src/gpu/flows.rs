@@ -92,7 +92,7 @@ impl Gpu {
     /// GPUs (a few periods per dispatch on CPU adapters, for llvmpipe's loop limit). Their
     /// ends come back in their order. In `precision` f32 (adapters without f64, or
     /// `run.decide_precision`) the iterates and flows are f32: the host then judges every
-    /// trial in f64 from where the device left it (`decide::refine_on_device`).
+    /// trial in f64 from where the device left it (`engine::refine_on_device`).
     pub fn newton(
         &self,
         settings: &Settings,

@@ -15,7 +15,7 @@
 use crate::class::Class;
 use crate::config::Config;
 use crate::cycles::{Cycle, Refine};
-use crate::decide::Decider;
+use crate::engine::Decider;
 use crate::method::{Integrator, PointState};
 use crate::model::{Mode, Params};
 use crate::stability::{Change, Found, Kind, locate_changes};

@@ -19,13 +19,15 @@ pub fn title(cfg: &Config) -> String {
 }
 
 /// The caption of a map's JSON.
-/// What the long look saw over a map (docs/classes.md): cells looked at to the end
-/// (contested), cells that looked chaotic uncontested, and cells with a coexisting stable
-/// cycle carried from a neighbour (of which chaotic).
+/// What the long look saw over a map (docs/classes.md): cells looked at to the end, cells
+/// looked at for the first stage, and cells with a coexisting stable cycle carried from a
+/// neighbour (of which chaotic).
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct LookSeen {
-    pub contested: usize,
-    pub uncontested: usize,
+    /// Cells that looked chaotic after the configured periods and got the whole look.
+    pub looked: usize,
+    /// Cells that looked chaotic among chaotic-looking neighbours: the look's first stage.
+    pub first: usize,
     pub coexist: usize,
     pub coexist_chaotic: usize,
 }
@@ -71,17 +73,17 @@ pub(super) fn caption(
     });
     let looked = if r.look > r.transient_periods + r.sample_periods {
         format!(
-            " A cell still chaotic-looking then is contested where a stable cycle carried from \
-             a neighbouring cell exists at its parameters or a neighbour is quasi-periodic or \
-             impact-free; contested cells ({c}) went on to {l} periods in all and left as soon \
-             as a window showed another attractor, so chaotic there means chaotic for {l} \
-             periods; the {u} others are chaotic after the configured periods \
-             (PREFIX-looked.npy; PREFIX-settle.npy: periods until on the attractor). {k} cells \
-             ({kc} of them chaotic) have a stable cycle carried from a neighbour beside the \
-             attractor their trajectory reached (PREFIX-coexist.npy: its period).",
-            c = look.contested,
+            " A cell still chaotic-looking then went on and left as soon as a window showed \
+             another attractor: {c} cells beside a cell of another class went on to {l} periods \
+             in all, so chaotic there means chaotic for {l} periods; {f} cells among \
+             chaotic-looking neighbours went on to {g} times their periods (PREFIX-looked.npy; \
+             PREFIX-settle.npy: periods until on the attractor). {k} cells ({kc} of them \
+             chaotic) have a stable cycle carried from a neighbour beside the attractor their \
+             trajectory reached (PREFIX-coexist.npy: its period).",
+            c = look.looked,
+            f = look.first,
+            g = crate::adaptive::LOOK_GROWTH,
             l = r.look,
-            u = look.uncontested,
             k = look.coexist,
             kc = look.coexist_chaotic,
         )
@@ -230,8 +232,9 @@ pub(super) fn settle_caption(cfg: &Config, f: &super::fields::Fields) -> Option<
          known to last that long, no longer); grey: inferred cells. {n} non-chaotic cells: \
          median {med}, 99th percentile {p99}, longest {max}; {late} of them settled only after \
          the configured {long} periods. {c} chaotic cells, {whole} of them chaotic through the \
-         whole look ({look} periods; the others uncontested, chaotic after the configured \
-         periods or the adaptive horizon). Raster image, 1100 x 800 px ({RASTER}).",
+         whole look ({look} periods; the others chaotic through the look's first stage, their \
+         neighbours all chaotic-looking, or chaotic after the configured periods where the look \
+         was off). Raster image, 1100 x 800 px ({RASTER}).",
         grid = grid_phrase(cfg),
         n = on.len(),
         med = q(&on, 50).map_or("-".into(), |v| v.to_string()),

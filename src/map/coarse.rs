@@ -77,7 +77,7 @@ pub fn compute_coarse(
         cfg.run.lyapunov_tol,
         chaotic,
         |todo| {
-            let (s, t) = compute_cells(engine, cfg, todo.iter().copied(), starts, progress)?;
+            let (s, t) = compute_cells(engine, cfg, todo.iter().copied(), starts, false, progress)?;
             timings.integration_s += t.integration_s;
             Ok::<_, crate::Error>(s)
         },
@@ -175,7 +175,7 @@ pub fn coarse_grid<E>(
                             s.settle = 0;
                             s.final_y = [f64::NAN; 4];
                             s.coexist = None;
-                            s.looked = crate::look::Look::None;
+                            s.looked = crate::decide::Look::None;
                             known[c] = Some((s, 1));
                             inferred[c] = 1;
                         }

@@ -191,7 +191,7 @@ map_layers! {
     state: [Option<f64>; 4] = |c| c.final_y.map(finite);
     /// The motion's mode at the end of the run (0 slip with v > 0, 1 slip with v < 0, 2 stick, 3 and 4 locked at the stop z = +r, -r).
     mode: [u8; 1] = |c| [c.final_mode as u8];
-    /// The long look after the cell looked chaotic: 0 none (it did not look chaotic after the configured periods), 1 none beyond them (it did, uncontested), 2 all of it, up to `run.look` periods (contested: a stable cycle carried to its parameters, a quasi-periodic or impact-free neighbour, or neighbours not computed).
+    /// The long look after the cell looked chaotic: 0 none (it did not look chaotic after the configured periods, or the look is off), 1 its first stage, to 3 x the cell's periods (the cell and its four neighbours all looked chaotic), 2 all of it, up to `run.look` periods (a neighbour of another class); each left as soon as a window showed another attractor.
     looked: [u8; 1] = |c| [c.looked.code()];
 }
 

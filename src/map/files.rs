@@ -423,8 +423,8 @@ pub fn map_caption(cfg: &Config, fields: &Fields, report: &MapReport) -> String 
 /// What the long look saw over the map's cells.
 fn look_seen(fields: &Fields) -> super::caption::LookSeen {
     super::caption::LookSeen {
-        contested: fields.looked.iter().filter(|&&l| l == 2).count(),
-        uncontested: fields.looked.iter().filter(|&&l| l == 1).count(),
+        looked: fields.looked.iter().filter(|&&l| l == 2).count(),
+        first: fields.looked.iter().filter(|&&l| l == 1).count(),
         coexist: fields.coexist.iter().filter(|&&c| c > 0).count(),
         coexist_chaotic: fields
             .coexist

@@ -78,7 +78,8 @@ pub fn start_states(cfg: &Config, k: usize) -> Vec<[f64; 4]> {
 
 /// Computes the cells in `range` (Lyapunov estimate on) from `starts` initial states each.
 /// The summary of a cell is that of its first start; the second value counts the distinct
-/// attractors the starts ended on (different class or impacts per period).
+/// attractors the starts ended on (different class or impacts per period). Each cell is
+/// decided as the whole map decides it (with its halo, [`compute_cells`]).
 pub fn compute(
     engine: &Engine,
     cfg: &Config,
@@ -86,27 +87,42 @@ pub fn compute(
     starts: usize,
     progress: &dyn Progress,
 ) -> crate::Result<(Vec<(Summary, u8)>, Timings)> {
-    compute_cells(engine, cfg, range, starts, progress)
+    compute_cells(engine, cfg, range, starts, true, progress)
 }
 
-/// [`compute`] for any cells (coarse-to-fine maps compute scattered cells).
+/// [`compute`] for any cells (coarse-to-fine maps compute scattered cells). How far a
+/// chaotic-looking cell is looked at depends on its neighbours' runs before the look
+/// ([`crate::decide::Look::of`]): with `halo`, the neighbours of the cells that are not among
+/// them are run through the configured stages too (not looked at, not returned), so that each
+/// cell gets the answer the whole map gives it, whatever share of the map is computed (a
+/// shard, a checkpoint, judged cells); without, a cell whose neighbours are not all computed
+/// gets the whole look, as a single point does. The stable cycles carried between cells are
+/// added when the map's parts are joined ([`carry_over`]).
 pub fn compute_cells(
     engine: &Engine,
     cfg: &Config,
     cells: impl IntoIterator<Item = usize>,
     starts: usize,
+    halo: bool,
     progress: &dyn Progress,
 ) -> crate::Result<(Vec<(Summary, u8)>, Timings)> {
-    let spec = RunSpec::new(cfg).with_tangent(cfg.tangent(crate::config::Tangent::Largest));
+    let spec = cell_spec(cfg);
     let k = starts.max(1);
-    let cells: Vec<usize> = cells.into_iter().collect();
-    let nb = crate::look::Neighbours::grid(
-        &cells,
-        (cfg.map.x_points as usize, cfg.map.y_points as usize),
-        k,
-    );
-    let cells = cell_values(cfg, cells);
-    let values: Vec<f64> = cells
+    let mut cells: Vec<usize> = cells.into_iter().collect();
+    let own = cells.len();
+    let (nx, ny) = (cfg.map.x_points as usize, cfg.map.y_points as usize);
+    if halo {
+        let have: std::collections::HashSet<usize> = cells.iter().copied().collect();
+        let ring: std::collections::BTreeSet<usize> = cells
+            .iter()
+            .flat_map(|&c| grid_neighbours(c, (nx, ny)))
+            .filter(|g| !have.contains(g))
+            .collect();
+        progress.more((ring.len() * k) as u64 * engine.progress_per_point(&spec));
+        cells.extend(ring);
+    }
+    let nb = crate::carry::Neighbours::grid(&cells, (nx, ny), k);
+    let values: Vec<f64> = cell_values(cfg, cells.iter().copied())
         .chunks(2)
         .flat_map(|xy| std::iter::repeat_n([xy[0], xy[1]], k).flatten())
         .collect();
@@ -114,9 +130,15 @@ pub fn compute_cells(
     let y0s: Vec<[f64; 4]> = (0..values.len() / 2).map(|i| y0[i % k]).collect();
     let vary = [cfg.map.x, cfg.map.y];
     let points = Points::along(&vary, &values).with_states(&y0s);
-    let (s, t) =
-        crate::adaptive::run_summaries(engine, &spec, &points, cfg.run.early_stop, &nb, progress)?;
-    let out = s
+    let (s, t) = crate::adaptive::run_summaries(
+        engine,
+        &spec,
+        &points,
+        cfg.run.early_stop,
+        (&nb, own * k),
+        progress,
+    )?;
+    let out = s[..own * k]
         .chunks(k)
         .map(|g| {
             let mut seen: Vec<(Class, i64)> = Vec::new();
@@ -130,4 +152,70 @@ pub fn compute_cells(
         })
         .collect();
     Ok((out, t))
+}
+
+/// The edge-neighbouring cells of cell `c` (row-major) of an `nx` x `ny` grid.
+fn grid_neighbours(c: usize, (nx, ny): (usize, usize)) -> impl Iterator<Item = usize> {
+    let (ix, iy) = (c % nx, c / nx);
+    [
+        (ix > 0).then(|| c - 1),
+        (ix + 1 < nx).then(|| c + 1),
+        (iy > 0).then(|| c - nx),
+        (iy + 1 < ny).then(|| c + nx),
+    ]
+    .into_iter()
+    .flatten()
+}
+
+/// The map's spec of a cell's run (the exponent on).
+fn cell_spec(cfg: &Config) -> RunSpec {
+    RunSpec::new(cfg).with_tangent(cfg.tangent(crate::config::Tangent::Largest))
+}
+
+/// Carries the stable cycles of a whole map's cells to their neighbouring cells
+/// ([`crate::carry::carry`]) and records in `fields.coexist` each carried cycle that coexists
+/// with the cell's own attractor. Runs on the whole grid once its parts are joined, on the host
+/// in f64, so that a single run, its shards and its checkpoints give the same layer. Cells
+/// filled by `--refine` neither seed nor receive. Returns the cells that gained a cycle.
+pub fn carry_over(cfg: &Config, fields: &mut Fields) -> usize {
+    let n = fields.len();
+    let (nx, ny) = (cfg.map.x_points as usize, cfg.map.y_points as usize);
+    let spec = cell_spec(cfg);
+    // With the look off, nothing is carried either (the classifier of the configured run).
+    if n != nx * ny || n == 0 || crate::adaptive::look_stages(&spec, spec.periods()).is_empty() {
+        return 0;
+    }
+    let computed: Vec<usize> = (0..n).filter(|&c| fields.inferred[c] == 0).collect();
+    let nb = crate::carry::Neighbours::grid(&computed, (nx, ny), 1);
+    let classes: Vec<Class> = computed
+        .iter()
+        .map(|&c| Class::from_code(fields.class[c]))
+        .collect();
+    let seeds: Vec<Option<crate::carry::Seed>> = computed
+        .iter()
+        .map(|&c| {
+            let n = u32::try_from(fields.period[c]).ok().filter(|&n| n > 0)?;
+            let y: [f64; 4] = std::array::from_fn(|k| fields.state[4 * c + k].unwrap_or(f64::NAN));
+            let mode = crate::model::Mode::from_u32(u32::from(fields.mode[c]));
+            y.iter().all(|v| v.is_finite()).then_some((n, y, mode))
+        })
+        .collect();
+    let vary = [cfg.map.x, cfg.map.y];
+    let values = cell_values(cfg, computed.iter().copied());
+    let points = Points::along(&vary, &values);
+    let carried = crate::carry::carry(
+        crate::engine::Decider::Host,
+        &spec.settings,
+        &|i| points.params(&spec.params, i),
+        &classes,
+        &seeds,
+        &nb,
+    );
+    fields.coexist = vec![0; n];
+    for ((&c, cycle), &class) in computed.iter().zip(&carried).zip(&classes) {
+        if let Some(k) = crate::carry::coexisting(cycle.as_ref(), class) {
+            fields.coexist[c] = k.period as i32;
+        }
+    }
+    carried.iter().filter(|c| c.is_some()).count()
 }

@@ -318,7 +318,9 @@ pub fn read_part(path: &Path) -> crate::Result<Part> {
 }
 
 /// Joins the parts of one sharded map; they must come from one run (see
-/// [`Part::differs_from`]), hold possible values and cover every cell once.
+/// [`Part::differs_from`]), hold possible values and cover every cell once. The stable cycles
+/// of the joined map are then carried over its whole grid ([`super::carry_over`]): every map,
+/// whole, sharded or checkpointed, is finished here.
 pub fn merge(mut parts: Vec<Part>) -> crate::Result<(Config, Fields, Vec<Part>)> {
     let first = parts
         .first()
@@ -373,5 +375,7 @@ pub fn merge(mut parts: Vec<Part>) -> crate::Result<(Config, Fields, Vec<Part>)>
         return Err(crate::Error::Merge(format!("cells {at}..{cells} missing")));
     }
     let cfg = parts[0].config.clone();
+    // The carry goes over the whole grid, as one run's would (a part's coexist layer is empty).
+    super::carry_over(&cfg, &mut fields);
     Ok((cfg, fields, parts))
 }

@@ -82,7 +82,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     let t = Instant::now();
     // The configured run, then the adaptive horizon where it is undecided, as a map cell.
     // A single point's neighbours are unknown: a chaotic-looking point gets the whole look.
-    let nb = crate::look::Neighbours::none(1);
+    let nb = crate::carry::Neighbours::none(1);
     let a = crate::adaptive::run_samples(engine, &spec, &Points::single(), false, &nb, progress)?;
     let (r, verdict) = (a.results[0].clone(), a.verdicts[0].clone());
     let t_host = Instant::now();

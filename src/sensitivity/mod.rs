@@ -317,7 +317,7 @@ fn decide_points(
         &spec,
         &points,
         cfg.run.early_stop,
-        &crate::look::Neighbours::none(points.len()),
+        (&crate::carry::Neighbours::none(points.len()), points.len()),
         progress,
     )?)
 }

@@ -21,11 +21,14 @@ use crate::class::Class;
 use crate::classify::{Exponent, Pool, Rule};
 use crate::decide::{Proposal, Summary, Trials, Verdict, confirm_many};
 use crate::engine::{Engine, EngineError, Timings};
-use crate::look::{Carried, Looked, Neighbours, Seed};
+pub mod look;
+
+use crate::carry::{Carried, Neighbours, Seed};
 use crate::method::{Diagnostics, RunResult};
 use crate::model::{Mode, Params};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
+use look::Looked;
 use std::time::Instant;
 
 /// Sampled periods of a round's window (periods up to WINDOW / 2 can be decided in a round).
@@ -55,10 +58,10 @@ pub struct Adaptive {
     /// Periods until each point was on its attractor ([`Ended::settle`]).
     pub settle: Vec<u32>,
     /// The stable cycle carried to each point that coexists with its attractor
-    /// ([`crate::look`]).
+    /// ([`look`]).
     pub coexist: Vec<Option<Carried>>,
     /// What the long look did.
-    pub look: crate::look::LookCounts,
+    pub look: look::LookCounts,
     pub timings: Timings,
     /// Wall time of the Newton confirmations (CPU, f64).
     pub newton_s: f64,
@@ -238,21 +241,25 @@ fn stage_spec(spec: &RunSpec, stage: Stage, elapsed: u32) -> RunSpec {
 /// Ratio of one look stage's end to the one before (in periods from the start).
 pub const LOOK_GROWTH: u32 = 3;
 
-/// The stages of the long look ([`look`]) at a point that looked chaotic after the configured
-/// `spec.periods()`: each ends at [`LOOK_GROWTH`] times the periods of the one before (3, 9,
-/// 27 ... times the configured periods), the last at `spec.look`; each is a transient and a
-/// window of the configured sampled periods. Empty where `spec.look` is not beyond the
-/// configured periods.
-pub fn look_stages(spec: &RunSpec) -> Vec<Stage> {
-    let (mut end, w) = (u64::from(spec.periods()), u64::from(spec.samples));
+/// The stages of the long look ([`look`]) at a point that looked chaotic after `from` periods
+/// (the configured periods, or more where the adaptive horizon ran on): the stages end at
+/// [`LOOK_GROWTH`] times the configured periods, then that times again (3, 9, 27 ... times), the
+/// last at `spec.look`, whatever the point's start, so that no point runs past `spec.look` in
+/// all; each is a transient and a window of the configured sampled periods. A stage too short
+/// for a window of its own joins the next one; empty where `spec.look` leaves no room for one
+/// window beyond `from` (no look: a shorter window would not be the evidence the configured
+/// run weighs).
+pub fn look_stages(spec: &RunSpec, from: u32) -> Vec<Stage> {
+    let (mut end, w) = (u64::from(from), u64::from(spec.samples));
     let cap = u64::from(spec.look);
+    let mut mark = u64::from(spec.periods()).max(1);
     let mut out = Vec::new();
-    while end < cap {
-        let next = (end * u64::from(LOOK_GROWTH)).min(cap);
-        // A last stage too short for a window of its own joins the one before.
-        let next = if cap - next < w { cap } else { next };
-        let len = next - end;
-        out.push(Stage::Look(len.saturating_sub(w) as u32, len.min(w) as u32));
+    while w > 0 && end + w <= cap {
+        while mark < end + w {
+            mark = (mark * u64::from(LOOK_GROWTH)).min(cap);
+        }
+        let next = if cap - mark < w { cap } else { mark };
+        out.push(Stage::Look((next - end - w) as u32, w as u32));
         end = next;
     }
     out
@@ -488,7 +495,7 @@ struct Samples {
 
 /// A point of [`Samples`]: its result, its verdict once decided, its settle time
 /// ([`Ended::settle`]) once finished, and the stable cycle that coexists with its attractor
-/// ([`crate::look`]).
+/// ([`look`]).
 type Sampled = (RunResult, Option<Verdict>, u32, Option<Carried>);
 
 impl Keep for Samples {
@@ -662,7 +669,7 @@ fn early_answer(
 }
 
 /// Runs `points` with early termination, the adaptive horizon and the long look, keeping
-/// samples (sweeps; `nb` says which points neighbour each other, [`crate::look`]).
+/// samples (sweeps; `nb` says which points neighbour each other, [`look`]).
 pub fn run(
     engine: &Engine,
     spec: &RunSpec,
@@ -689,17 +696,26 @@ pub fn run_samples(
     };
     let (mut done, mut periods, mut timings) =
         drive(engine, spec, points, early, &mut keep, progress)?;
-    let (t, look) = crate::look::look(
+    let (t, look) = look::look(
         engine,
         spec,
         points,
         nb,
+        points.len(),
         &mut keep,
         &mut done,
         &mut periods,
         progress,
     )?;
     timings.add(&t);
+    look::coexist(
+        engine.decider(spec.decide, spec.decide_precision),
+        spec,
+        points,
+        nb,
+        &keep,
+        &mut done,
+    );
     let mut settle = Vec::with_capacity(done.len());
     let mut coexist = Vec::with_capacity(done.len());
     let (results, verdicts) = done
@@ -799,7 +815,7 @@ impl Looked for Summaries {
         s.coexist = c;
     }
 
-    fn looked(&self, s: &mut Summary, look: crate::look::Look) {
+    fn looked(&self, s: &mut Summary, look: crate::decide::Look) {
         s.looked = look;
     }
 }
@@ -807,7 +823,11 @@ impl Looked for Summaries {
 /// [`run`] for maps and studies: no samples are kept, and the summaries of each block the
 /// engine runs say which points leave. With `early` the points run the early rounds first;
 /// every point then runs the configured stretch, and a point still undecided gets the windows
-/// of [`extensions`], and is `unresolved` only after the last of them.
+/// of [`extensions`], and is `unresolved` only after the last of them; a point that still
+/// looks chaotic then gets the long look ([`look::look`]), as far as its neighbours `nb`
+/// say ([`crate::decide::Look::of`]); only the first `own` points are looked at (the others are
+/// a halo, computed for their neighbours' sake). A map carries stable cycles over its whole
+/// grid when its parts are joined ([`crate::map::merge`]).
 ///
 /// Where the engine overlaps ([`Engine::overlap`], `run.overlap`), the points are dealt to
 /// k streams (point i to stream i mod k, so that each holds the same mix of the grid) and
@@ -820,16 +840,17 @@ pub fn run_summaries(
     spec: &RunSpec,
     points: &Points,
     early: bool,
-    nb: &Neighbours,
+    (nb, own): (&Neighbours, usize),
     progress: &dyn Progress,
 ) -> Result<(Vec<Summary>, Timings), EngineError> {
     let (mut out, mut timings) = configured_summaries(engine, spec, points, early, progress)?;
     let mut periods: Vec<u32> = out.iter().map(|s| s.periods).collect();
-    let (t, _) = crate::look::look(
+    let (t, _) = look::look(
         engine,
         spec,
         points,
         nb,
+        own,
         &mut Summaries,
         &mut out,
         &mut periods,

@@ -5,6 +5,8 @@
 //! is decided in [`crate::decide`], and [`crate::adaptive`] combines the two. Nothing else
 //! calls a backend.
 
+mod newton;
+
 use crate::config::{Backend, Decide, Precision};
 use crate::gpu::{Gpu, GpuError, Job};
 /// The kernel ladder's rungs ([`Engine::time_rung`]) and the adapters report, for `bench` and
@@ -14,6 +16,7 @@ use crate::method::RunResult;
 pub use crate::method::Timings;
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
+pub use newton::{DEVICE_MIN_TRIALS, Decider, F32_POLISH, refine_on_device};
 use std::time::Instant;
 
 /// An opened backend.
@@ -105,15 +108,10 @@ impl Engine {
 
     /// Where Newton's flows run for a run that asks for `decide` ([`Decide`]): on a GPU
     /// adapter where asked, with `auto` only where it is not the host's own cores and for
-    /// calls of at least [`DEVICE_MIN_TRIALS`](crate::decide::DEVICE_MIN_TRIALS) trials; on
+    /// calls of at least [`DEVICE_MIN_TRIALS`](DEVICE_MIN_TRIALS) trials; on
     /// the device in `precision` where given, else in f64 where the adapter has it and in f32
     /// where it has not (the host then judges each trial in f64).
-    pub fn decider(
-        &self,
-        decide: Decide,
-        precision: Option<Precision>,
-    ) -> crate::decide::Decider<'_> {
-        use crate::decide::{DEVICE_MIN_TRIALS, Decider};
+    pub fn decider(&self, decide: Decide, precision: Option<Precision>) -> Decider<'_> {
         let Engine::Gpu(gpu) = self else {
             return Decider::Host;
         };

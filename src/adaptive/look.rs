@@ -1,0 +1,172 @@
+//! The long look before `chaotic`, a layer above the driver ([`super::drive_stages`]).
+//!
+//! A positive exponent after the configured periods is a reason to look further, not a
+//! verdict: a chaotic transient can last hundreds to tens of thousands of periods before the
+//! motion lands on a cycle, a torus or impact-free motion. After a run's configured stages
+//! ([`super::drive`]), every point is decided once more here, in one place for every command:
+//!
+//! 1. **The look** ([`look`]): every point that looks chaotic goes on in stages (3, 9, 27 ...
+//!    times the configured periods, up to `run.look` in all, [`super::look_stages`]) and
+//!    leaves as soon as a window shows another attractor. `chaotic` is what remains chaotic at
+//!    the end of its look. Whether a point is looked at is its own evidence only: a
+//!    chaotic-looking point among chaotic-looking neighbours is no safe ground (on hidden maps
+//!    judged independently, 6 of 7 wrong cells were such points), and a map split into shards
+//!    or checkpoints must look at every cell as the whole map does.
+//! 2. **Carried cycles** ([`coexist`], [`crate::carry`]): once every point is decided, the
+//!    stable cycles are carried to the neighbours that did not land on them (a map carries
+//!    over its whole grid when its parts are joined, [`crate::map::carry_over`]).
+//!
+//! What each point saw is reported: its settle time (periods until its trajectory was on its
+//! attractor; for a chaotic point, the length of its look) and the stable cycle carried to it
+//! that coexists with its own attractor, if any.
+
+use super::{Keep, Start, drive_stages, look_stages};
+use crate::carry::{Carried, Neighbours, Seed, carry, coexisting};
+use crate::class::Class;
+use crate::classify::Rule;
+use crate::decide::Look;
+use crate::engine::{Decider, Engine, EngineError, Timings};
+use crate::model::Mode;
+use crate::progress::Progress;
+use crate::spec::{Points, RunSpec};
+
+/// What the look needs of a caller's points beyond [`Keep`].
+pub trait Looked: Keep {
+    /// The point's class and the rule that decided it.
+    fn verdict(&self, p: &Self::Point) -> (Class, Rule);
+    /// Its exponent after the configured stages (the look's windows pool with it).
+    fn exponent(&self, p: &Self::Point) -> crate::classify::Exponent;
+    /// The stable cycle the point landed on, as a seed for its neighbours.
+    fn seed(&self, p: &Self::Point) -> Option<Seed>;
+    /// Records the stable cycle carried to the point where it coexists with the point's own
+    /// attractor (not where the point landed on that very cycle).
+    fn coexists(&self, p: &mut Self::Point, c: Option<Carried>);
+    /// Records how long the point was looked at.
+    fn looked(&self, _p: &mut Self::Point, _look: Look) {}
+}
+
+/// The look's counts, for logs and reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LookCounts {
+    /// Points that looked chaotic after the configured stages and were looked at.
+    pub looked: usize,
+    /// Of those, the points looked at for the first stage only ([`Look::First`]).
+    pub first: usize,
+    /// Of those, the points that left chaos during the look.
+    pub left: usize,
+}
+
+/// Decides `done` (the answers of `points` after the configured stages, with the periods
+/// `periods` each was integrated for) once more: every chaotic-looking point among the first
+/// `own` (the others are a halo: computed for their neighbours' sake, not looked at) goes on
+/// through the look's stages ([`look_stages`]) and leaves as soon as a window shows another
+/// attractor. How far it looks is [`Look::of`]'s rule, from the point's own run and its
+/// neighbours' runs before the look: each answer depends on those only, so a map split into
+/// shards or checkpoints (each with a halo of one row) looks at every cell as the whole map
+/// does.
+#[allow(clippy::too_many_arguments)]
+pub fn look<K: Looked>(
+    engine: &Engine,
+    spec: &RunSpec,
+    points: &Points,
+    nb: &Neighbours,
+    own: usize,
+    keep: &mut K,
+    done: &mut [K::Point],
+    periods: &mut [u32],
+    progress: &dyn Progress,
+) -> Result<(Timings, LookCounts), EngineError> {
+    let mut counts = LookCounts::default();
+    let mut timings = Timings::default();
+    let chaotic = |p: &K::Point, keep: &K| keep.verdict(p).1 == Rule::PositiveExponent;
+    let before: Vec<bool> = done.iter().map(|p| chaotic(p, keep)).collect();
+    // The points of one look length and one start (a point the adaptive horizon ran on starts
+    // later), each group driven through its own stages.
+    let mut groups: std::collections::BTreeMap<(Look, u32), Vec<usize>> = Default::default();
+    for i in (0..own.min(done.len())).filter(|&i| before[i]) {
+        let look = Look::of(i, &before, nb);
+        groups.entry((look, periods[i])).or_default().push(i);
+    }
+    for ((look, from), idx) in groups {
+        let mut stages = look_stages(spec, from);
+        if look == Look::First {
+            stages.truncate(1);
+        }
+        if stages.is_empty() {
+            continue;
+        }
+        counts.looked += idx.len();
+        counts.first += if look == Look::First { idx.len() } else { 0 };
+        let ys: Vec<[f64; 4]> = idx.iter().map(|&i| keep.state(&done[i]).0).collect();
+        let modes: Vec<Mode> = idx.iter().map(|&i| keep.state(&done[i]).1).collect();
+        let nv = points.vary.len();
+        let values: Vec<f64> = idx
+            .iter()
+            .flat_map(|&i| points.values[i * nv..(i + 1) * nv].iter().copied())
+            .collect();
+        let sub = Points {
+            vary: points.vary,
+            values: if nv == 0 { points.values } else { &values },
+            y0s: Some(&ys),
+            modes: Some(&modes),
+        };
+        let starts: Vec<Start> = idx
+            .iter()
+            .map(|&i| {
+                let mut pool = crate::classify::Pool::default();
+                pool.add(keep.exponent(&done[i]));
+                Start {
+                    periods: periods[i],
+                    diag: keep.diag(&done[i]),
+                    pool,
+                }
+            })
+            .collect();
+        let (out, ps, t) = drive_stages(engine, spec, &sub, &stages, &starts, keep, progress)?;
+        timings.add(&t);
+        for ((i, mut p), per) in idx.into_iter().zip(out).zip(ps) {
+            counts.left += usize::from(!chaotic(&p, keep));
+            keep.looked(&mut p, look);
+            done[i] = p;
+            periods[i] = per;
+        }
+    }
+    log::debug!(
+        "look: {} chaotic-looking points looked at ({} the first stage only), {} left chaos",
+        counts.looked,
+        counts.first,
+        counts.left
+    );
+    Ok((timings, counts))
+}
+
+/// Carries the stable cycles of the decided points `done` to their neighbours `nb` ([`carry`])
+/// and records, at each point, the carried cycle that coexists with its own attractor (not
+/// where the point landed on that very cycle). Returns the points that gained a carried cycle.
+pub fn coexist<K: Looked>(
+    decider: Decider,
+    spec: &RunSpec,
+    points: &Points,
+    nb: &Neighbours,
+    keep: &K,
+    done: &mut [K::Point],
+) -> usize {
+    // With the look off, nothing is carried either (the classifier of the configured run).
+    if nb.of.iter().all(|v| v.is_empty()) || look_stages(spec, spec.periods()).is_empty() {
+        return 0;
+    }
+    let classes: Vec<Class> = done.iter().map(|p| keep.verdict(p).0).collect();
+    let seeds: Vec<Option<Seed>> = done.iter().map(|p| keep.seed(p)).collect();
+    let carried = carry(
+        decider,
+        &spec.settings,
+        &|i| points.params(&spec.params, i),
+        &classes,
+        &seeds,
+        nb,
+    );
+    for (p, c) in done.iter_mut().zip(&carried) {
+        keep.coexists(p, coexisting(c.as_ref(), keep.verdict(p).0));
+    }
+    carried.iter().filter(|c| c.is_some()).count()
+}
