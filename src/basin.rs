@@ -363,10 +363,34 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
     for i in ids.iter_mut().filter(|i| **i >= 0) {
         *i = new_id[*i as usize];
     }
+    let attractors = describe(&found, &order, &new_id, &grid, &it, tol);
+    host_s += t_order.elapsed().as_secs_f64();
+    let timings = Split::of(&timings, host_s, t0.elapsed().as_secs_f64());
+    Ok(Basin {
+        grid,
+        ids,
+        attractors,
+        failed,
+        backend: engine.name().into(),
+        device: engine.device(),
+        timings,
+    })
+}
+
+/// The attractors `found`, in the order of their ids (`order`, `new_id`), with their mirror
+/// partners (the attractor whose section points hold the cycle's mirror point).
+fn describe(
+    found: &[Found],
+    order: &[usize],
+    new_id: &[i32],
+    grid: &Grid,
+    it: &Integrator<f64>,
+    tol: f64,
+) -> Vec<Attractor> {
     let total = grid.len();
     // Mirror partners: the attractor whose section points hold the cycle's mirror point.
     let mirror = |f: &Found| -> Option<i32> {
-        let q = mirror_point(&it, f.cycle.as_ref()?)?;
+        let q = mirror_point(it, f.cycle.as_ref()?)?;
         found
             .iter()
             .position(|g| match &g.key {
@@ -378,7 +402,7 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
             })
             .map(|k| new_id[k])
     };
-    let attractors = order
+    order
         .iter()
         .map(|&k| {
             let f = &found[k];
@@ -402,18 +426,7 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
                 first_state: grid.state(f.first),
             }
         })
-        .collect();
-    host_s += t_order.elapsed().as_secs_f64();
-    let timings = Split::of(&timings, host_s, t0.elapsed().as_secs_f64());
-    Ok(Basin {
-        grid,
-        ids,
-        attractors,
-        failed,
-        backend: engine.name().into(),
-        device: engine.device(),
-        timings,
-    })
+        .collect()
 }
 
 /// Title of the basin map: the parameters that differ between the paper's figures (the others

@@ -199,15 +199,15 @@ pub fn confirm_all(
 /// How long a point was looked at after the configured stages ([`crate::adaptive::look`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Look {
-    /// It did not look chaotic: no look.
+    /// It did not look chaotic or quasi-periodic: no look.
     #[default]
     None = 0,
     /// It looked chaotic, and so did each of its neighbours: the look's first stage, to
-    /// [`crate::adaptive::LOOK_GROWTH`] times its periods.
+    /// [`crate::adaptive::LOOK_GROWTH`] times the configured periods.
     First = 1,
-    /// It looked chaotic beside a point of another class, or its neighbours are not known (a
-    /// single point, a study's draws, a basin's starts): the whole look, up to `run.look`
-    /// periods.
+    /// It looked chaotic beside a point of another class or with neighbours not known (a
+    /// single point, a study's draws, a basin's starts), or it looked quasi-periodic: the whole
+    /// look, up to `run.look` periods.
     Whole = 2,
 }
 

@@ -5,13 +5,15 @@
 //! motion lands on a cycle, a torus or impact-free motion. After a run's configured stages
 //! ([`super::drive`]), every point is decided once more here, in one place for every command:
 //!
-//! 1. **The look** ([`look`]): every point that looks chaotic goes on in stages (3, 9, 27 ...
-//!    times the configured periods, up to `run.look` in all, [`super::look_stages`]) and
-//!    leaves as soon as a window shows another attractor. `chaotic` is what remains chaotic at
-//!    the end of its look. Whether a point is looked at is its own evidence only: a
-//!    chaotic-looking point among chaotic-looking neighbours is no safe ground (on hidden maps
-//!    judged independently, 6 of 7 wrong cells were such points), and a map split into shards
-//!    or checkpoints must look at every cell as the whole map does.
+//! 1. **The look** ([`look`]): every point that looks chaotic or quasi-periodic goes on in
+//!    stages (3, 9, 27 ... times the configured periods, up to `run.look` in all,
+//!    [`super::look_stages`]) and leaves as soon as a window shows a confirmed cycle or
+//!    impact-free motion; the last window decides the others. A chaotic-looking point among
+//!    chaotic-looking neighbours is no safe ground (on hidden maps judged independently, 6 of
+//!    7 wrong cells were such points) but rarely a transient: it gets the first stage
+//!    ([`Look::of`]). Each answer depends on the point's own run and its neighbours' runs
+//!    before the look, so a map split into shards or checkpoints (each with a halo of one row)
+//!    looks at every cell as the whole map does.
 //! 2. **Carried cycles** ([`coexist`], [`crate::carry`]): once every point is decided, the
 //!    stable cycles are carried to the neighbours that did not land on them (a map carries
 //!    over its whole grid when its parts are joined, [`crate::map::carry_over`]).
@@ -48,11 +50,12 @@ pub trait Looked: Keep {
 /// The look's counts, for logs and reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LookCounts {
-    /// Points that looked chaotic after the configured stages and were looked at.
+    /// Points that looked chaotic or quasi-periodic after the configured stages and were
+    /// looked at.
     pub looked: usize,
     /// Of those, the points looked at for the first stage only ([`Look::First`]).
     pub first: usize,
-    /// Of those, the points that left chaos during the look.
+    /// Of those, the points whose class the look changed.
     pub left: usize,
 }
 
@@ -78,13 +81,22 @@ pub fn look<K: Looked>(
 ) -> Result<(Timings, LookCounts), EngineError> {
     let mut counts = LookCounts::default();
     let mut timings = Timings::default();
-    let chaotic = |p: &K::Point, keep: &K| keep.verdict(p).1 == Rule::PositiveExponent;
-    let before: Vec<bool> = done.iter().map(|p| chaotic(p, keep)).collect();
+    let rule = |p: &K::Point, keep: &K| keep.verdict(p).1;
+    let before: Vec<bool> = done
+        .iter()
+        .map(|p| rule(p, keep) == Rule::PositiveExponent)
+        .collect();
+    let classes: Vec<Class> = done.iter().map(|p| keep.verdict(p).0).collect();
     // The points of one look length and one start (a point the adaptive horizon ran on starts
-    // later), each group driven through its own stages.
+    // later), each group driven through its own stages. A torus-looking point gets the whole
+    // look (a cycle that converges slowly, or a long one, passes the torus test over a window).
     let mut groups: std::collections::BTreeMap<(Look, u32), Vec<usize>> = Default::default();
-    for i in (0..own.min(done.len())).filter(|&i| before[i]) {
-        let look = Look::of(i, &before, nb);
+    for i in 0..own.min(done.len()) {
+        let look = match rule(&done[i], keep) {
+            Rule::PositiveExponent => Look::of(i, &before, nb),
+            Rule::Torus => Look::Whole,
+            _ => continue,
+        };
         groups.entry((look, periods[i])).or_default().push(i);
     }
     for ((look, from), idx) in groups {
@@ -125,14 +137,23 @@ pub fn look<K: Looked>(
         let (out, ps, t) = drive_stages(engine, spec, &sub, &stages, &starts, keep, progress)?;
         timings.add(&t);
         for ((i, mut p), per) in idx.into_iter().zip(out).zip(ps) {
-            counts.left += usize::from(!chaotic(&p, keep));
+            // A torus-looking point is looked at for a cycle: where none was confirmed, its
+            // verdict stands (the look's windows are too short for the torus test, which the
+            // adaptive horizon's longer windows passed).
+            let found = matches!(keep.verdict(&p).0, Class::Periodic(_) | Class::NoImpact);
+            if classes[i] == Class::QuasiPeriodic && !found {
+                keep.looked(&mut done[i], look);
+                continue;
+            }
+            counts.left += usize::from(keep.verdict(&p).0 != classes[i]);
             keep.looked(&mut p, look);
             done[i] = p;
             periods[i] = per;
         }
     }
     log::debug!(
-        "look: {} chaotic-looking points looked at ({} the first stage only), {} left chaos",
+        "look: {} chaotic- or torus-looking points looked at ({} the first stage only), {} \
+         changed class",
         counts.looked,
         counts.first,
         counts.left

@@ -372,20 +372,7 @@ pub fn drive_stages<K: Keep>(
         let sub = lv.points(points);
         let mut live_pools: Vec<Pool> = live.iter().map(|&i| pools[i]).collect();
         let live_skip: Vec<[u32; 2]> = live.iter().map(|&i| skip[i]).collect();
-        // The periods beyond each point's configured run were not in the first count of the
-        // work: announced, so that progress grows with the work instead of stopping at 100%.
-        let configured = spec.periods();
-        let beyond: u64 = live
-            .iter()
-            .map(|&i| {
-                let before = starts[i].periods + elapsed;
-                let after = before + round.periods();
-                u64::from(after.saturating_sub(before.max(configured)))
-            })
-            .sum();
-        if beyond > 0 {
-            progress.more(beyond);
-        }
+        announce_beyond(progress, spec, &round, &live, starts, elapsed);
         let t0 = Instant::now();
         let decide0 = engine.decide_seconds();
         let run = StageRun {
@@ -400,17 +387,11 @@ pub fn drive_stages<K: Keep>(
         for (&i, p) in live.iter().zip(live_pools) {
             pools[i] = p;
         }
-        // The stage's time that the engine did not report is the host's deciding.
-        let engine_s = tm.setup_s + tm.integration_s + tm.readback_s;
         let decide_s = engine.decide_seconds() - decide0;
-        timings.host_s += (t0.elapsed().as_secs_f64() - engine_s - decide_s).max(0.0);
-        timings.decide_s += decide_s;
-        timings.setup_s += tm.setup_s;
-        timings.integration_s += tm.integration_s;
-        timings.readback_s += tm.readback_s;
+        let host_s = account(&mut timings, &tm, decide_s, t0);
         log::debug!(
             "stage {k} ({stage:?}): {} points, {} + {} periods, {:.2} s ({:.2} s integration, \
-             {:.2} s setup, {:.2} s readback, {:.2} s device deciding, {:.2} s host)",
+             {:.2} s setup, {:.2} s readback, {decide_s:.2} s device deciding, {host_s:.2} s host)",
             live.len(),
             round.transient,
             round.samples,
@@ -418,8 +399,6 @@ pub fn drive_stages<K: Keep>(
             tm.integration_s,
             tm.setup_s,
             tm.readback_s,
-            decide_s,
-            (t0.elapsed().as_secs_f64() - engine_s - decide_s).max(0.0),
         );
         // Where this stage's window began: the trajectory was on the attractor its window
         // showed by then.
@@ -452,6 +431,44 @@ pub fn drive_stages<K: Keep>(
     Ok((out, periods, timings))
 }
 
+/// Announces the periods of `round` beyond each live point's configured run, which were not
+/// in the first count of the work, so that progress grows with the work instead of stopping at
+/// 100%.
+fn announce_beyond(
+    progress: &dyn Progress,
+    spec: &RunSpec,
+    round: &RunSpec,
+    live: &[usize],
+    starts: &[Start],
+    elapsed: u32,
+) {
+    let configured = spec.periods();
+    let beyond: u64 = live
+        .iter()
+        .map(|&i| {
+            let before = starts[i].periods + elapsed;
+            let after = before + round.periods();
+            u64::from(after.saturating_sub(before.max(configured)))
+        })
+        .sum();
+    if beyond > 0 {
+        progress.more(beyond);
+    }
+}
+
+/// Adds a stage's engine timings `tm` and its device deciding `decide_s` to `timings`; the
+/// stage's time since `t0` that neither reported is the host's deciding, returned.
+fn account(timings: &mut Timings, tm: &Timings, decide_s: f64, t0: Instant) -> f64 {
+    let engine_s = tm.setup_s + tm.integration_s + tm.readback_s;
+    let host_s = (t0.elapsed().as_secs_f64() - engine_s - decide_s).max(0.0);
+    timings.host_s += host_s;
+    timings.decide_s += decide_s;
+    timings.setup_s += tm.setup_s;
+    timings.integration_s += tm.integration_s;
+    timings.readback_s += tm.readback_s;
+    host_s
+}
+
 /// Where a point's run ended ([`Keep::finish`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Ended {
@@ -477,10 +494,12 @@ impl Ended {
 }
 
 /// Whether a point whose window concluded by `rule` leaves the run after `stage` (past the
-/// early rounds): undecided points run on; in the long look, so do the chaotic-looking ones.
+/// early rounds): undecided points run on; in the long look, so do the chaotic-looking and
+/// torus-looking ones (only a confirmed cycle or impact-free motion ends a look early; a slowly
+/// converging cycle passes the torus test over a window).
 fn leaves(rule: Rule, stage: Stage) -> bool {
     match stage {
-        Stage::Look(..) => !matches!(rule, Rule::Undecided | Rule::PositiveExponent),
+        Stage::Look(..) => !matches!(rule, Rule::Undecided | Rule::PositiveExponent | Rule::Torus),
         _ => rule != Rule::Undecided,
     }
 }
@@ -508,32 +527,30 @@ impl Keep for Samples {
         let classes: Vec<Class> = rs.iter().map(|r| r.class(round.period_tol)).collect();
         let out = match s.stage {
             Stage::Early(..) => {
-                // The strict detector's period, confirmed all at once.
+                // The detector's period and the candidates, as a map's early rounds try them:
+                // the same point leaves at the same round whichever command asks.
                 let proposals: Vec<Proposal> = rs
                     .iter()
                     .zip(&classes)
                     .enumerate()
-                    .filter(|(_, (_, c))| matches!(c, Class::Periodic(_)))
                     .map(|(i, (r, &class))| Proposal {
                         params: sub.params(&round.params, i),
                         run: r,
                         class,
-                        trials: Trials::Detected,
-                        skip: [0; 2],
+                        trials: Trials::Candidates,
+                        skip: s.skip[i],
                     })
                     .collect();
-                let mut verdicts = confirm_many(
+                let verdicts = confirm_many(
                     s.engine.decider(round.decide, round.decide_precision),
                     &self.settings,
                     &proposals,
-                )
-                .into_iter();
+                );
                 rs.into_iter()
                     .zip(classes)
+                    .zip(verdicts)
                     .enumerate()
-                    .map(|(i, (r, class))| {
-                        let v =
-                            matches!(class, Class::Periodic(_)).then(|| verdicts.next().unwrap());
+                    .map(|(i, ((r, class), v))| {
                         early_answer(round, &sub.params(&round.params, i), r, class, v)
                     })
                     .collect()
@@ -558,7 +575,7 @@ impl Keep for Samples {
                         run: r,
                         class,
                         trials: Trials::All,
-                        skip: [0; 2],
+                        skip: s.skip[i],
                     })
                     .collect();
                 let verdicts = confirm_many(
@@ -585,7 +602,10 @@ impl Keep for Samples {
     }
 
     fn state(&self, p: &Sampled) -> ([f64; 4], Mode, [u32; 2]) {
-        (p.0.final_y, p.0.final_mode, [0; 2])
+        let tried = p.1.as_ref().map_or([0; 2], |v| {
+            [0, 1].map(|k| v.tried.get(k).copied().unwrap_or(0))
+        });
+        (p.0.final_y, p.0.final_mode, tried)
     }
 
     fn diag(&self, p: &Sampled) -> Diagnostics {
@@ -627,10 +647,10 @@ fn early_answer(
     p: &Params<f64>,
     r: RunResult,
     proposal: Class,
-    verdict: Option<Verdict>,
+    verdict: Verdict,
 ) -> Sampled {
     match (proposal, verdict) {
-        (Class::Periodic(_), Some(v)) => {
+        (_, v) if matches!(v.class, Class::Periodic(_)) => {
             let Class::Periodic(n) = v.class else {
                 return (r, None, 0, None);
             };

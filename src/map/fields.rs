@@ -191,7 +191,7 @@ map_layers! {
     state: [Option<f64>; 4] = |c| c.final_y.map(finite);
     /// The motion's mode at the end of the run (0 slip with v > 0, 1 slip with v < 0, 2 stick, 3 and 4 locked at the stop z = +r, -r).
     mode: [u8; 1] = |c| [c.final_mode as u8];
-    /// The long look after the cell looked chaotic: 0 none (it did not look chaotic after the configured periods, or the look is off), 1 its first stage, to 3 x the cell's periods (the cell and its four neighbours all looked chaotic), 2 all of it, up to `run.look` periods (a neighbour of another class); each left as soon as a window showed another attractor.
+    /// The long look after the cell looked chaotic or quasi-periodic: 0 none (it did not, or the look is off), 1 its first stage, to 3 x the configured periods (the cell and its four neighbours all looked chaotic), 2 all of it, up to `run.look` periods (a chaotic-looking cell beside another class, or a quasi-periodic-looking one); each left as soon as a window showed a confirmed cycle or impact-free motion.
     looked: [u8; 1] = |c| [c.looked.code()];
 }
 
