@@ -448,31 +448,31 @@ def test_boundaries_are_the_command_lines(tmp_path):
 # Named judged cells of the 128 x 128 R x lambda grid (tests/data/r_lambda_judged_*.csv, judged
 # by an integrator that shares no code with rattle; tests/harness.rs runs them through the
 # command line's library paths): (ix, iy, the judge's class).
-JUDGED = [(27, 20, "period-5"), (54, 30, "chaotic"), (121, 83, "period-2")]
+JUDGED = [(27, 20, "period-5"), (59, 4, "chaotic"), (121, 83, "period-2")]
 RL128 = str(ROOT / "tests" / "data" / "r_lambda_128.toml")
 
 
 def test_named_judged_cells_get_the_judges_class_from_point_and_map():
     # The same point gets the same class from Python's point and from a 3 x 3 map centred on
     # it on the 128 x 128 grid's spacing (the centre cell decided as on the whole map: its four
-    # neighbours are the grid's), and it is the judge's.
+    # neighbours are the grid's), and it is the judge's. The grid's axes are cell-centred.
     f64 = {"method.backend": "cpu", "method.precision": "f64"}
-    step_r, step_l = 0.2 / 127, 0.1 / 127
+    step_r, step_l = (0.7 - 0.5) / 128, (0.1 - 0.0) / 128
     for ix, iy, judge in JUDGED:
-        r, lam = 0.5 + ix * step_r, iy * step_l
+        r, lam = 0.5 + (0.7 - 0.5) * (ix + 0.5) / 128, 0.0 + (0.1 - 0.0) * (iy + 0.5) / 128
         p = rattle.point(RL128, R=r, **{"lambda": lam}, **f64)
         m = rattle.map(
             RL128,
             **{
-                "map.x_from": r - step_r,
-                "map.x_to": r + step_r,
+                "map.x_from": r - 1.5 * step_r,
+                "map.x_to": r + 1.5 * step_r,
                 "map.x_points": 3,
-                "map.y_from": lam - step_l,
-                "map.y_to": lam + step_l,
+                "map.y_from": lam - 1.5 * step_l,
+                "map.y_to": lam + 1.5 * step_l,
                 "map.y_points": 3,
             },
             **f64,
         )
         code = -4 if judge == "chaotic" else int(judge.split("-")[1])
         assert p.cls == judge, (ix, iy, p.cls, judge)
-        assert m.classes()[1, 1] == code, (ix, iy, m.classes()[1, 1], judge)
+        assert m.classes[1, 1] == code, (ix, iy, m.classes[1, 1], judge)
