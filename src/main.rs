@@ -249,16 +249,7 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
         cfg.check_map()?;
     }
     check_prefix(&a.out, &["png", "json"])?;
-    if a.boundaries {
-        if a.shard.is_some() {
-            return Err(OptionError::Unsuitable {
-                option: "boundaries",
-                why: "it needs the whole map's layers, and a shard writes a part (run the map \
-                      without --shard, or with --checkpoint)"
-                    .into(),
-            }
-            .into());
-        }
+    if a.boundaries && a.shard.is_none() {
         let b = rattle::output::with_suffix(&a.out, "boundaries");
         check_prefix(&b, &["png", "csv", "json"])?;
     }
@@ -286,46 +277,9 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
         compare: other.as_ref(),
         refine: a.refine,
         refine_clear: a.refine_clear,
+        boundaries: a.boundaries,
     };
-    let mut files = map_cmd(&cfg, &a.out, &opts, a.adapters)?;
-    if a.boundaries {
-        files.extend(boundaries(&cfg, &a.out)?);
-    }
-    Ok(files)
-}
-
-/// `--boundaries`: located and typed from the layers the map just wrote.
-fn boundaries(cfg: &Config, out: &Path) -> Result<Vec<PathBuf>> {
-    fn layer<T: npyz::Deserialize>(out: &Path, name: &str) -> Result<Vec<T>> {
-        let path = rattle::output::with_ext(&rattle::output::with_suffix(out, name), "npy");
-        let bytes = std::fs::read(&path).with_context(|| format!("{}", path.display()))?;
-        Ok(npyz::NpyFile::new(&bytes[..])?.into_vec()?)
-    }
-    let class: Vec<i32> = layer(out, "class")?;
-    let coexist: Vec<i32> = layer(out, "coexist")?;
-    let state: Vec<f64> = layer(out, "state")?;
-    let mode: Vec<u8> = layer(out, "mode")?;
-    let attractors: Vec<u8> = layer(out, "attractors")?;
-    let b = map::boundaries::locate(
-        cfg,
-        &map::boundaries::Cells {
-            class: &class,
-            coexist: &coexist,
-            state: &state,
-            mode: &mode,
-        },
-    );
-    let located = b.points.iter().filter(|p| p.located).count();
-    eprintln!(
-        "boundaries: {} edges between classes, {located} changes located, {} curves \
-         ({} Newton trials, {} continuations) in {:.2} s",
-        b.edges,
-        b.curves.len(),
-        b.trials,
-        b.continuations,
-        b.seconds
-    );
-    Ok(map::write_boundaries(out, cfg, &class, &attractors, &b)?)
+    map_cmd(&cfg, &a.out, &opts, a.adapters)
 }
 
 /// `rattle sensitivity`: the uncertain parameters checked before computing, then the study.

@@ -395,7 +395,8 @@ fn map_over_all_adapters_equals_the_single_adapter_map() {
     );
     let cfg = rattle::config::Config::from_toml(&text, &[]).unwrap();
     let d = common::scratch("adapters");
-    let shared = rattle::map::run_shared(&engines, &cfg, &d.join("shared"), 1).unwrap();
+    let shared =
+        rattle::map::run_shared(&engines, &cfg, &d.join("shared"), &Default::default()).unwrap();
     assert_eq!(shared.device, "2 engines");
     let opts = rattle::map::MapOptions {
         starts: 1,

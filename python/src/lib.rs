@@ -334,18 +334,7 @@ impl MapData {
     /// JSON of PREFIX-boundaries.json without its caption and files.
     fn boundaries(&self, py: Python) -> PyResult<String> {
         let (cfg, f) = (&self.result.cfg, &self.result.fields);
-        let b = guarded(py, || {
-            let state: Vec<f64> = f.state.iter().map(|v| v.unwrap_or(f64::NAN)).collect();
-            Ok(rattle::map::boundaries::locate(
-                cfg,
-                &rattle::map::boundaries::Cells {
-                    class: &f.class,
-                    coexist: &f.coexist,
-                    state: &state,
-                    mode: &f.mode,
-                },
-            ))
-        })?;
+        let b = guarded(py, || Ok(rattle::map::boundaries::of_fields(cfg, f)))?;
         serde_json::to_string(&b).map_err(|e| to_py(py, rattle::Error::from(e)))
     }
 

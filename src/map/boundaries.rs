@@ -117,6 +117,35 @@ pub struct Cells<'a> {
     pub mode: &'a [u8],
 }
 
+/// The boundaries of a whole map in memory (`rattle map --boundaries`, Python's
+/// `Map.boundaries()`): [`locate`] from its layers, the one path of both.
+pub fn of_fields(cfg: &Config, f: &super::Fields) -> Boundaries {
+    let state: Vec<f64> = f.state.iter().map(|v| v.unwrap_or(f64::NAN)).collect();
+    locate(
+        cfg,
+        &Cells {
+            class: &f.class,
+            coexist: &f.coexist,
+            state: &state,
+            mode: &f.mode,
+        },
+    )
+}
+
+/// The terminal's line of `b`.
+pub fn summary_line(b: &Boundaries) -> String {
+    format!(
+        "boundaries: {} edges between classes, {} changes located, {} curves ({} Newton \
+         trials, {} continuations) in {:.2} s",
+        b.edges,
+        b.points.iter().filter(|p| p.located).count(),
+        b.curves.len(),
+        b.trials,
+        b.continuations,
+        b.seconds
+    )
+}
+
 /// Locates and types the boundaries of the map of `cfg` from its cells' layers.
 pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
     let t0 = std::time::Instant::now();

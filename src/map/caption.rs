@@ -74,10 +74,11 @@ pub(super) fn caption(
     let looked = if r.look > r.transient_periods + r.sample_periods {
         format!(
             " A cell still chaotic-looking then went on and left as soon as a window showed \
-             another attractor: {c} cells beside a cell of another class went on to {l} periods \
-             in all, so chaotic there means chaotic for {l} periods; {f} cells among \
-             chaotic-looking neighbours went on to {g} times their periods (PREFIX-looked.npy; \
-             PREFIX-settle.npy: periods until on the attractor). {k} cells ({kc} of them \
+             another attractor: {c} cells (chaotic-looking beside a cell of another class, or \
+             quasi-periodic-looking, which keep their class where no cycle is found) went on to \
+             {l} periods in all, so chaotic there means chaotic for {l} periods; {f} cells \
+             among chaotic-looking neighbours went on to {g} times the configured periods \
+             (PREFIX-looked.npy; PREFIX-settle.npy: periods until on the attractor). {k} cells ({kc} of them \
              chaotic) have a stable cycle carried from a neighbour beside the attractor their \
              trajectory reached (PREFIX-coexist.npy: its period).",
             c = look.looked,

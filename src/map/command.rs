@@ -31,6 +31,9 @@ pub struct MapOptions<'a> {
     /// With `--refine`: a chaotic corner is clear above this multiple of `run.lyapunov_tol`
     /// (`--refine-clear`; [`super::coarse::CLEAR_CHAOTIC`] when not given).
     pub refine_clear: Option<f64>,
+    /// Locate and type the boundaries of the whole map and write them beside it
+    /// (`--boundaries`, [`super::boundaries::of_fields`]).
+    pub boundaries: bool,
 }
 
 impl Default for MapOptions<'_> {
@@ -43,6 +46,7 @@ impl Default for MapOptions<'_> {
             compare: None,
             refine: None,
             refine_clear: None,
+            boundaries: false,
         }
     }
 }
@@ -100,6 +104,14 @@ impl MapOptions<'_> {
                 self.starts.to_string(),
                 format!("1 to {MAX_STARTS}"),
             );
+        }
+        if self.boundaries && self.shard.is_some() {
+            return bad(OptionError::Unsuitable {
+                option: "boundaries",
+                why: "it needs the whole map's layers, and a shard writes a part (run the map \
+                      without --shard, or with --checkpoint)"
+                    .into(),
+            });
         }
         if self.shard.is_some() && self.checkpoint.is_some() {
             return bad(OptionError::Conflict {
@@ -205,6 +217,8 @@ pub struct MapSummary {
     pub wall_s: f64,
     /// Streams run at once (`run.overlap`; 0 or 1: none).
     pub streams: u32,
+    /// With `--boundaries`: what was located ([`super::boundaries::summary_line`]).
+    pub boundaries: Option<String>,
 }
 
 impl MapSummary {
@@ -219,6 +233,10 @@ impl MapSummary {
                 "class changed in {changed} of {cells} cells ({:.2}%)\n",
                 100.0 * changed as f64 / cells as f64
             );
+        }
+        if let Some(b) = &self.boundaries {
+            s += b;
+            s += "\n";
         }
         let streams = match self.streams {
             k if k > 1 => format!(", summed over {k} streams run at once"),
@@ -391,6 +409,11 @@ pub fn run(
     summary
         .files
         .extend(write_outputs(out, &cfg, &fields, &report)?);
+    if o.boundaries {
+        let (files, line) = write_boundaries_of(out, &cfg, &fields)?;
+        summary.files.extend(files);
+        summary.boundaries = Some(line);
+    }
     summary.files_s = t_files.elapsed().as_secs_f64();
     summary.host_s = host_s;
     summary.decide_s = decide_s;
@@ -404,6 +427,18 @@ pub fn run(
     summary.counts = fields.counts();
     summary.wall_s = t.elapsed().as_secs_f64();
     Ok(summary)
+}
+
+/// Locates the boundaries of the whole map `fields` and writes `PREFIX-boundaries.*`; returns
+/// the files and the terminal's line.
+fn write_boundaries_of(
+    out: &Path,
+    cfg: &Config,
+    fields: &Fields,
+) -> crate::Result<(Vec<PathBuf>, String)> {
+    let b = super::boundaries::of_fields(cfg, fields);
+    let files = super::write_boundaries(out, cfg, &fields.class, &fields.attractors, &b)?;
+    Ok((files, super::boundaries::summary_line(&b)))
 }
 
 /// The parts of a whole map: one, or with `--checkpoint K` K shards, each reused where a
@@ -488,9 +523,8 @@ pub fn run_all_adapters(cfg: &Config, out: &Path, o: &MapOptions) -> crate::Resu
         .into());
     }
     o.check(cfg)?;
-    let starts = o.starts;
     let engines = Engine::all()?;
-    run_shared(&engines, cfg, out, starts)
+    run_shared(&engines, cfg, out, o)
 }
 
 /// A map split into one contiguous share per engine, computed concurrently, merged as shards
@@ -499,8 +533,9 @@ pub fn run_shared(
     engines: &[Engine],
     cfg: &Config,
     out: &Path,
-    starts: usize,
+    o: &MapOptions,
 ) -> crate::Result<MapSummary> {
+    let starts = o.starts;
     let n = engines.len();
     let t = std::time::Instant::now();
     let parts: Vec<crate::Result<Part>> = std::thread::scope(|s| {
@@ -533,10 +568,18 @@ pub fn run_shared(
         },
         ..MapReport::default()
     };
+    let mut files = write_outputs(out, &cfg, &fields, &report)?;
+    let mut boundaries = None;
+    if o.boundaries {
+        let (more, line) = write_boundaries_of(out, &cfg, &fields)?;
+        files.extend(more);
+        boundaries = Some(line);
+    }
     Ok(MapSummary {
         backend: "gpu".into(),
         device: format!("{n} engines"),
-        files: write_outputs(out, &cfg, &fields, &report)?,
+        files,
+        boundaries,
         integration_s: t.elapsed().as_secs_f64(),
         counts: fields.counts(),
         wall_s: t.elapsed().as_secs_f64(),
