@@ -98,6 +98,18 @@ fn final_spec(spec: &RunSpec, elapsed: u32) -> RunSpec {
     }
 }
 
+/// Where one point of [`drive_stages`] stands between stages: its state and mode (a continued
+/// point resumes in the mode it stopped in, as a section can fall inside a stick or a lock, so
+/// that its path is that of one uninterrupted run), its diagnostics and exponent so far, and
+/// the candidate periods it tried in vain in its last window.
+struct Track {
+    y: [f64; 4],
+    mode: Option<Mode>,
+    diag: Diagnostics,
+    pool: Pool,
+    skip: [u32; 2],
+}
+
 /// The live points of a run, for a sub-run: their parameter values, current states and
 /// modes.
 struct Live {
@@ -107,18 +119,17 @@ struct Live {
 }
 
 impl Live {
-    /// `live` of `points`, at states `y` in `modes` (where every live mode is known: a
-    /// continued point resumes in the mode it stopped in, as a section can fall inside a stick
-    /// or a lock, so its path is that of one uninterrupted run).
-    fn new(points: &Points, live: &[usize], y: &[[f64; 4]], modes: &[Option<Mode>]) -> Live {
+    /// `live` of `points`, where `at` says each stands (a mode is passed where every live one
+    /// is known).
+    fn new(points: &Points, live: &[usize], at: &[Track]) -> Live {
         let nv = points.vary.len();
         Live {
             values: live
                 .iter()
                 .flat_map(|&i| points.values[i * nv..(i + 1) * nv].iter().copied())
                 .collect(),
-            states: live.iter().map(|&i| y[i]).collect(),
-            modes: live.iter().map(|&i| modes[i]).collect(),
+            states: live.iter().map(|&i| at[i].y).collect(),
+            modes: live.iter().map(|&i| at[i].mode).collect(),
         }
     }
 
@@ -351,27 +362,30 @@ pub fn drive_stages<K: Keep>(
     progress: &dyn Progress,
 ) -> Result<Driven<K::Point>, EngineError> {
     let n = points.len();
-    let mut y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
-    let mut modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
+    let mut at: Vec<Track> = (0..n)
+        .map(|i| Track {
+            y: points.y0(spec, i),
+            mode: points.mode0(i),
+            diag: starts[i].diag,
+            pool: starts[i].pool,
+            skip: [0; 2],
+        })
+        .collect();
     let mut live: Vec<usize> = (0..n).collect();
-    let mut diag: Vec<Diagnostics> = starts.iter().map(|s| s.diag).collect();
     let mut done: Vec<Option<K::Point>> = (0..n).map(|_| None).collect();
     let mut periods = vec![0u32; n];
     let mut timings = Timings::default();
     let mut elapsed = 0u32;
-    let mut pools: Vec<Pool> = starts.iter().map(|s| s.pool).collect();
-    // The candidate periods each live point tried in vain in its last window.
-    let mut skip = vec![[0u32; 2]; n];
     let last = stages.len().saturating_sub(1);
     for (k, &stage) in stages.iter().enumerate() {
         if live.is_empty() {
             break;
         }
         let round = stage_spec(spec, stage, elapsed);
-        let lv = Live::new(points, &live, &y, &modes);
+        let lv = Live::new(points, &live, &at);
         let sub = lv.points(points);
-        let mut live_pools: Vec<Pool> = live.iter().map(|&i| pools[i]).collect();
-        let live_skip: Vec<[u32; 2]> = live.iter().map(|&i| skip[i]).collect();
+        let mut live_pools: Vec<Pool> = live.iter().map(|&i| at[i].pool).collect();
+        let live_skip: Vec<[u32; 2]> = live.iter().map(|&i| at[i].skip).collect();
         announce_beyond(progress, spec, &round, &live, starts, elapsed);
         let t0 = Instant::now();
         let decide0 = engine.decide_seconds();
@@ -385,7 +399,7 @@ pub fn drive_stages<K: Keep>(
         };
         let (ps, tm) = keep.stage(&run, &mut live_pools)?;
         for (&i, p) in live.iter().zip(live_pools) {
-            pools[i] = p;
+            at[i].pool = p;
         }
         let decide_s = engine.decide_seconds() - decide0;
         let host_s = account(&mut timings, &tm, decide_s, t0);
@@ -406,19 +420,19 @@ pub fn drive_stages<K: Keep>(
         elapsed += round.transient + round.samples;
         let mut next = Vec::with_capacity(live.len());
         for (mut p, &i) in ps.into_iter().zip(&live) {
-            add(&mut diag[i], &keep.diag(&p));
+            add(&mut at[i].diag, &keep.diag(&p));
             if k == last || keep.decided(&p, stage) {
-                let at = Ended {
+                let end = Ended {
                     periods: starts[i].periods + elapsed,
                     window_from: starts[i].periods + window_from,
                     stage,
                 };
-                keep.finish(&mut p, diag[i], at, &points.params(&spec.params, i));
-                periods[i] = at.periods;
+                keep.finish(&mut p, at[i].diag, end, &points.params(&spec.params, i));
+                periods[i] = end.periods;
                 done[i] = Some(p);
             } else {
-                let (at, mode, tried) = keep.state(&p);
-                (y[i], modes[i], skip[i]) = (at, Some(mode), tried);
+                let (y, mode, tried) = keep.state(&p);
+                (at[i].y, at[i].mode, at[i].skip) = (y, Some(mode), tried);
                 next.push(i);
             }
         }
@@ -895,12 +909,19 @@ fn configured_summaries(
         let (out, _, timings) = drive(engine, spec, points, early, &mut Summaries, progress)?;
         return Ok((out, timings));
     }
-    let y: Vec<[f64; 4]> = (0..n).map(|i| points.y0(spec, i)).collect();
-    let modes: Vec<Option<Mode>> = (0..n).map(|i| points.mode0(i)).collect();
+    let at: Vec<Track> = (0..n)
+        .map(|i| Track {
+            y: points.y0(spec, i),
+            mode: points.mode0(i),
+            diag: Diagnostics::default(),
+            pool: Pool::default(),
+            skip: [0; 2],
+        })
+        .collect();
     let streams: Vec<(Vec<usize>, Live)> = (0..k)
         .map(|s| {
             let idx: Vec<usize> = (s..n).step_by(k).collect();
-            let live = Live::new(points, &idx, &y, &modes);
+            let live = Live::new(points, &idx, &at);
             (idx, live)
         })
         .collect();
