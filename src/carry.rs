@@ -18,7 +18,8 @@ use crate::model::{Mode, Params};
 pub struct Neighbours {
     /// The neighbours of each point within the run.
     pub of: Vec<Vec<usize>>,
-    /// Whether every neighbour a point has in its grid or sweep is in the run.
+    /// Whether every neighbour a point has in its grid or sweep is in the run (or is to be
+    /// taken as if it were: [`Neighbours::known_only`]).
     pub complete: Vec<bool>,
 }
 
@@ -29,6 +30,13 @@ impl Neighbours {
             of: vec![Vec::new(); n],
             complete: vec![false; n],
         }
+    }
+
+    /// These neighbours, with the known ones taken as all there are (a point none of whose
+    /// known neighbours is of another class counts as among chaotic-looking ones).
+    pub fn known_only(mut self) -> Neighbours {
+        self.complete.iter_mut().for_each(|c| *c = true);
+        self
     }
 
     /// `n` points along one swept parameter, in order.

@@ -222,8 +222,13 @@ impl Look {
     /// (128 x 128, lavapipe f32, docs/classes.md) the whole look moved 93 of 5551 such cells off
     /// chaos, 19 of them in its first stage, against 241 of the 892 others; the first stage for
     /// them costs a quarter of the whole look.
+    ///
+    /// A point whose neighbours are not all known gets the whole look, unless `nb` counts its
+    /// known ones as complete (`--refine`'s scattered cells, [`crate::map::compute_cells`]
+    /// without a halo, where an isolated cell gets the first stage: refinement trades
+    /// accuracy for time).
     pub fn of(i: usize, chaotic: &[bool], nb: &crate::carry::Neighbours) -> Look {
-        let among = nb.complete[i] && !nb.of[i].is_empty() && nb.of[i].iter().all(|&j| chaotic[j]);
+        let among = nb.complete[i] && nb.of[i].iter().all(|&j| chaotic[j]);
         if among { Look::First } else { Look::Whole }
     }
 }

@@ -95,8 +95,9 @@ pub fn compute(
 /// ([`crate::decide::Look::of`]): with `halo`, the neighbours of the cells that are not among
 /// them are run through the configured stages too (not looked at, not returned), so that each
 /// cell gets the answer the whole map gives it, whatever share of the map is computed (a
-/// shard, a checkpoint, judged cells); without, a cell whose neighbours are not all computed
-/// gets the whole look, as a single point does. The stable cycles carried between cells are
+/// shard, a checkpoint, judged cells); without (`--refine`), only the computed neighbours
+/// count, and a chaotic-looking cell none of whose computed neighbours is of another class
+/// gets the look's first stage. The stable cycles carried between cells are
 /// added when the map's parts are joined ([`carry_over`]).
 pub fn compute_cells(
     engine: &Engine,
@@ -122,6 +123,9 @@ pub fn compute_cells(
         cells.extend(ring);
     }
     let nb = crate::carry::Neighbours::grid(&cells, (nx, ny), k);
+    // Without a halo (`--refine`) an unknown neighbour does not contest: the first stage for a
+    // chaotic-looking cell none of whose known neighbours is of another class.
+    let nb = if halo { nb } else { nb.known_only() };
     let values: Vec<f64> = cell_values(cfg, cells.iter().copied())
         .chunks(2)
         .flat_map(|xy| std::iter::repeat_n([xy[0], xy[1]], k).flatten())
