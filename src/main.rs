@@ -252,6 +252,7 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
     if a.boundaries && a.shard.is_none() {
         let b = rattle::output::with_suffix(&a.out, "boundaries");
         check_prefix(&b, &["png", "csv", "json"])?;
+        rattle::output::check_implied_prefix(&b, &["png", "csv", "json"])?;
     }
     if a.compare.is_some() {
         let compared = rattle::output::with_suffix(&a.out, "compare");

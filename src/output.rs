@@ -157,6 +157,26 @@ pub fn check_not_owned(file: &Path) -> Result<(), OutputError> {
     Ok(())
 }
 
+/// Refuses a set at `prefix` that a command names after another set's prefix (a map's
+/// boundaries at `PREFIX-boundaries` beside its map at `PREFIX`) where `PREFIX.json` there is
+/// the JSON of a set of other files (a map written at that prefix): replacing it would remove
+/// that set's files, which the user did not name. The set at `prefix` writes only `exts`.
+pub fn check_implied_prefix(prefix: &Path, exts: &[&str]) -> Result<(), OutputError> {
+    let json = with_ext(prefix, "json");
+    let ours: Vec<PathBuf> = exts.iter().map(|x| with_ext(prefix, x)).collect();
+    if let Some(f) = listed_by(&json).into_iter().find(|f| !ours.contains(f)) {
+        return Err(other(
+            &json,
+            format!(
+                "it is the JSON of another set (it lists {}, written by an earlier run), which \
+                 this set would replace; choose another prefix",
+                f.display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// A file of another set that a set at `prefix` would write over: one that the JSON of a
 /// shorter prefix (`fig.json` for `fig-compare`) lists as its own, still as it wrote it, and
 /// whose name begins with `prefix`'s (`fig-compare.png`). Returns the file and that JSON.

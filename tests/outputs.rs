@@ -506,3 +506,50 @@ fn a_new_set_removes_the_files_of_the_set_it_replaces() {
     assert!(!map(false).contains(&"x-compare.png".to_string()));
     assert!(!names().contains(&"x.svg".to_string()));
 }
+
+#[test]
+fn boundaries_never_replace_a_set_written_at_their_prefix() {
+    // A map written at x-boundaries, then `map --boundaries --out x`, whose boundaries are the
+    // set x-boundaries: refused before computing (it deleted the first map's files), and every
+    // file of the first map stays.
+    let d = scratch("implied_prefix");
+    let map = |out: &str, extra: &[&str]| {
+        rattle()
+            .args(["map", "--backend", "cpu", "--config"])
+            .arg(common::config("r_lambda.toml"))
+            .args(CHEAP_MAP)
+            .args(extra)
+            .arg("--out")
+            .arg(d.join(out))
+            .output()
+            .unwrap()
+    };
+    let first = map("x-boundaries", &[]);
+    assert!(first.status.success());
+    let before: Vec<String> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(before.contains(&"x-boundaries-class.npy".to_string()));
+    let second = map("x", &["--boundaries"]);
+    let err = String::from_utf8_lossy(&second.stderr);
+    assert_eq!(second.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("x-boundaries.json") && err.contains("another set"),
+        "{err}"
+    );
+    let mut after: Vec<String> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    let mut before = before;
+    before.sort();
+    after.sort();
+    assert_eq!(
+        before, after,
+        "files changed: nothing may be written or removed"
+    );
+    // Its own boundaries at the same prefix are replaced as any set is.
+    assert!(map("y", &["--boundaries"]).status.success());
+    assert!(map("y", &["--boundaries"]).status.success());
+}
