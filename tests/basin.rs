@@ -25,6 +25,11 @@ const SMALL: [&str; 8] = [
 ];
 
 fn basin_cli(out: &Path, extra: &[&str]) -> std::process::Output {
+    basin_with(out, &[&SMALL[..], extra].concat())
+}
+
+/// `rattle basin` on the CPU in f64 with configs/basin.toml and `args`.
+fn basin_with(out: &Path, args: &[&str]) -> std::process::Output {
     rattle()
         .args([
             "basin",
@@ -35,8 +40,7 @@ fn basin_cli(out: &Path, extra: &[&str]) -> std::process::Output {
             "--config",
         ])
         .arg(config("basin.toml"))
-        .args(SMALL)
-        .args(extra)
+        .args(args)
         .arg("--out")
         .arg(out)
         .output()
@@ -202,30 +206,22 @@ fn a_start_that_settles_on_a_cycle_within_the_look_gets_that_cycle_not_a_chaotic
     // that cycle's id, and no chaotic id is left.
     let d = scratch("basin_look");
     let run = |out: &str, look: &str| {
-        let o = rattle()
-            .args([
-                "basin",
-                "--backend",
-                "cpu",
-                "--precision",
-                "f64",
-                "--config",
-            ])
-            .arg(config("basin.toml"))
-            .args([
-                "--set",
-                "eta=1.26",
-                "--set",
-                "R=0.5756",
-                "--set",
-                "lambda=0.0",
-            ])
-            .args(["--set", "basin.x_points=8", "--set", "basin.y_points=8"])
-            .args(["--set", &format!("run.look={look}")])
-            .arg("--out")
-            .arg(d.join(out))
-            .output()
-            .unwrap();
+        let look = format!("run.look={look}");
+        let sets = [
+            "--set",
+            "eta=1.26",
+            "--set",
+            "R=0.5756",
+            "--set",
+            "lambda=0.0",
+            "--set",
+            "basin.x_points=8",
+            "--set",
+            "basin.y_points=8",
+            "--set",
+            &look,
+        ];
+        let o = basin_with(&d.join(out), &sets);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let j = json(&d.join(format!("{out}.json")));
         j["attractors"].as_array().unwrap().clone()

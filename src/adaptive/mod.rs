@@ -539,70 +539,56 @@ impl Keep for Samples {
         let (mut rs, tm) = s.engine.run(round, sub, s.progress)?;
         let tn = Instant::now();
         let classes: Vec<Class> = rs.iter().map(|r| r.class(round.period_tol)).collect();
-        let out = match s.stage {
-            Stage::Early(..) => {
-                // The detector's period and the candidates, as a map's early rounds try them:
-                // the same point leaves at the same round whichever command asks.
-                let proposals: Vec<Proposal> = rs
-                    .iter()
-                    .zip(&classes)
-                    .enumerate()
-                    .map(|(i, (r, &class))| Proposal {
-                        params: sub.params(&round.params, i),
-                        run: r,
-                        class,
-                        trials: Trials::Candidates,
-                        skip: s.skip[i],
-                    })
-                    .collect();
-                let verdicts = confirm_many(
-                    s.engine.decider(round.decide, round.decide_precision),
-                    &self.settings,
-                    &proposals,
-                );
-                rs.into_iter()
-                    .zip(classes)
-                    .zip(verdicts)
-                    .enumerate()
-                    .map(|(i, ((r, class), v))| {
-                        early_answer(round, &sub.params(&round.params, i), r, class, v)
-                    })
-                    .collect()
-            }
-            _ => {
-                for (r, p) in rs.iter_mut().zip(pools) {
-                    match s.stage {
-                        // The configured run's own exponent stands; the windows after it pool
-                        // with it.
-                        Stage::Final => {
-                            p.add(r.lyapunov);
-                        }
-                        _ => r.pool(p),
+        let early = matches!(s.stage, Stage::Early(..));
+        if !early {
+            for (r, p) in rs.iter_mut().zip(pools) {
+                match s.stage {
+                    // The configured run's own exponent stands; the windows after it pool with
+                    // it.
+                    Stage::Final => {
+                        p.add(r.lyapunov);
                     }
+                    _ => r.pool(p),
                 }
-                let proposals: Vec<Proposal> = rs
-                    .iter()
-                    .zip(&classes)
-                    .enumerate()
-                    .map(|(i, (r, &class))| Proposal {
-                        params: sub.params(&round.params, i),
-                        run: r,
-                        class,
-                        trials: Trials::All,
-                        skip: s.skip[i],
-                    })
-                    .collect();
-                let verdicts = confirm_many(
-                    s.engine.decider(round.decide, round.decide_precision),
-                    &self.settings,
-                    &proposals,
-                );
-                rs.into_iter()
-                    .zip(verdicts)
-                    .map(|(r, v)| (r, Some(v), 0, None))
-                    .collect()
             }
+        }
+        // Early rounds try the detector's period and the candidates, as a map's do: the same
+        // point leaves at the same round whichever command asks.
+        let trials = if early {
+            Trials::Candidates
+        } else {
+            Trials::All
         };
+        let proposals: Vec<Proposal> = rs
+            .iter()
+            .zip(&classes)
+            .enumerate()
+            .map(|(i, (r, &class))| Proposal {
+                params: sub.params(&round.params, i),
+                run: r,
+                class,
+                trials,
+                skip: s.skip[i],
+            })
+            .collect();
+        let verdicts = confirm_many(
+            s.engine.decider(round.decide, round.decide_precision),
+            &self.settings,
+            &proposals,
+        );
+        let out = rs
+            .into_iter()
+            .zip(classes)
+            .zip(verdicts)
+            .enumerate()
+            .map(|(i, ((r, class), v))| {
+                if early {
+                    early_answer(round, &sub.params(&round.params, i), r, class, v)
+                } else {
+                    (r, Some(v), 0, None)
+                }
+            })
+            .collect();
         self.newton_s += tn.elapsed().as_secs_f64();
         Ok((out, tm))
     }
