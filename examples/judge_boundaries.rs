@@ -1,25 +1,121 @@
-//! The independent judge of a map's located boundary points (`rattle map --boundaries`): for
-//! a fixed-seed sample of located points, the reference of `rattle::reference::dry` (exact
-//! motion between events under Coulomb friction; no code of the integrator, the classifier or
-//! Newton's method) runs on each side of the point, a quarter of a cell away along the edge,
-//! from that side's cell's final state (the map's `state` layer), and says whether the side's
-//! attractor is the one the map put there.
+//! The independent judge of a map's boundary points (`rattle map --boundaries`), by the exact
+//! system's multipliers: for a fixed-seed sample of points, Newton's method on the stroboscopic
+//! map of the reference of `rattle::reference::dry` (exact motion between events under Coulomb
+//! friction; no code of the integrator, the classifier or rattle's Newton), with its Jacobian by
+//! central differences and its multipliers from nalgebra, at 1/64 of a cell before and after
+//! the point along its edge.
 //!
 //! `cargo run --release --example judge_boundaries -- CONFIG PREFIX COUNT SEED`
 //!
-//! A located point is where the cycle of period n (the point's `period`) continued from one
-//! side stops being stable. Right: on that side the reference settles on a cycle whose sections
-//! repeat at lag n and at no shorter lag (2 x 10^4 periods, then 256 sections to 1e-6 of their
-//! scale), and on the other side not at lag n; for a period doubling, at lag 2n there (n/2
-//! where the doubled cycle was continued), and
-//! beyond a Neimark-Sacker point at no lag <= 128 (a torus), the kinds' local signatures. The
-//! cells' own classes, half a cell from the edge, can differ from what holds a quarter of a
-//! cell from the point (a period-doubling cascade to chaos within the cell): they are printed,
-//! not judged. Prints one line per point and the share of points judged right.
+//! A located point says: the cycle of period n (`period`) continued from the cell `from`
+//! stops being stable here, of `type`. The judge continues its own cycle: Newton at the cell
+//! from the cell's final state (the map's `state` layer: a start only), then 16 steps to 1/64
+//! of a cell before the point. Right where that cycle stays stable up to there, and after the
+//! point (Newton from it):
+//! - `period_doubling`: the continued cycle is unstable through -1 (a real multiplier below
+//!   -1), or, seen from the doubled side, it has merged into its half (its least period n/2);
+//! - `neimark_sacker`: unstable through a complex pair (modulus above 1);
+//! - `fold`: no cycle of period n is found from the last one, or it is unstable through +1;
+//! - `grazing`, `stick_onset`, `stick_loss`, `undetermined` (located ends): no stable cycle of
+//!   period n continues (the end is confirmed; what ends it is not judged here);
+//!
+//! `coexistence` points: at the edge's midpoint the reference's Newton from the `from` cell's
+//! final state finds a stable cycle of the cell's period, and the other cell's final state,
+//! run there for 10^4 periods, is not on it. A side the reference cannot start (a section at
+//! rest, where central differences cross the at-rest rule) is counted "cannot tell".
+//! Prints one line per point and the counts by type.
 
+use nalgebra::Matrix4;
 use rattle::config::Config;
 use rattle::reference::dry::DryReference;
+use std::collections::BTreeMap;
 use std::path::Path;
+
+/// A cycle of the reference: its section point, least period and multipliers ([re, im],
+/// modulus descending).
+struct RefCycle {
+    point: [f64; 4],
+    period: u32,
+    multipliers: Vec<[f64; 2]>,
+}
+
+impl RefCycle {
+    fn lead(&self) -> [f64; 2] {
+        self.multipliers[0]
+    }
+    fn stable(&self) -> bool {
+        self.lead()[0].hypot(self.lead()[1]) < 1.0
+    }
+}
+
+/// P^n(x) of the reference, `None` where it cannot follow the motion.
+fn map_n(r: &DryReference, x: [f64; 4], n: u32) -> Option<[f64; 4]> {
+    let mut st = r.start(x);
+    r.run(&mut st, n, None).ok().and_then(|s| s.last().copied())
+}
+
+/// Newton's method for a fixed point of P^n from `x`, the Jacobian by central differences.
+fn newton(r: &DryReference, mut x: [f64; 4], n: u32) -> Option<RefCycle> {
+    let scale = x.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+    let h = 1e-7 * scale;
+    let jacobian = |x: &[f64; 4]| -> Option<Matrix4<f64>> {
+        let mut j = Matrix4::zeros();
+        for c in 0..4 {
+            let (mut a, mut b) = (*x, *x);
+            a[c] += h;
+            b[c] -= h;
+            let (pa, pb) = (map_n(r, a, n)?, map_n(r, b, n)?);
+            for i in 0..4 {
+                j[(i, c)] = (pa[i] - pb[i]) / (2.0 * h);
+            }
+        }
+        Some(j)
+    };
+    for _ in 0..30 {
+        let p = map_n(r, x, n)?;
+        let f: Vec<f64> = (0..4).map(|i| p[i] - x[i]).collect();
+        let res = f.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let j = jacobian(&x)?;
+        if res < 1e-10 * scale {
+            let mut mult: Vec<[f64; 2]> = j
+                .complex_eigenvalues()
+                .iter()
+                .map(|c| [c.re, c.im])
+                .collect();
+            mult.sort_by(|a, b| b[0].hypot(b[1]).total_cmp(&a[0].hypot(a[1])));
+            // The least period: the shortest lag after which the point returns.
+            let mut s = r.start(x);
+            let pts = r.run(&mut s, n, None).ok()?;
+            let period = (1..=n)
+                .find(|&d| {
+                    n.is_multiple_of(d)
+                        && (0..4).all(|i| (pts[d as usize - 1][i] - x[i]).abs() < 1e-6 * scale)
+                })
+                .unwrap_or(n);
+            return Some(RefCycle {
+                point: x,
+                period,
+                multipliers: mult,
+            });
+        }
+        let rhs = nalgebra::Vector4::from_fn(|i, _| -f[i]);
+        let dx = (j - Matrix4::identity()).lu().solve(&rhs)?;
+        if !dx.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        for i in 0..4 {
+            x[i] += dx[i];
+        }
+    }
+    None
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Debug)]
+enum Verdict {
+    Right,
+    Wrong,
+    CannotTell,
+}
 
 fn main() -> anyhow::Result<()> {
     let a: Vec<String> = std::env::args().collect();
@@ -36,106 +132,211 @@ fn main() -> anyhow::Result<()> {
     ))?)?;
     let bytes = std::fs::read(format!("{prefix}-state.npy"))?;
     let state: Vec<f64> = npyz::NpyFile::new(&bytes[..])?.into_vec()?;
+    let bytes = std::fs::read(format!("{prefix}-class.npy"))?;
+    let class: Vec<i32> = npyz::NpyFile::new(&bytes[..])?.into_vec()?;
     let m = &cfg.map;
+    let nx = m.x_points as usize;
     let xs = Config::map_axis(m.x_from, m.x_to, m.x_points);
     let ys = Config::map_axis(m.y_from, m.y_to, m.y_points);
     let zeno = cfg.settings().zeno_speed;
-    let mut located: Vec<&serde_json::Value> = b["points"]
+    // Located points and coexistence points are judged; the others say nothing to judge.
+    let mut pool: Vec<&serde_json::Value> = b["points"]
         .as_array()
         .unwrap()
         .iter()
-        .filter(|p| p["located"] == true)
+        .filter(|p| p["located"] == true || p["type"] == "coexistence")
         .collect();
     // Fisher-Yates with the fixed generator, then the first `count`.
-    for i in (1..located.len()).rev() {
+    for i in (1..pool.len()).rev() {
         let j = (rng.next_u64() % (i as u64 + 1)) as usize;
-        located.swap(i, j);
+        pool.swap(i, j);
     }
-    located.truncate(count);
-    let judge = |p: &serde_json::Value| -> [(String, Option<usize>); 2] {
+    pool.truncate(count);
+    let reference = |x: f64, y: f64| {
+        let mut p = cfg.params();
+        m.x.set(&mut p, x);
+        m.y.set(&mut p, y);
+        DryReference::new(&p, 1024, zeno).ok()
+    };
+    let cell_state = |c: usize| -> [f64; 4] { std::array::from_fn(|i| state[4 * c + i]) };
+    let judge = |p: &serde_json::Value| -> (Verdict, String) {
         let cells = [0, 1].map(|k| p["cells"][k].as_u64().unwrap() as usize);
         let along_x = cells[1] == cells[0] + 1;
         let (x, y) = (p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap());
-        let quarter = if along_x {
-            0.25 * (xs[1] - xs[0])
-        } else {
-            0.25 * (ys[1] - ys[0])
-        };
-        [0, 1].map(|side| {
-            let sign = if side == 0 { -1.0 } else { 1.0 };
-            let (px, py) = if along_x {
-                (x + sign * quarter, y)
-            } else {
-                (x, y + sign * quarter)
+        let ty = p["type"].as_str().unwrap();
+        if ty == "coexistence" {
+            let Some(r) = reference(x, y) else {
+                return (Verdict::CannotTell, "no reference".into());
             };
-            let mut params = cfg.params();
-            m.x.set(&mut params, px);
-            m.y.set(&mut params, py);
-            let class = p["classes"][side].as_str().unwrap().to_string();
-            let cell = cells[side];
-            let r = match DryReference::new(&params, 1024, zeno) {
-                Ok(r) => r,
-                Err(_) => return (class, None),
-            };
-            let mut y0 = [0.0; 4];
-            y0.copy_from_slice(&state[4 * cell..4 * cell + 4]);
-            let mut st = r.start(y0);
-            let run = r
-                .run(&mut st, 20_000, None)
-                .and_then(|_| r.run(&mut st, 256, None));
-            let Ok(s) = run else {
-                return (class, None);
-            };
-            let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
-            let lag = (1..=128).find(|&n| {
-                (n..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() < 1e-6 * scale))
-            });
-            (class, lag)
-        })
-    };
-    // The side the cycle was continued from: the one whose class has the point's period.
-    let right = |p: &serde_json::Value, v: &[(String, Option<usize>); 2]| -> bool {
-        let n = p["period"].as_u64().unwrap() as usize;
-        let name = format!("period-{n}");
-        let Some(from) = (0..2).find(|&k| v[k].0 == name) else {
-            return false;
-        };
-        let other = v[1 - from].1;
-        let kind = match p["type"].as_str().unwrap() {
-            // From the single side the cycle doubles; from the doubled side (n even) it
-            // merges into the cycle of half its period.
-            "period_doubling" => {
-                other == Some(2 * n) || (n.is_multiple_of(2) && other == Some(n / 2))
+            // The side whose class is a cycle and whose cycle the reference finds stable here.
+            for k in 0..2 {
+                let (c, o) = (cells[k], cells[1 - k]);
+                if class[c] <= 0 {
+                    continue;
+                }
+                let Some(cy) = newton(&r, cell_state(c), class[c] as u32) else {
+                    continue;
+                };
+                if !cy.stable() || cy.period != class[c] as u32 {
+                    continue;
+                }
+                let mut st = r.start(cell_state(o));
+                let Ok(s) = r.run(&mut st, 10_000, None) else {
+                    return (Verdict::CannotTell, "other side not followed".into());
+                };
+                let end = s[s.len() - 1];
+                let scale = end.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+                let mut on = r.start(cy.point);
+                let orbit = r.run(&mut on, cy.period, None).unwrap_or_default();
+                let near = orbit
+                    .iter()
+                    .any(|q| (0..4).all(|i| (q[i] - end[i]).abs() < 1e-4 * scale));
+                return if near {
+                    (
+                        Verdict::Wrong,
+                        format!("other side ends on the period-{} cycle", cy.period),
+                    )
+                } else {
+                    (
+                        Verdict::Right,
+                        format!("period-{} stable, other side apart", cy.period),
+                    )
+                };
             }
-            "neimark_sacker" => other.is_none(),
-            _ => true,
+            return (
+                Verdict::Wrong,
+                "no stable cycle of either side's class".into(),
+            );
+        }
+        let n = p["period"].as_u64().unwrap() as u32;
+        let from = p["from"].as_u64().unwrap() as usize;
+        let other = if from == cells[0] { cells[1] } else { cells[0] };
+        let (cf, co) = if along_x {
+            (xs[from % nx], xs[other % nx])
+        } else {
+            (ys[from / nx], ys[other / nx])
         };
-        v[from].1 == Some(n) && other != Some(n) && kind
+        let delta = (co - cf) / 64.0;
+        let at = |d: f64| {
+            if along_x {
+                reference(x + d, y)
+            } else {
+                reference(x, y + d)
+            }
+        };
+        let Some(ra) = at(delta) else {
+            return (Verdict::CannotTell, "no reference".into());
+        };
+        // The reference's own continuation from the `from` cell's attractor: Newton at the
+        // cell from its final state, then 16 steps to 1/64 of a cell before the point.
+        let here = |v: f64| {
+            if along_x {
+                reference(v, y)
+            } else {
+                reference(x, v)
+            }
+        };
+        let v_point = if along_x { x } else { y };
+        let Some(r0) = here(cf) else {
+            return (Verdict::CannotTell, "no reference".into());
+        };
+        let Some(mut before) = newton(&r0, cell_state(from), n) else {
+            return (
+                Verdict::CannotTell,
+                "no cycle at the cell (reference)".into(),
+            );
+        };
+        if !before.stable() || before.period != n {
+            return (
+                Verdict::CannotTell,
+                format!(
+                    "the cell's own cycle: period {} lead {:?}",
+                    before.period,
+                    before.lead()
+                ),
+            );
+        }
+        let v_before = v_point - delta;
+        for k in 1..=16 {
+            let v = cf + (v_before - cf) * f64::from(k) / 16.0;
+            let Some(r) = here(v) else {
+                return (Verdict::CannotTell, "no reference".into());
+            };
+            match newton(&r, before.point, n) {
+                Some(c) if c.stable() && c.period == n => before = c,
+                Some(c) => {
+                    return (
+                        Verdict::Wrong,
+                        format!(
+                            "the reference's period-{n} cycle loses stability at {:.6} before \
+                             the point (period {}, lead {:.4?})",
+                            v,
+                            c.period,
+                            c.lead()
+                        ),
+                    );
+                }
+                None => {
+                    return (
+                        Verdict::Wrong,
+                        format!("the reference's period-{n} cycle ends at {v:.6} before the point"),
+                    );
+                }
+            }
+        }
+        let after = newton(&ra, before.point, n);
+        let desc = match &after {
+            Some(c) => format!(
+                "before lead {:.4?}, after period {} lead {:.4?}",
+                before.lead(),
+                c.period,
+                c.lead()
+            ),
+            None => format!("before lead {:.4?}, after no cycle", before.lead()),
+        };
+        let ok = match (ty, &after) {
+            // Through -1, or seen from the doubled side: merged into the half.
+            ("period_doubling", Some(c)) => {
+                let l = c.lead();
+                c.period < n || (!c.stable() && l[1] == 0.0 && l[0] < -1.0)
+            }
+            ("neimark_sacker", Some(c)) => !c.stable() && c.lead()[1] != 0.0,
+            ("fold", None) => true,
+            ("fold", Some(c)) => !c.stable() && c.lead()[1] == 0.0 && c.lead()[0] > 1.0,
+            ("period_doubling" | "neimark_sacker", None) => false,
+            (_, None) => true,
+            (_, Some(c)) => !(c.stable() && c.period == n),
+        };
+        (if ok { Verdict::Right } else { Verdict::Wrong }, desc)
     };
     let verdicts: Vec<_> = {
         use rayon::prelude::*;
-        located.par_iter().map(|p| judge(p)).collect()
+        pool.par_iter().map(|p| judge(p)).collect()
     };
-    let mut both = 0;
-    for (p, v) in located.iter().zip(&verdicts) {
-        let ok = right(p, v);
-        both += usize::from(ok);
+    let mut by_type: BTreeMap<(String, Verdict), usize> = BTreeMap::new();
+    for (p, (v, why)) in pool.iter().zip(&verdicts) {
+        let ty = p["type"].as_str().unwrap().to_string();
+        *by_type.entry((ty.clone(), *v)).or_default() += 1;
         println!(
-            "{} at ({:.6}, {:.6}): {} | {}: lags {:?} | {:?} {}",
-            p["type"].as_str().unwrap(),
+            "{ty} at ({:.6}, {:.6}) {} | {}: {v:?}: {why}",
             p["x"].as_f64().unwrap(),
             p["y"].as_f64().unwrap(),
-            v[0].0,
-            v[1].0,
-            v[0].1,
-            v[1].1,
-            if ok { "right" } else { "WRONG" }
+            p["classes"][0].as_str().unwrap(),
+            p["classes"][1].as_str().unwrap(),
         );
     }
+    for ((ty, v), k) in &by_type {
+        println!("{ty}: {v:?} {k}");
+    }
+    let right = verdicts.iter().filter(|v| v.0 == Verdict::Right).count();
+    let told = verdicts
+        .iter()
+        .filter(|v| v.0 != Verdict::CannotTell)
+        .count();
     println!(
-        "{both} of {} located points judged right ({:.1}%)",
-        located.len(),
-        100.0 * both as f64 / located.len().max(1) as f64
+        "{right} of {told} points the judge could tell right ({:.1}%), {} cannot tell",
+        100.0 * right as f64 / told.max(1) as f64,
+        pool.len() - told
     );
     Ok(())
 }

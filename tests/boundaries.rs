@@ -148,3 +148,181 @@ fn boundaries_need_the_whole_map() {
         "only the config"
     );
 }
+
+/// Newton's first try from a cell's cycle at its neighbour's parameters fails (the start is
+/// too far), yet the cycle is stable across the whole edge: the search shortens its step and
+/// reaches the neighbour (before, each failure counted as the cycle's end, and the bisection
+/// listed an `undetermined` end at 1 - 2^-20 of the edge). The cell is R 0.50703125, lambda
+/// 0.001171875 of tests/data/r_lambda_128.toml (its map's period-14 cell 132, from its final
+/// state), the edge to lambda 0.001953125 (cell 260, period-10). The judge: the reference
+/// (exact motion between events, no code of the integrator or of Newton's method) started
+/// from the cycle at the far end's parameters repeats at lag 14 after 2 x 10^4 periods.
+#[test]
+fn a_newton_failure_from_afar_is_not_the_cycles_end() {
+    use rattle::cycles::refine;
+    use rattle::method::{Integrator, PointState};
+    use rattle::model::Mode;
+    use rattle::stability::{Change, Found, locate_changes};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
+    let cfg = Config::load(&path, &[]).unwrap();
+    let settings = cfg.settings();
+    let (from, to) = (0.001171875, 0.001953125);
+    let mut p = cfg.params();
+    cfg.map.x.set(&mut p, 0.50703125);
+    cfg.map.y.set(&mut p, from);
+    let start = PointState {
+        y: [
+            -0.2616695463657379,
+            0.660262942314148,
+            -0.4598889946937561,
+            -0.7345482707023621,
+        ],
+        mode: Mode::SlipPos,
+        diag: Default::default(),
+    };
+    let cycle = refine(&Integrator::<f64>::new(&p, &settings), &start, 14);
+    assert!(cycle.is_stable() && cycle.period == 14, "{cycle:?}");
+    let mut q = p;
+    cfg.map.y.set(&mut q, to);
+    let at_cycle = PointState {
+        y: cycle.point,
+        mode: cycle.mode,
+        diag: Default::default(),
+    };
+    let direct = refine(&Integrator::<f64>::new(&q, &settings), &at_cycle, 14);
+    assert!(
+        !direct.converged,
+        "Newton's first try from afar must fail for this test to bite"
+    );
+    let found = locate_changes(
+        &settings,
+        &[Change {
+            base: p,
+            param: cfg.map.y,
+            from,
+            cycle: &cycle,
+            to,
+        }],
+    );
+    assert!(matches!(found[0], Found::StableThere), "{:?}", found[0]);
+    let r = DryReference::new(&q, 1024, settings.zeno_speed).unwrap();
+    let mut st = r.start(cycle.point);
+    r.run(&mut st, 20_000, None).unwrap();
+    let s = r.run(&mut st, 64, None).unwrap();
+    let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
+    let lag = (1..=28).find(|&n| {
+        (n..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() < 1e-6 * scale))
+    });
+    assert_eq!(lag, Some(14));
+}
+
+/// A cycle that ends without a multiplier crossing the circle is typed by how it approaches
+/// its end: the period-15 cycle of cell (15, 62) of tests/data/r_lambda_128.toml (R 0.52421875,
+/// lambda 0.048828125), continued towards R 0.52265625, ends where its leading multiplier
+/// reaches +1 like the square root of the distance: a fold (it was `undetermined` while a
+/// failure from afar counted as the end, and is a fold only where 1 - mu shrinks so). The
+/// judge, the reference's own Newton (central differences of its exact map; its multipliers by
+/// nalgebra): 1 - mu shrinks like the square root of the distance before the point, and no
+/// stable period-15 cycle continues after it.
+#[test]
+fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
+    use rattle::cycles::refine;
+    use rattle::method::{Integrator, PointState};
+    use rattle::model::Mode;
+    use rattle::stability::{Change, Found, Kind, locate_changes};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
+    let cfg = Config::load(&path, &[]).unwrap();
+    let settings = cfg.settings();
+    let (from, to) = (0.52421875, 0.52265625);
+    let mut p = cfg.params();
+    cfg.map.x.set(&mut p, from);
+    cfg.map.y.set(&mut p, 0.048828125);
+    let start = PointState {
+        y: [
+            -0.33390969038009644,
+            -0.060250572860240936,
+            -1.0161230564117432,
+            0.4920041561126709,
+        ],
+        mode: Mode::SlipNeg,
+        diag: Default::default(),
+    };
+    let cycle = refine(&Integrator::<f64>::new(&p, &settings), &start, 15);
+    assert!(cycle.is_stable() && cycle.period == 15, "{cycle:?}");
+    let found = locate_changes(
+        &settings,
+        &[Change {
+            base: p,
+            param: cfg.map.x,
+            from,
+            cycle: &cycle,
+            to,
+        }],
+    );
+    let Found::Located(b) = &found[0] else {
+        panic!("{:?}", found[0]);
+    };
+    assert_eq!(b.kind, Kind::Fold, "{b:?}");
+    // The reference's Newton on either side of the point: before it, 1 - mu shrinks like the
+    // square root of the distance (1/64 and 1/1024 of a cell: a ratio of 1/4), after it no
+    // stable period-15 cycle.
+    let edge = to - from;
+    let at = |v: f64| {
+        let mut q = p;
+        cfg.map.x.set(&mut q, v);
+        DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
+    };
+    let far = reference_cycle(&at(b.value - edge / 64.0), b.section, 15).expect("a cycle");
+    let near = reference_cycle(&at(b.value - edge / 1024.0), far.0, 15).expect("a cycle");
+    eprintln!(
+        "leading multipliers before the fold: {:?}, {:?}",
+        far.1, near.1
+    );
+    assert!(far.1[1] == 0.0 && near.1[1] == 0.0 && near.1[0] < 1.0);
+    let ratio = (1.0 - near.1[0]) / (1.0 - far.1[0]);
+    assert!((0.15..0.4).contains(&ratio), "{ratio}");
+    let after = reference_cycle(&at(b.value + edge / 1024.0), near.0, 15);
+    assert!(
+        after.is_none_or(|c| c.1[0].hypot(c.1[1]) >= 1.0),
+        "a stable period-15 cycle after the fold: {after:?}"
+    );
+}
+
+/// Newton's method on the reference's map P^n (central differences, h = 1e-7): the fixed
+/// point and its leading multiplier ([re, im]), `None` where it does not converge.
+fn reference_cycle(r: &DryReference, mut x: [f64; 4], n: u32) -> Option<([f64; 4], [f64; 2])> {
+    use nalgebra::{Matrix4, Vector4};
+    let map_n = |x: [f64; 4]| -> Option<[f64; 4]> {
+        let mut st = r.start(x);
+        r.run(&mut st, n, None).ok().and_then(|s| s.last().copied())
+    };
+    let scale = x.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+    let h = 1e-7 * scale;
+    for _ in 0..30 {
+        let p = map_n(x)?;
+        let f = Vector4::from_fn(|i, _| p[i] - x[i]);
+        let mut j = Matrix4::zeros();
+        for c in 0..4 {
+            let (mut a, mut b) = (x, x);
+            a[c] += h;
+            b[c] -= h;
+            let (pa, pb) = (map_n(a)?, map_n(b)?);
+            for i in 0..4 {
+                j[(i, c)] = (pa[i] - pb[i]) / (2.0 * h);
+            }
+        }
+        if f.amax() < 1e-10 * scale {
+            let lead = j
+                .complex_eigenvalues()
+                .iter()
+                .map(|c| [c.re, c.im])
+                .max_by(|a, b| a[0].hypot(a[1]).total_cmp(&b[0].hypot(b[1])))?;
+            return Some((x, lead));
+        }
+        let dx = (j - Matrix4::identity()).lu().solve(&(-f))?;
+        for i in 0..4 {
+            x[i] += dx[i];
+        }
+    }
+    None
+}

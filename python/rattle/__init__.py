@@ -253,9 +253,9 @@ class Map:
     def boundaries(self) -> dict:
         """The typed boundaries between the classes (`rattle map --boundaries`, docs/maps.md):
         `points` as arrays (`x`, `y`, `type`, `class_a`, `class_b`, `uncertainty`, `located`,
-        `period`), `curves` as a list of dicts with `type`, `classes` and `points` (an array of
+        `period`, `reason`: why an `undetermined` point is not typed), `curves` as a list of dicts with `type`, `classes` and `points` (an array of
         shape (k, 2) in parameter values), and the counts (`edges`, `trials`,
-        `continuations`, `seconds`)."""
+        `continuations`, `claims`, `continuation_s`, `coexistence_s`, `seconds`)."""
         j = json.loads(self._data.boundaries())
         pts = j["points"]
         j["points"] = {
@@ -267,6 +267,7 @@ class Map:
             "uncertainty": np.asarray([p["uncertainty"] for p in pts], dtype=float),
             "located": np.asarray([p["located"] for p in pts], dtype=bool),
             "period": np.asarray([p["period"] for p in pts], dtype=int),
+            "reason": np.asarray([p.get("reason", "") for p in pts], dtype=str),
         }
         for c in j["curves"]:
             c["points"] = np.asarray(c["points"], dtype=float).reshape(-1, 2)

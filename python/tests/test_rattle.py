@@ -434,6 +434,8 @@ def test_boundaries_are_the_command_lines(tmp_path):
     j = json.loads((tmp_path / "l-boundaries.json").read_text())
     np.testing.assert_array_equal(b["points"]["x"], [p["x"] for p in j["points"]])
     np.testing.assert_array_equal(b["points"]["type"], [p["type"] for p in j["points"]])
+    np.testing.assert_array_equal(
+        b["points"]["reason"], [p.get("reason", "") for p in j["points"]])
     assert len(b["curves"]) == len(j["curves"])
     for c, d in zip(b["curves"], j["curves"]):
         assert c["type"] == d["type"] and c["classes"] == d["classes"]

@@ -124,6 +124,8 @@ pub(super) fn marks_sentence(bifurcations: &[Vec<BifurcationPoint>]) -> String {
             Kind::NeimarkSacker => "Neimark-Sacker",
             Kind::NonSmooth => "non-smooth",
             Kind::Grazing => "grazing",
+            Kind::StickOnset => "stick onset",
+            Kind::StickLoss => "stick loss",
         })
         .or_default() += 1;
     }
@@ -178,6 +180,8 @@ pub(super) fn marks(points: &[BifurcationPoint]) -> Vec<Mark> {
                 Kind::NeimarkSacker => 2,
                 Kind::NonSmooth => 3,
                 Kind::Grazing => 4,
+                Kind::StickOnset => 5,
+                Kind::StickLoss => 6,
             },
         })
         .collect()

@@ -22,6 +22,22 @@ use crate::stability::{Change, Found, Kind, locate_changes};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 
+/// Why a located end is `undetermined`.
+const ENDS_UNNAMED: &str = "the cycle ends with no multiplier crossing the circle and no \
+     impact speed, clearance or stick phase vanishing";
+/// Why a located end is `undetermined` where Newton stalls at a jump of the discrete map.
+const ENDS_AT_JUMP: &str = "Newton stalls beyond the end at a residual below 1e-4 of the \
+     state up to the other cell: the integrator's map jumps there by about its own error, so \
+     whether the exact system's cycle ends is not resolved";
+/// Why a claimed coexistence is not one.
+const NOT_STABLE_AT_MIDPOINT: &str = "the cycle that would coexist is not stable at the \
+     edge's midpoint";
+const OTHER_ENDS_ON_CYCLE: &str = "the other side's attractor does not persist at the edge's \
+     midpoint: run there from its own state for the map's periods with its look, it ends on the \
+     cycle";
+/// Why an edge is `undetermined` and not located.
+const NO_CYCLE: &str = "no stable cycle on either side to continue";
+
 /// The type of a boundary point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -29,15 +45,21 @@ pub enum Type {
     PeriodDoubling,
     Fold,
     NeimarkSacker,
+    Grazing,
+    StickOnset,
+    StickLoss,
     Coexistence,
     Undetermined,
 }
 
 impl Type {
-    pub const ALL: [Type; 5] = [
+    pub const ALL: [Type; 8] = [
         Type::PeriodDoubling,
         Type::Fold,
         Type::NeimarkSacker,
+        Type::Grazing,
+        Type::StickOnset,
+        Type::StickLoss,
         Type::Coexistence,
         Type::Undetermined,
     ];
@@ -47,6 +69,9 @@ impl Type {
             Type::PeriodDoubling => "period_doubling",
             Type::Fold => "fold",
             Type::NeimarkSacker => "neimark_sacker",
+            Type::Grazing => "grazing",
+            Type::StickOnset => "stick_onset",
+            Type::StickLoss => "stick_loss",
             Type::Coexistence => "coexistence",
             Type::Undetermined => "undetermined",
         }
@@ -58,6 +83,9 @@ impl Type {
             Type::PeriodDoubling => [230, 25, 75],
             Type::Fold => [255, 225, 25],
             Type::NeimarkSacker => [0, 200, 255],
+            Type::Grazing => [170, 110, 40],
+            Type::StickOnset => [145, 30, 180],
+            Type::StickLoss => [60, 180, 75],
             Type::Coexistence => [255, 255, 255],
             Type::Undetermined => [150, 150, 150],
         }
@@ -81,6 +109,15 @@ pub struct Point {
     /// The period of the cycle whose loss of stability was located (0: none).
     pub period: u32,
     pub cells: [usize; 2],
+    /// The cell whose cycle was continued to the located change, and that cycle's section
+    /// point at the last stable value (located points only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub from: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub section: Option<[f64; 4]>,
+    /// Why an `undetermined` point is not typed (empty otherwise).
+    #[serde(skip_serializing_if = "str::is_empty")]
+    pub reason: &'static str,
 }
 
 /// A polyline through the points of one type between one pair of classes on neighbouring
@@ -105,6 +142,12 @@ pub struct Boundaries {
     /// Newton trials of the cells' own cycles, and continuations along edges.
     pub trials: usize,
     pub continuations: usize,
+    /// Coexistences claimed (by the map's carry or a continuation) and checked at the edges'
+    /// midpoints.
+    pub claims: usize,
+    /// Seconds of the continuations and of the coexistence checks (within `seconds`).
+    pub continuation_s: f64,
+    pub coexistence_s: f64,
     pub seconds: f64,
 }
 
@@ -136,12 +179,15 @@ pub fn of_fields(cfg: &Config, f: &super::Fields) -> Boundaries {
 pub fn summary_line(b: &Boundaries) -> String {
     format!(
         "boundaries: {} edges between classes, {} changes located, {} curves ({} Newton \
-         trials, {} continuations) in {:.2} s",
+         trials, {} continuations in {:.2} s, {} coexistences checked in {:.2} s) in {:.2} s",
         b.edges,
         b.points.iter().filter(|p| p.located).count(),
         b.curves.len(),
         b.trials,
         b.continuations,
+        b.continuation_s,
+        b.claims,
+        b.coexistence_s,
         b.seconds
     )
 }
@@ -232,15 +278,57 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
                 cycle,
                 to: v.1,
             });
-            owner.push(k);
+            owner.push((k, from));
         }
     }
+    let t1 = std::time::Instant::now();
     let found = locate_changes(&settings, &changes);
+    let continuation_s = t1.elapsed().as_secs_f64();
     let continuations = changes.len();
-    let mut per_edge: Vec<Vec<(&Found, u32)>> = vec![Vec::new(); edges.len()];
-    for ((k, f), c) in owner.iter().zip(&found).zip(&changes) {
-        per_edge[*k].push((f, c.cycle.period));
+    let mut per_edge: Vec<Vec<(&Found, u32, usize)>> = vec![Vec::new(); edges.len()];
+    for ((&(k, from), f), c) in owner.iter().zip(&found).zip(&changes) {
+        per_edge[k].push((f, c.cycle.period, from));
     }
+    // Which side's cycle coexists across each edge (the carry's or the continuation's), and
+    // whether both attractors persist at the edge's midpoint.
+    let continued: std::collections::HashSet<(usize, usize)> = owner
+        .iter()
+        .zip(&found)
+        .filter(|(_, f)| matches!(f, Found::StableThere))
+        .map(|(&o, _)| o)
+        .collect();
+    let mut claims = Vec::new();
+    for (k, &(a, b, _)) in edges.iter().enumerate() {
+        for (from, to) in [(a, b), (b, a)] {
+            let Some(cycle) = cycles.get(&from) else {
+                continue;
+            };
+            if cells.coexist[to] == cells.class[from] || continued.contains(&(k, from)) {
+                claims.push((a, b, from, to, cycle));
+            }
+        }
+    }
+    let midpoint = |a: usize, b: usize| {
+        let mut p = params(a);
+        m.x.set(&mut p, 0.5 * (xs[a % nx] + xs[b % nx]));
+        m.y.set(&mut p, 0.5 * (ys[a / nx] + ys[b / nx]));
+        p
+    };
+    // As long as the map's own look: what the map would call this motion's attractor.
+    let periods = (cfg.run.transient_periods + cfg.run.sample_periods).max(cfg.run.look);
+    let t2 = std::time::Instant::now();
+    let coexists: HashMap<(usize, usize, usize), Result<(), &'static str>> = {
+        use rayon::prelude::*;
+        claims
+            .par_iter()
+            .map(|&(a, b, from, to, cycle)| {
+                let own = cell_state(cells, to);
+                let v = persists(&midpoint(a, b), &settings, cycle, own, periods);
+                ((a, b, from), v)
+            })
+            .collect()
+    };
+    let coexistence_s = t2.elapsed().as_secs_f64();
     let name = |c: usize| Class::from_code(cells.class[c]).name();
     let points: Vec<Point> = edges
         .iter()
@@ -257,22 +345,43 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
             };
             let carried = (cells.class[a] > 0 && cells.coexist[b] == cells.class[a])
                 || (cells.class[b] > 0 && cells.coexist[a] == cells.class[b]);
-            // A multiplier's crossing first, then a cycle's end, then coexistence.
+            // A multiplier's crossing first, then a named end, then an unnamed one, then
+            // coexistence.
+            let rank = |k: Kind| match k {
+                Kind::PeriodDoubling | Kind::Fold | Kind::NeimarkSacker => 0,
+                Kind::NonSmooth => 2,
+                _ => 1,
+            };
             let located = f
                 .iter()
-                .filter_map(|(f, n)| match f {
-                    Found::Located(p) => Some((p, *n)),
+                .filter_map(|(f, n, from)| match f {
+                    Found::Located(p) => Some((p, *n, *from)),
                     _ => None,
                 })
-                .min_by_key(|(p, _)| p.kind == Kind::NonSmooth);
-            let stable_there = f.iter().any(|(f, _)| matches!(f, Found::StableThere));
+                .min_by_key(|(p, _, _)| rank(p.kind));
+            let stable_there = f.iter().any(|(f, _, _)| matches!(f, Found::StableThere));
+            let verdict = |c: usize| coexists.get(&(a, b, c)).copied();
+            let mut reason = "";
+            let (mut from, mut section) = (None, None);
             let (ty, x, y, uncertainty, located, period) = match located {
-                Some((p, n)) => {
+                Some((p, n, c)) => {
+                    from = Some(c);
+                    section = Some(p.section);
                     let ty = match p.kind {
                         Kind::PeriodDoubling => Type::PeriodDoubling,
                         Kind::Fold => Type::Fold,
                         Kind::NeimarkSacker => Type::NeimarkSacker,
-                        _ => Type::Undetermined,
+                        Kind::Grazing => Type::Grazing,
+                        Kind::StickOnset => Type::StickOnset,
+                        Kind::StickLoss => Type::StickLoss,
+                        Kind::NonSmooth => {
+                            reason = if p.stall <= crate::stability::JUMP_RESIDUAL {
+                                ENDS_AT_JUMP
+                            } else {
+                                ENDS_UNNAMED
+                            };
+                            Type::Undetermined
+                        }
                     };
                     let (x, y) = if along_x {
                         (p.value, my)
@@ -281,8 +390,20 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
                     };
                     (ty, x, y, p.uncertainty, true, n)
                 }
-                None if carried || stable_there => (Type::Coexistence, mx, my, half, false, 0),
-                None => (Type::Undetermined, mx, my, half, false, 0),
+                None if carried || stable_there => {
+                    // Coexistence only where both attractors persist at the edge's midpoint.
+                    match [a, b].into_iter().find_map(verdict) {
+                        Some(Ok(())) | None => (Type::Coexistence, mx, my, half, false, 0),
+                        Some(Err(why)) => {
+                            reason = why;
+                            (Type::Undetermined, mx, my, half, false, 0)
+                        }
+                    }
+                }
+                None => {
+                    reason = NO_CYCLE;
+                    (Type::Undetermined, mx, my, half, false, 0)
+                }
             };
             Point {
                 x,
@@ -293,6 +414,9 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
                 located,
                 period,
                 cells: [a, b],
+                from,
+                section,
+                reason,
             }
         })
         .collect();
@@ -305,8 +429,75 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
         points,
         trials,
         continuations,
+        claims: claims.len(),
+        continuation_s,
+        coexistence_s,
         seconds: t0.elapsed().as_secs_f64(),
     }
+}
+
+/// The final state of cell `c` (`None` where the map kept none).
+fn cell_state(cells: &Cells, c: usize) -> Option<PointState<f64>> {
+    let y: [f64; 4] = cells.state[4 * c..4 * c + 4].try_into().ok()?;
+    y.iter().all(|v| v.is_finite()).then(|| PointState {
+        y,
+        mode: Mode::from_u32(u32::from(cells.mode[c])),
+        diag: Default::default(),
+    })
+}
+
+/// Whether a stable `cycle` (of one side) and the other side's attractor (run from that
+/// cell's final state `other`) both persist at the parameters `p` (an edge's midpoint): the
+/// cycle, continued by Newton, is stable there, and the other motion, after `periods`
+/// periods (the map's run with its look), is not on it. A coexistence needs both.
+fn persists(
+    p: &Params<f64>,
+    settings: &crate::method::Settings,
+    cycle: &Cycle,
+    other: Option<PointState<f64>>,
+    periods: u32,
+) -> Result<(), &'static str> {
+    let it = Integrator::<f64>::new(p, settings);
+    let start = PointState {
+        y: cycle.point,
+        mode: cycle.mode,
+        diag: Default::default(),
+    };
+    let here = crate::cycles::refine(&it, &start, cycle.period);
+    if !(here.is_stable() && here.period == cycle.period) {
+        return Err(NOT_STABLE_AT_MIDPOINT);
+    }
+    let Some(mut st) = other else {
+        return Ok(());
+    };
+    // On the cycle: within 1e-4 of one of its section points (checked every 100 periods, so
+    // that a motion that falls onto the cycle early stops early).
+    let mut orbit = Vec::with_capacity(here.period as usize);
+    let mut on = PointState {
+        y: here.point,
+        mode: here.mode,
+        diag: Default::default(),
+    };
+    for _ in 0..here.period {
+        orbit.push(on.y);
+        it.period(&mut on);
+    }
+    let scale = here.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+    let on_cycle = |y: &[f64; 4]| {
+        orbit
+            .iter()
+            .any(|q| (0..4).all(|i| (q[i] - y[i]).abs() < 1e-4 * scale))
+    };
+    for k in 1..=periods {
+        it.period(&mut st);
+        if st.diag.nonfinite {
+            return Ok(());
+        }
+        if (k % 100 == 0 || k == periods) && on_cycle(&st.y) {
+            return Err(OTHER_ENDS_ON_CYCLE);
+        }
+    }
+    Ok(())
 }
 
 /// Joins the points into polylines: two points are neighbours where their edges belong to

@@ -722,13 +722,13 @@ pub fn write_boundaries(
         },
     )?;
     let mut csv = format!(
-        "{},{},type,class_a,class_b,uncertainty,located,period\n",
+        "{},{},type,class_a,class_b,uncertainty,located,period,reason\n",
         m.x.name(),
         m.y.name()
     );
     for p in &b.points {
         csv.push_str(&format!(
-            "{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},\"{}\"\n",
             p.x,
             p.y,
             p.ty.name(),
@@ -736,7 +736,8 @@ pub fn write_boundaries(
             p.classes[1],
             p.uncertainty,
             p.located,
-            p.period
+            p.period,
+            p.reason
         ));
     }
     st.write(&with_ext(&base, "csv"), csv.as_bytes())?;
@@ -748,15 +749,20 @@ pub fn write_boundaries(
             "Boundaries of the class map of {grid}: each of the {e} edges between neighbouring \
              cells of different classes, typed. Where a side landed on a stable cycle, Newton's \
              method continues that cycle from its own cell towards the other cell's parameters \
-             and locates where it stops being stable to 2^-20 of the edge ({located} points \
-             located): a real multiplier through -1 is a period doubling, through +1 a fold, a \
-             complex pair a Neimark-Sacker point, a cycle ending with its multipliers inside the \
-             circle (grazing, stick onset or crisis, not told apart) undetermined; where the \
-             cycle is still stable at the other cell's parameters, the two attractors coexist \
-             (a basin boundary: coexistence); edges without a stable cycle on either side are \
-             undetermined and not located. Curves join the points of one type between one pair \
-             of classes on edges of one grid square; coexistence and undetermined edges are \
-             counted, not drawn.",
+             (a step that fails is shortened, never taken for the cycle's end) and locates where \
+             it stops being stable to 2^-20 of the edge ({located} points located). A crossing \
+             seen (the cycle beyond converged, a multiplier outside the circle) is a period \
+             doubling (through -1), a fold (+1) or a Neimark-Sacker point (a complex pair); a \
+             cycle that ends without one is a fold where 1 - mu shrinks like the square root of \
+             the distance, a grazing where an impact's speed or a free flight's clearance \
+             vanishes, a stick onset or loss where a slip's speed or a stick phase vanishes, \
+             else undetermined with its reason. Where the cycle is still stable at the other \
+             cell's parameters, the two attractors coexist (a basin boundary: coexistence) if \
+             both persist at the edge's midpoint (the cycle by Newton, the other side's motion \
+             run there from its own state for the configured periods); edges without a stable \
+             cycle on either side are undetermined and not located. Curves join the points of \
+             one type between one pair of classes on edges of one grid square; coexistence and \
+             undetermined edges are counted, not drawn.",
             grid = super::caption::grid_phrase(cfg),
             e = b.edges,
         ),

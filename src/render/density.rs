@@ -49,12 +49,14 @@ pub struct Mark {
 
 /// Names and colours of the marked kinds (Okabe-Ito hues, distinguishable in colour-blind
 /// vision and against the grey density).
-pub const MARK_KINDS: [(&str, RGBColor); 5] = [
+pub const MARK_KINDS: [(&str, RGBColor); 7] = [
     ("period doubling", RGBColor(213, 94, 0)),
     ("fold", RGBColor(0, 158, 115)),
     ("Neimark-Sacker", RGBColor(0, 114, 178)),
     ("non-smooth", RGBColor(204, 121, 167)),
     ("grazing", RGBColor(0, 0, 0)),
+    ("stick onset", RGBColor(230, 159, 0)),
+    ("stick loss", RGBColor(86, 180, 233)),
 ];
 
 /// What a density panel drew.

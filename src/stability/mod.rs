@@ -1,0 +1,721 @@
+//! Where a branch of stable cycles loses stability along a sweep: the bifurcation point, its
+//! kind and its multipliers, located by continuation and bisection, and the grazing of an
+//! impact-free motion. (Whether one point is a `period-n` is decided in [`crate::decide`].)
+
+use crate::cycles::{Cycle, Refine, Tangent, modulus, run_parallel};
+use crate::method::{FlowTask, Integrator, PointState, Settings};
+use crate::model::{Param, Params};
+use serde::Serialize;
+
+pub mod ends;
+
+fn nan(v: &f64) -> bool {
+    v.is_nan()
+}
+
+/// Kind of a bifurcation point along a sweep.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// A real multiplier leaves the unit circle through -1.
+    PeriodDoubling,
+    /// A real multiplier leaves through +1 (saddle-node or symmetry-breaking).
+    Fold,
+    /// A complex pair leaves the unit circle (Neimark-Sacker, onset of a torus).
+    NeimarkSacker,
+    /// The cycle stops existing or changes its impact sequence with every multiplier well
+    /// inside the circle: a grazing or border-collision bifurcation of the non-smooth system.
+    NonSmooth,
+    /// A motion touches a stop with zero speed: an impact-free motion (a `no_impact`
+    /// point's) starts to impact, or a cycle's slowest impact (or closest approach to a stop)
+    /// goes to zero speed (distance) where it ends.
+    Grazing,
+    /// A cycle ends where a slip's relative velocity touches zero: a stick (or reversal)
+    /// begins.
+    StickOnset,
+    /// A cycle ends where one of its stick phases shrinks to nothing.
+    StickLoss,
+}
+
+/// A located bifurcation point.
+#[derive(Clone, Debug, Serialize)]
+pub struct BifurcationPoint {
+    pub kind: Kind,
+    /// Parameter value (midpoint of the final bisection interval).
+    pub value: f64,
+    /// Half-width of that interval.
+    pub uncertainty: f64,
+    /// Period of the branch that loses stability.
+    pub period: u32,
+    /// Multipliers of the last stable cycle of the branch ([re, im], modulus descending).
+    pub multipliers: Vec<[f64; 2]>,
+    /// That cycle's section point (phase 0; a start for a judge's own Newton).
+    pub section: [f64; 4],
+    /// Where the cycle ends without a crossing seen: the residual max |P^n(x) - x| at which
+    /// Newton stopped just beyond the end, relative to the state's scale (NaN otherwise). A
+    /// residual near the method's error (1e-6 to 1e-4) is a jump of the discrete map, not
+    /// the exact system's end.
+    #[serde(skip_serializing_if = "nan")]
+    pub stall: f64,
+}
+
+/// Bisection steps locating a stability change: the interval (a sweep spacing, 5e-4 in the
+/// paper's figures) shrinks 2^-20 times, to below the method's own error of the located value.
+const BISECTIONS: u32 = 20;
+/// A leading multiplier this close to the unit circle names the kind of the loss; farther
+/// inside, the branch ended without a multiplier crossing (non-smooth).
+const CRITICAL: f64 = 0.05;
+/// A relative residual at which Newton stalls beyond a cycle's end that is about the method's
+/// error: the integrator's map P^n jumps by that much where an event crosses a step of the
+/// grid, so that no fixed point may exist within a narrow window although the exact system's
+/// cycle goes on. The march looks beyond such a window (up to [`MAX_JUMPS`] times a search).
+pub const JUMP_RESIDUAL: f64 = 1e-4;
+const MAX_JUMPS: u32 = 2;
+/// Newton solutions of one search at most: the march and the bisection take about 30 where
+/// no failure intervenes; each failure from afar costs one more.
+const MAX_SOLVES: u32 = 120;
+/// A cycle of period 2m whose points m periods apart lie this close (relative) at the last
+/// stable value of a bisection is merging into a cycle of period m: the +1 multiplier that ends
+/// it is that cycle's period doubling, seen from the doubled side. At a fold the points stay
+/// O(1) apart; at a doubling they part like the square root of the distance to it (about 1e-5
+/// at the bisection's final width).
+const DOUBLED: f64 = 1e-3;
+
+/// One point of a sweep as [`bifurcation_points`] reads it.
+pub struct Branch<'a> {
+    pub value: f64,
+    pub cycle: Option<&'a Cycle>,
+    /// The final state of a `no_impact` point; `None` for a point that impacts (or failed:
+    /// then `impacts` is false too).
+    pub impact_free: Option<PointState<f64>>,
+    /// The point impacts (a class other than `no_impact` and `failed`).
+    pub impacts: bool,
+}
+
+/// Locates where stable cycles of a sweep stop being stable: for each pair of neighbouring
+/// sweep values where one has a stable cycle and the other does not have the same one, the
+/// cycle is continued by Newton from the stable side and the change of stability bisected on
+/// the CPU in f64. The kind comes from the critical multiplier of the last stable cycle.
+pub fn bifurcation_points(
+    base: &Params<f64>,
+    param: Param,
+    settings: &Settings,
+    points: &[Branch],
+) -> Vec<BifurcationPoint> {
+    fn stable<'a>(b: &Branch<'a>) -> Option<&'a Cycle> {
+        b.cycle.filter(|c| c.is_stable())
+    }
+    let same = |a: &Cycle, b: &Cycle| {
+        a.period == b.period && (0..4).all(|i| (a.point[i] - b.point[i]).abs() < 0.05)
+    };
+    let pairs: Vec<(usize, bool)> = points
+        .windows(2)
+        .enumerate()
+        .filter_map(|(i, w)| match (stable(&w[0]), stable(&w[1])) {
+            (Some(a), Some(b)) if same(a, b) => None,
+            (Some(_), _) => Some((i, true)),
+            (None, Some(_)) => Some((i, false)),
+            (None, None) => None,
+        })
+        .collect();
+    let changes: Vec<Change> = pairs
+        .iter()
+        .map(|&(i, up)| {
+            let (from, to) = if up {
+                (&points[i], &points[i + 1])
+            } else {
+                (&points[i + 1], &points[i])
+            };
+            Change {
+                base: *base,
+                param,
+                from: from.value,
+                cycle: stable(from).expect("a pair's first side is stable"),
+                to: to.value,
+            }
+        })
+        .collect();
+    let mut found: Vec<(usize, BifurcationPoint)> = pairs
+        .iter()
+        .zip(locate_changes(settings, &changes))
+        .filter_map(|(&(i, _), f)| match f {
+            Found::Located(p) => Some((i, p)),
+            _ => None,
+        })
+        .collect();
+    // A pair seen from both sides (e.g. period-1 stable below, period-2 stable above) is one
+    // bifurcation: keep the first found per interval.
+    found.sort_by_key(|(i, _)| *i);
+    found.dedup_by_key(|(i, _)| *i);
+    let grazing = grazing_points(base, param, settings, points);
+    // Seen from the impacting side, a grazing ends that side's cycle as `non_smooth`: one event.
+    found.retain(|(i, b)| {
+        !matches!(b.kind, Kind::NonSmooth | Kind::Grazing) || !grazing.iter().any(|(j, _)| j == i)
+    });
+    found.extend(grazing);
+    found.sort_by_key(|(i, _)| *i);
+    found.into_iter().map(|(_, b)| b).collect()
+}
+
+/// A stable cycle to continue from `from` to `to` in `param` (the other parameters `base`'s),
+/// for [`locate_changes`].
+pub struct Change<'a> {
+    pub base: Params<f64>,
+    pub param: Param,
+    pub from: f64,
+    pub cycle: &'a Cycle,
+    pub to: f64,
+}
+
+/// What the continuation of a [`Change`] found.
+#[derive(Clone, Debug)]
+pub enum Found {
+    /// Where the cycle stops being stable between `from` and `to`, typed.
+    Located(BifurcationPoint),
+    /// The cycle is still stable at `to`: it coexists there with whatever `to`'s own
+    /// trajectory reached.
+    StableThere,
+    /// The continuation could not start (the cycle not stable at `from`).
+    Nothing,
+}
+
+/// Continues each stable cycle of `changes` towards its `to` and locates where it stops being
+/// stable (the search of [`bifurcation_points`]: Newton from the last stable cycle, bisection to
+/// 2^-20 of the interval, the kind from the last stable cycle's critical multiplier), all of
+/// them at once on the host's lanes.
+pub fn locate_changes(settings: &Settings, changes: &[Change]) -> Vec<Found> {
+    let tasks: Vec<Option<Locate>> = changes
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let from = Branch {
+                value: c.from,
+                cycle: Some(c.cycle).filter(|c| c.is_stable()),
+                impact_free: None,
+                impacts: true,
+            };
+            Locate::new(&c.base, c.param, settings, &from, c.to, i)
+        })
+        .collect();
+    let mut out = vec![Found::Nothing; changes.len()];
+    let tasks = run_parallel(tasks.into_iter().flatten().collect(), |t| {
+        u64::from(t.start.period)
+    });
+    for t in tasks {
+        out[t.pair] = match t.found {
+            Some(p) => Found::Located(p),
+            None if t.reached => Found::StableThere,
+            None => Found::Nothing,
+        };
+    }
+    out
+}
+
+/// Stop-free periods that settle an impact-free motion at a new parameter value (its
+/// contracting multipliers are well inside the circle; the start is the motion at a value a
+/// bisection step away).
+const GRAZE_SETTLE: u32 = 100;
+
+/// Where a `no_impact` point neighbours one that impacts, whether its impact-free motion
+/// grazes a stop in between: the motion is continued from the `no_impact` side with the stops
+/// removed (so that no transient impact decides) and, at each value, integrated one period
+/// with the stops; the value where that period first holds an impact is bisected. Impact-free
+/// motion has the multiplier +1 exactly (m2's position enters nothing without impacts, so
+/// shifting y3 gives another solution): which member of that family grazes depends on the
+/// shift the run reached, so the located value belongs to the sweep's own history (from rest,
+/// or a continuation chain). Returns (pair index, point).
+fn grazing_points(
+    base: &Params<f64>,
+    param: Param,
+    settings: &Settings,
+    points: &[Branch],
+) -> Vec<(usize, BifurcationPoint)> {
+    use rayon::prelude::*;
+    let pairs: Vec<(usize, f64, PointState<f64>, f64)> = points
+        .windows(2)
+        .enumerate()
+        .filter_map(|(i, w)| match (&w[0], &w[1]) {
+            (a, b) if b.impacts => a.impact_free.map(|st| (i, a.value, st, b.value)),
+            (a, b) if a.impacts => b.impact_free.map(|st| (i, b.value, st, a.value)),
+            _ => None,
+        })
+        .collect();
+    pairs
+        .into_par_iter()
+        .filter_map(|(i, good, st, bad)| {
+            graze(base, param, settings, good, st, bad).map(|b| (i, b))
+        })
+        .collect()
+}
+
+/// The motion from `st` at parameter value `v`: settled without stops, then one period with
+/// them; `Some(settled state)` if that period holds no impact.
+fn impact_free_at(
+    base: &Params<f64>,
+    param: Param,
+    settings: &Settings,
+    v: f64,
+    st: &PointState<f64>,
+) -> Option<PointState<f64>> {
+    let mut p = *base;
+    param.set(&mut p, v);
+    let mut free = p;
+    free.clearance = 1e6;
+    let loose = Integrator::<f64>::new(&free, settings);
+    let mut s = *st;
+    for _ in 0..GRAZE_SETTLE {
+        loose.period(&mut s);
+    }
+    s.diag = Default::default();
+    let mut check = s;
+    Integrator::<f64>::new(&p, settings).period(&mut check);
+    (check.diag.impacts == 0 && !check.diag.nonfinite).then_some(s)
+}
+
+/// [`grazing_points`] for one pair: `None` where the motion is still impact-free at `bad` (it
+/// coexists there with the neighbour's impacting attractor) or not impact-free at `good`.
+fn graze(
+    base: &Params<f64>,
+    param: Param,
+    settings: &Settings,
+    good: f64,
+    st: PointState<f64>,
+    bad: f64,
+) -> Option<BifurcationPoint> {
+    let mut last = impact_free_at(base, param, settings, good, &st)?;
+    if impact_free_at(base, param, settings, bad, &last).is_some() {
+        return None;
+    }
+    let (mut good, mut bad) = (good, bad);
+    for _ in 0..BISECTIONS {
+        let mid = 0.5 * (good + bad);
+        match impact_free_at(base, param, settings, mid, &last) {
+            Some(s) => {
+                good = mid;
+                last = s;
+            }
+            None => bad = mid,
+        }
+    }
+    // Multipliers of one period of the motion at the last impact-free value (+1 among them).
+    let mut p = *base;
+    param.set(&mut p, good);
+    let it = Integrator::<f64>::new(&p, settings);
+    let (_, tan) = crate::cycles::flow(&it, &last, 1);
+    Some(BifurcationPoint {
+        kind: Kind::Grazing,
+        value: 0.5 * (good + bad),
+        uncertainty: 0.5 * (good - bad).abs(),
+        period: 1,
+        multipliers: crate::cycles::eigenvalues(&tan.matrix()),
+        section: last.y,
+        stall: f64::NAN,
+    })
+}
+
+/// Continues the stable cycle of `from` towards `to` and locates where it stops being stable,
+/// as a task for the lanes: a march of Newton solutions, each from the last stable cycle, whose
+/// step doubles after a success and halves after a failure (a Newton that does not converge
+/// from a far start is not the cycle's end), then a bisection of the bracket. A bracket whose
+/// far end holds the cycle unstable (converged, a multiplier outside the circle) has seen a
+/// crossing; one whose far end Newton cannot solve from 2^-20 of the edge is an end without
+/// one (typed by [`Locate::end`]).
+struct Locate<'a> {
+    base: &'a Params<f64>,
+    param: Param,
+    settings: &'a Settings,
+    /// Index of the pair of sweep points.
+    pair: usize,
+    start: Cycle,
+    to: f64,
+    /// Whether the march is over (then the bracket [good, bad] is bisected).
+    bisecting: bool,
+    /// The march's signed step.
+    step_size: f64,
+    /// Bisections done.
+    step: u32,
+    good: f64,
+    bad: f64,
+    mid: f64,
+    last: Cycle,
+    /// The cycle Newton found at `bad` where it converged there (a crossing seen); `None`
+    /// where Newton failed there.
+    beyond: Option<Cycle>,
+    /// The stable cycles found on the way (value, cycle): what [`Locate::end`] compares.
+    history: Vec<(f64, Cycle)>,
+    newton: Refine,
+    done: bool,
+    /// The cycle is stable at `to`.
+    reached: bool,
+    /// The relative residual of the last failure from within the resolution.
+    stall: f64,
+    /// Where Newton last stalled at a jump and its residual, while the march looks beyond.
+    jump_from: Option<(f64, f64)>,
+    /// Jumps looked beyond.
+    jumps: u32,
+    found: Option<BifurcationPoint>,
+}
+
+impl<'a> Locate<'a> {
+    fn new(
+        base: &'a Params<f64>,
+        param: Param,
+        settings: &'a Settings,
+        from: &Branch,
+        to: f64,
+        pair: usize,
+    ) -> Option<Locate<'a>> {
+        let start = from.cycle?.clone();
+        let newton = Self::at(base, param, settings, to, &start);
+        Some(Locate {
+            base,
+            param,
+            settings,
+            pair,
+            to,
+            bisecting: false,
+            step_size: to - from.value,
+            step: 0,
+            good: from.value,
+            bad: to,
+            mid: to,
+            last: start.clone(),
+            beyond: None,
+            history: vec![(from.value, start.clone())],
+            start,
+            newton,
+            done: false,
+            reached: false,
+            stall: f64::NAN,
+            jump_from: None,
+            jumps: 0,
+            found: None,
+        })
+    }
+
+    /// Newton at parameter value `v` from the cycle `c`.
+    fn at(base: &Params<f64>, param: Param, settings: &Settings, v: f64, c: &Cycle) -> Refine {
+        let mut p = *base;
+        param.set(&mut p, v);
+        let st = PointState {
+            y: c.point,
+            mode: c.mode,
+            diag: Default::default(),
+        };
+        Refine::new(Integrator::<f64>::new(&p, settings), &st, c.period)
+    }
+
+    fn integrator(&self, v: f64) -> Integrator<f64> {
+        let mut p = *self.base;
+        self.param.set(&mut p, v);
+        Integrator::<f64>::new(&p, self.settings)
+    }
+
+    /// The smallest bracket, 2^-20 of the edge.
+    fn resolution(&self) -> f64 {
+        (self.to - self.start_value()).abs() / f64::from(1u32 << BISECTIONS)
+    }
+
+    fn start_value(&self) -> f64 {
+        self.history[0].0
+    }
+
+    /// The next step once the Newton solution `c` at `self.mid` is known.
+    fn solved(&mut self, c: Cycle) {
+        let n = self.start.period;
+        // A doubled cycle that has merged into its stable half is that half, traversed twice.
+        let c = self.merged(&c).unwrap_or(c);
+        let stable = c.is_stable() && c.period == n;
+        // Converged to this cycle (or the cycle it merged into, of a divisor period) but not
+        // stable: the far side of a crossing.
+        let crossed = c.converged && !stable && n.is_multiple_of(c.period);
+        self.step += 1;
+        let tried = self.mid - self.good;
+        let close = tried.abs() <= self.resolution();
+        if stable || crossed {
+            self.jump_from = None;
+        }
+        if stable {
+            self.good = self.mid;
+            self.last = c.clone();
+            self.history.push((self.mid, c));
+            if self.mid == self.to {
+                // Stable across the whole interval: it coexists at `to` with what `to`'s own
+                // trajectory reached.
+                self.reached = true;
+                self.done = true;
+                return;
+            }
+            if self.bisecting && close {
+                // The bracket's far end, judged from afar, holds the cycle when approached:
+                // the march goes on from there.
+                self.bisecting = false;
+                self.beyond = None;
+                self.step_size = 2.0 * tried;
+            } else if !self.bisecting {
+                self.step_size *= 2.0;
+            }
+        } else if let (false, Some((at, stall))) = (crossed, self.jump_from) {
+            // Past a stall, looking for the cycle beyond the window where Newton fails.
+            if self.mid == self.to {
+                self.end_at(at, None, stall);
+                return;
+            }
+            self.step_size = 2.0 * tried;
+        } else if crossed || close {
+            let scale = c.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+            let stall = if crossed {
+                f64::NAN
+            } else {
+                c.residual / scale
+            };
+            if !crossed && stall <= JUMP_RESIDUAL && self.jumps < MAX_JUMPS {
+                // Newton stalls at about the method's error: a jump of the discrete map (an
+                // event crossing a grid step), not the cycle's end. Look beyond it.
+                self.jumps += 1;
+                self.jump_from = Some((self.mid, stall));
+                self.bisecting = false;
+                self.step_size = 4.0 * tried;
+            } else {
+                self.bad = self.mid;
+                self.beyond = crossed.then_some(c);
+                self.bisecting = true;
+                if close {
+                    // Newton from within 2^-20 of the edge: the cycle ends (or crosses) here.
+                    self.end_at(self.mid, self.beyond.clone(), stall);
+                    return;
+                }
+            }
+        } else {
+            // A failure from afar is not the cycle's end: a shorter step.
+            self.step_size = 0.5 * tried;
+        }
+        if self.step >= MAX_SOLVES {
+            // Within the bound of work, the last bracket, or the stall looked beyond (none:
+            // nothing located).
+            match self.jump_from {
+                Some((at, stall)) => self.end_at(at, None, stall),
+                None => {
+                    self.done = true;
+                    self.found = self.bisecting.then(|| self.point());
+                }
+            }
+            return;
+        }
+        // The next value: half the bracket, or the bracket's far end itself (solved from
+        // within the resolution, so that a verdict from afar never ends the search), or the
+        // march's step.
+        let next = if self.bisecting && (self.bad - self.good).abs() <= self.resolution() {
+            self.bad
+        } else if self.bisecting && (stable || crossed) {
+            0.5 * (self.good + self.bad)
+        } else {
+            self.good + self.step_size
+        };
+        let end = if self.bisecting { self.bad } else { self.to };
+        self.mid = if (next - end) * (end - self.good) >= 0.0 {
+            end
+        } else {
+            next
+        };
+        self.newton = Self::at(self.base, self.param, self.settings, self.mid, &self.last);
+    }
+
+    /// The stable cycle of period m where `c`, a stable cycle of period 2m at `self.mid` with
+    /// a multiplier near +1, is that cycle traversed twice: near a period doubling, P^2m is
+    /// nearly degenerate at the period-m cycle (its multiplier mu^2 near 1), so that Newton
+    /// for period 2m converges onto the period-m cycle with a residual of P^m a thousand times
+    /// its own, above the least-period test's tolerance.
+    fn merged(&self, c: &Cycle) -> Option<Cycle> {
+        let lead = c.multipliers.first()?;
+        if !c.is_stable()
+            || !c.period.is_multiple_of(2)
+            || lead[1] != 0.0
+            || lead[0] < 1.0 - CRITICAL
+        {
+            return None;
+        }
+        if !self.halves_at(self.mid, c) {
+            return None;
+        }
+        let half = crate::cycles::refine(&self.integrator(self.mid), &state(c), c.period / 2);
+        half.is_stable().then_some(half)
+    }
+
+    /// Ends the search with the bracket's far end at `bad`.
+    fn end_at(&mut self, bad: f64, beyond: Option<Cycle>, stall: f64) {
+        self.bad = bad;
+        self.beyond = beyond;
+        self.stall = stall;
+        self.bisecting = true;
+        self.done = true;
+        self.found = Some(self.point());
+    }
+
+    /// Whether the cycle `c` (at the last stable value) has an even period 2m and its points
+    /// m periods apart have nearly merged: it is the doubled cycle of a period doubling (see
+    /// [`DOUBLED`]), not a cycle ending at a fold.
+    fn halves(&self, c: &Cycle) -> bool {
+        self.halves_at(self.good, c)
+    }
+
+    /// [`Locate::halves`] at the parameter value `v`.
+    fn halves_at(&self, v: f64, c: &Cycle) -> bool {
+        if !c.period.is_multiple_of(2) {
+            return false;
+        }
+        let it = self.integrator(v);
+        let mut st = PointState {
+            y: c.point,
+            mode: c.mode,
+            diag: Default::default(),
+        };
+        for _ in 0..c.period / 2 {
+            it.period(&mut st);
+        }
+        let scale = c.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        (0..4).all(|i| (st.y[i] - c.point[i]).abs() < DOUBLED * scale)
+    }
+
+    /// The located point. A crossing seen (the cycle beyond the bracket converged, a
+    /// multiplier outside the circle, the last stable one's within [`CRITICAL`] of it) is
+    /// typed by the multiplier that crossed; otherwise [`Locate::end`] types the end.
+    fn point(&self) -> BifurcationPoint {
+        let (good, bad, last) = (self.good, self.bad, &self.last);
+        let lead = last.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
+        let near = 1.0 - modulus(&lead) <= CRITICAL;
+        let kind = match &self.beyond {
+            Some(b) if near && b.period < last.period => Kind::PeriodDoubling,
+            Some(b) if near => {
+                let out = b.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
+                if out[1].abs() > 1e-6 {
+                    Kind::NeimarkSacker
+                } else if out[0] < 0.0 || self.halves(last) {
+                    Kind::PeriodDoubling
+                } else {
+                    Kind::Fold
+                }
+            }
+            _ => self.end(),
+        };
+        BifurcationPoint {
+            kind,
+            value: 0.5 * (good + bad),
+            uncertainty: 0.5 * (good - bad).abs(),
+            period: self.start.period,
+            multipliers: last.multipliers.clone(),
+            section: last.point,
+            stall: if kind == Kind::NonSmooth {
+                self.stall
+            } else {
+                f64::NAN
+            },
+        }
+    }
+
+    /// The kind of an end without a crossing seen, from the cycle at two distances from the
+    /// end, `near` and `far` = 64 x `near`, at two scales: `near` the last stable value (the
+    /// bracket's width from the end), and `near` 2^-9 of the edge (`far` at most the whole way
+    /// followed, and at least 16 x `near`). A fold where 1 - mu (mu the leading multiplier,
+    /// real, near +1) shrinks like the square root of the distance; a grazing or a stick
+    /// onset/loss where an event feature vanishes ([`ends::vanishing`]); else `non_smooth`
+    /// (unnamed).
+    fn end(&self) -> Kind {
+        let e = 0.5 * (self.good + self.bad);
+        let edge = self.to - self.start_value();
+        let followed = (e - self.start_value()).abs();
+        let w = (self.bad - self.good).abs().max(f64::MIN_POSITIVE);
+        let scales = [(w, 64.0 * w), (edge.abs() / 512.0, edge.abs() / 8.0)];
+        let lead = |c: &Cycle| c.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
+        for (k, (d_near, d_far)) in scales.into_iter().enumerate() {
+            let d_far = d_far.min(followed);
+            if d_far < 16.0 * d_near {
+                continue;
+            }
+            let near = if k == 0 {
+                Some((self.good, self.last.clone()))
+            } else {
+                self.cycle_near(e, d_near, 0.0)
+            };
+            let Some(near) = near else {
+                continue;
+            };
+            let Some(far) = self.cycle_near(e, d_far, 16.0 * (e - near.0).abs()) else {
+                continue;
+            };
+            let contrast = (e - near.0).abs() / (e - far.0).abs();
+            let (ln, lf) = (lead(&near.1), lead(&far.1));
+            if ln[1] == 0.0 && lf[1] == 0.0 && ln[0] > 0.0 && 1.0 - ln[0] <= CRITICAL {
+                let ratio = (1.0 - ln[0]) / (1.0 - lf[0]);
+                if ratio > 0.0 && ratio < 2.0 * contrast.sqrt() {
+                    return if self.halves(&self.last) {
+                        Kind::PeriodDoubling
+                    } else {
+                        Kind::Fold
+                    };
+                }
+            }
+            let sn = ends::structure(&self.integrator(near.0), &near.1);
+            let sf = ends::structure(&self.integrator(far.0), &far.1);
+            if let Some(kind) = ends::vanishing(&sn, &sf, contrast) {
+                return kind;
+            }
+        }
+        Kind::NonSmooth
+    }
+
+    /// A stable cycle about `d` from the end `e`, at least `least` from it: the one found on
+    /// the way whose distance is nearest to `d` (in ratio), else Newton's at `e - d` from the
+    /// nearest one found (near a fold Newton converges slowly and may stop: the cycles found
+    /// on the way come first).
+    fn cycle_near(&self, e: f64, d: f64, least: f64) -> Option<(f64, Cycle)> {
+        let dist = |v: f64| (e - v).abs();
+        let found = self
+            .history
+            .iter()
+            .filter(|(v, _)| dist(*v) >= least && dist(*v) <= 4.0 * d)
+            .min_by(|a, b| {
+                let r = |v: f64| (dist(v) / d).ln().abs();
+                r(a.0).total_cmp(&r(b.0))
+            });
+        if let Some(f) = found.filter(|f| (dist(f.0) / d).ln().abs() < 2f64.ln()) {
+            return Some(f.clone());
+        }
+        let v = e - (self.to - self.start_value()).signum() * d;
+        let from = self
+            .history
+            .iter()
+            .min_by(|a, b| (a.0 - v).abs().total_cmp(&(b.0 - v).abs()))?;
+        let c = crate::cycles::refine(&self.integrator(v), &state(&from.1), from.1.period);
+        if c.is_stable() && c.period == self.start.period {
+            return Some((v, c));
+        }
+        found.cloned()
+    }
+}
+
+fn state(c: &Cycle) -> PointState<f64> {
+    PointState {
+        y: c.point,
+        mode: c.mode,
+        diag: Default::default(),
+    }
+}
+
+impl FlowTask for Locate<'_> {
+    fn flow(&self) -> Option<(PointState<f64>, u32)> {
+        if self.done { None } else { self.newton.flow() }
+    }
+
+    fn integrator(&self) -> &Integrator<f64> {
+        self.newton.integrator()
+    }
+
+    fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
+        self.newton.ended(end, tan);
+        if let Some(c) = self.newton.result() {
+            let c = c.clone();
+            self.solved(c);
+        }
+    }
+}
