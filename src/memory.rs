@@ -157,8 +157,15 @@ pub fn blocks_in_flight(points: usize, streams: usize) -> f64 {
         + rest as f64 * STREAM_BLOCK_BYTES_PER_CELL as f64
 }
 
-/// Refuses a map (or a share of `cells` of it) whose estimate exceeds the usable memory.
-pub fn check_map(cfg: &Config, cells: usize, starts: usize) -> Result<(), ConfigError> {
+/// Refuses a map (or a share of `cells` of it) whose estimate exceeds the usable memory;
+/// `shardable`: whether the message may advise shards (not with `--boundaries`, which needs
+/// the whole map).
+pub fn check_map(
+    cfg: &Config,
+    cells: usize,
+    starts: usize,
+    shardable: bool,
+) -> Result<(), ConfigError> {
     let per = map_bytes_per_cell(starts.max(1));
     let points = cells * starts.max(1);
     let streams = crate::engine::planned_overlap(cfg.method.backend, cfg.run.overlap, points);
@@ -180,10 +187,15 @@ pub fn check_map(cfg: &Config, cells: usize, starts: usize) -> Result<(), Config
                 gib(need)
             ),
             range: format!(
-                "at most {} of the {} available, i.e. <= {} cells (or split the map into shards)",
+                "at most {} of the {} available, i.e. <= {} cells{}",
                 gib(have),
                 gib(have / USABLE),
-                (have / per as f64) as u64
+                (have / per as f64) as u64,
+                if shardable {
+                    " (or split the map into shards)"
+                } else {
+                    " (--boundaries needs the whole map in one run: a coarser grid)"
+                }
             ),
         });
     }

@@ -309,3 +309,29 @@ fn every_commands_timings_share_the_split_keys() {
     ];
     check("sensitivity", &run(&sens, "fig2.toml", "s"), true);
 }
+
+/// With `run.look = 0` a chaotic point's report says that no long look ran (it said "a look
+/// of 850 periods"), and the JSON says `look` = 0; with the default look it names the look.
+#[test]
+fn a_chaotic_point_without_the_look_says_so() {
+    let text = |extra: &[&str]| {
+        let out = rattle()
+            .args(["point", "--config"])
+            .arg(config("fig2.toml"))
+            .args(["--eta", "1.72", "--backend", "cpu"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        String::from_utf8_lossy(&out.stdout).to_string()
+    };
+    let off = text(&["--set", "run.look=0"]);
+    assert!(off.contains("chaotic"), "{off}");
+    assert!(
+        off.contains("no long look: run.look = 0") && !off.contains("a look of"),
+        "{off}"
+    );
+    assert_eq!(point_json("1.72", &["--set", "run.look=0"])["look"], 0);
+    let on = text(&[]);
+    assert!(on.contains("still chaotic after a look of"), "{on}");
+}

@@ -39,22 +39,37 @@ fn work_beyond_the_machine_memory_is_refused_before_computing() {
         "refused only after computing"
     );
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
-    // A map whose fields do not fit is refused the same way.
-    let o = rattle()
-        .env("RATTLE_MEMORY_LIMIT", "1073741824")
-        .args(["map", "--backend", "cpu", "--config"])
-        .arg(common::config("r_lambda.toml"))
-        .args(["--set", "map.x_points=8192", "--set", "map.y_points=8192"])
-        .arg("--out")
-        .arg(d.join("m"))
-        .output()
-        .unwrap();
+    // A map whose fields do not fit is refused the same way; the message advises shards,
+    // except with --boundaries, which needs the whole map in one run.
+    let big_map = |extra: &[&str]| {
+        rattle()
+            .env("RATTLE_MEMORY_LIMIT", "1073741824")
+            .args(["map", "--backend", "cpu"])
+            .args(extra)
+            .arg("--config")
+            .arg(common::config("r_lambda.toml"))
+            .args(["--set", "map.x_points=8192", "--set", "map.y_points=8192"])
+            .arg("--out")
+            .arg(d.join("m"))
+            .output()
+            .unwrap()
+    };
+    let o = big_map(&[]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
     assert!(
-        stderr(&o).contains("map.x_points x map.y_points"),
-        "{}",
-        stderr(&o)
+        e.contains("map.x_points x map.y_points") && e.contains("shards"),
+        "{e}"
     );
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+    let o = big_map(&["--boundaries"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("map.x_points x map.y_points") && !e.contains("shards"),
+        "{e}"
+    );
+    assert!(e.contains("--boundaries"), "{e}");
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
 }
 

@@ -191,7 +191,7 @@ impl MapOptions<'_> {
         let held = self
             .shard
             .map_or(cells, |(i, n)| shard_range(cells, i, n).len());
-        crate::memory::check_map(cfg, held, self.starts)?;
+        crate::memory::check_map(cfg, held, self.starts, !self.boundaries)?;
         Ok(())
     }
 }

@@ -50,6 +50,8 @@ pub struct PointReport {
     /// look (chaos is known to last that long, no longer); otherwise the periods before the
     /// window that showed the attractor (an upper bound).
     pub settle: u32,
+    /// The long look asked for (`run.look`; 0: none, the configured run decides).
+    pub look: u32,
     /// All four Lyapunov exponents per unit time (tangent dynamics, CPU f64, over the sampled
     /// periods from the final state), largest first; a stick or lock removes directions
     /// exactly, and the exponents of removed directions then only say "very negative".
@@ -125,6 +127,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         tried_periods: verdict.tried.clone(),
         periods: a.periods[0],
         settle: a.settle[0],
+        look: cfg.run.look,
         lyapunov_spectrum,
         multipliers: verdict
             .cycle
@@ -248,7 +251,13 @@ impl PointReport {
             self.periods,
             self.tried_periods
         )?;
-        if self.class == "chaotic" {
+        if self.class == "chaotic" && self.look == 0 {
+            writeln!(
+                f,
+                "settled            still chaotic after {} periods (no long look: run.look = 0)",
+                self.settle
+            )?;
+        } else if self.class == "chaotic" {
             writeln!(
                 f,
                 "settled            still chaotic after a look of {} periods",
