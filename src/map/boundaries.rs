@@ -3,14 +3,15 @@
 //!
 //! A side that landed on a stable cycle is continued by Newton's method from its own cycle
 //! towards the other cell's parameters (the search of the sweeps' stability changes,
-//! [`crate::stability::locate_changes`], to 2^-20 of the edge), so that each side starts from
-//! its own attractor. Where the cycle loses stability on the edge, the last stable cycle's
-//! critical multiplier types the change: through -1 a period doubling, through +1 a fold, a
-//! complex pair a Neimark-Sacker point; a cycle that ends with every multiplier well inside
-//! the circle (a grazing, a stick onset or a crisis, not told apart yet) is `undetermined`.
-//! Where the cycle is still stable at the other cell's parameters (or the map's carry found
-//! it there), both attractors coexist across the edge: a basin boundary (`coexistence`), not a
-//! bifurcation. An edge with no stable cycle on either side is `undetermined`, not located.
+//! [`crate::stability::locate_changes`], to 2^-20 of the edge, its failed steps shortened, never
+//! taken for an end), so that each side starts from its own attractor. A crossing seen types
+//! the change by the multiplier that crossed: through -1 a period doubling, through +1 a fold,
+//! a complex pair a Neimark-Sacker point; a cycle that ends without one is typed from how it
+//! approaches the end ([`crate::stability::ends`]: fold, grazing, stick onset or loss), else
+//! `undetermined` with its reason. Where the cycle is still stable at the other cell's
+//! parameters (or the map's carry found it there), both attractors coexist across the edge (a
+//! basin boundary: `coexistence`, not a bifurcation) if both persist at the edge's midpoint.
+//! An edge with no stable cycle on either side is `undetermined`, not located.
 
 use crate::class::Class;
 use crate::config::Config;
