@@ -326,3 +326,47 @@ fn reference_cycle(r: &DryReference, mut x: [f64; 4], n: u32) -> Option<([f64; 4
     }
     None
 }
+
+/// `--refine 4 --boundaries`: an edge beside a cell the coarse pass inferred (no state, not
+/// computed) that has nothing located says why (it came out `coexistence` or `undetermined`
+/// with no word of the inferred cell).
+#[test]
+fn edges_beside_inferred_cells_say_so() {
+    let d = scratch("boundaries-refine");
+    let cfg = d.join("m.toml");
+    std::fs::write(
+        &cfg,
+        "[model]\neta = 1.26\nfriction = \"coulomb\"\n[method]\nsteps_per_period = 64\n\
+         [run]\ntransient_periods = 20\nsample_periods = 16\n[map]\nx = \"R\"\nx_from = 0.5\n\
+         x_to = 0.7\nx_points = 32\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 32\n",
+    )
+    .unwrap();
+    ok(rattle()
+        .args([
+            "map",
+            "--backend",
+            "cpu",
+            "--refine",
+            "4",
+            "--boundaries",
+            "--config",
+        ])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(d.join("r")));
+    let b = json(&d.join("r-boundaries.json"));
+    let inferred: Vec<u8> = npy(&d.join("r-inferred.npy"));
+    let mut beside = 0;
+    for p in b["points"].as_array().unwrap() {
+        let cells = [0, 1].map(|k| p["cells"][k].as_u64().unwrap() as usize);
+        if p["located"] == false && cells.iter().any(|&c| inferred[c] != 0) {
+            beside += 1;
+            assert_eq!(p["type"], "undetermined", "{p}");
+            assert!(p["reason"].as_str().unwrap().contains("inferred"), "{p}");
+        }
+    }
+    assert!(
+        beside > 0,
+        "no unlocated edge beside an inferred cell: the test cannot bite"
+    );
+}

@@ -36,6 +36,9 @@ const NOT_STABLE_AT_MIDPOINT: &str = "the cycle that would coexist is not stable
 const OTHER_ENDS_ON_CYCLE: &str = "the other side's attractor does not persist at the edge's \
      midpoint: run there from its own state for the map's periods with its look, it ends on the \
      cycle";
+/// Why an edge beside a cell `--refine` inferred is `undetermined` where nothing was located.
+const INFERRED: &str = "a side is a cell inferred by --refine, not computed: it has no state \
+     to continue a cycle from or to check a coexistence with";
 /// Why an edge is `undetermined` and not located.
 const NO_CYCLE: &str = "no stable cycle on either side to continue";
 
@@ -159,6 +162,8 @@ pub struct Cells<'a> {
     /// Four values a cell (NaN where not known).
     pub state: &'a [f64],
     pub mode: &'a [u8],
+    /// 1 where `--refine` inferred the cell (not computed: no state).
+    pub inferred: &'a [u8],
 }
 
 /// The boundaries of a whole map in memory (`rattle map --boundaries`, Python's
@@ -172,6 +177,7 @@ pub fn of_fields(cfg: &Config, f: &super::Fields) -> Boundaries {
             coexist: &f.coexist,
             state: &state,
             mode: &f.mode,
+            inferred: &f.inferred,
         },
     )
 }
@@ -390,6 +396,10 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
                         (mx, p.value)
                     };
                     (ty, x, y, p.uncertainty, true, n)
+                }
+                None if cells.inferred[a] != 0 || cells.inferred[b] != 0 => {
+                    reason = INFERRED;
+                    (Type::Undetermined, mx, my, half, false, 0)
                 }
                 None if carried || stable_there => {
                     // Coexistence only where both attractors persist at the edge's midpoint.
