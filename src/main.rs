@@ -251,7 +251,9 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
     check_prefix(&a.out, &["png", "json"])?;
     if a.boundaries && a.shard.is_none() {
         let b = rattle::output::with_suffix(&a.out, "boundaries");
-        check_prefix(&b, &["png", "csv", "json"])?;
+        // The boundaries are files of the map's own set (PREFIX.json lists them).
+        let own = rattle::output::with_ext(&a.out, "json");
+        rattle::output::check_prefix_within(&b, &["png", "csv", "json"], Some(&own))?;
         rattle::output::check_implied_prefix(&b, &["png", "csv", "json"])?;
     }
     if a.compare.is_some() {

@@ -138,6 +138,12 @@ fn listed_by(json: &Path) -> Vec<PathBuf> {
         .collect()
 }
 
+/// The files of the set whose JSON is `json` that are still as it wrote them (see
+/// `listed_by`): what replacing or removing that set may remove.
+pub fn set_files(json: &Path) -> Vec<PathBuf> {
+    listed_by(json)
+}
+
 /// Refuses, before computing, a file a set would write (`fig-compare.png` of `map --compare
 /// --out fig`) that another set at its own prefix (`fig-compare.json`) still owns.
 pub fn check_not_owned(file: &Path) -> Result<(), OutputError> {
@@ -574,6 +580,17 @@ const OUTPUT_EXTS: [&str; 5] = ["png", "svg", "json", "csv", "npy"];
 /// file (not a directory), its directory exists and is writable, and none of `PREFIX.ext`
 /// for `exts` is a directory.
 pub fn check_prefix(prefix: &Path, exts: &[&str]) -> Result<(), OutputError> {
+    check_prefix_within(prefix, exts, None)
+}
+
+/// [`check_prefix`] for files a set at `prefix` writes as part of the set whose JSON is `own`
+/// (a map's boundaries, `PREFIX-boundaries.*` in the set of `PREFIX.json`): that set owning
+/// them is no conflict, the run replaces it.
+pub fn check_prefix_within(
+    prefix: &Path,
+    exts: &[&str],
+    own: Option<&Path>,
+) -> Result<(), OutputError> {
     let s = prefix.as_os_str().to_string_lossy();
     if s.is_empty() || s.ends_with('/') || prefix.is_dir() || prefix.file_name().is_none() {
         return Err(other(
@@ -615,7 +632,9 @@ pub fn check_prefix(prefix: &Path, exts: &[&str]) -> Result<(), OutputError> {
             }
         }
     }
-    if let Some((file, json)) = owned_by_another_set(prefix) {
+    if let Some((file, json)) =
+        owned_by_another_set(prefix).filter(|(_, j)| Some(j.as_path()) != own)
+    {
         return Err(other(
             &file,
             format!(

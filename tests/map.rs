@@ -215,7 +215,7 @@ fn failed_cells_are_never_a_valid_class() {
     (c.map.x_points, c.map.y_points) = (3, 1);
     let f = Fields::from_summaries(&sum);
     let report = rattle::map::MapReport::default();
-    rattle::map::write_outputs(&d.join("m"), &c, &f, &report).unwrap();
+    rattle::map::write_outputs(&d.join("m"), &c, &f, &report, None).unwrap();
     let class: Vec<i32> = npy(&d.join("m-class.npy"));
     assert_eq!(class, vec![sum[0].class.code(), -2, sum[2].class.code()]);
     assert_eq!(npy::<u8>(&d.join("m-nonfinite.npy")), vec![0, 1, 0]);

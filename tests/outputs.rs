@@ -552,4 +552,34 @@ fn boundaries_never_replace_a_set_written_at_their_prefix() {
     // Its own boundaries at the same prefix are replaced as any set is.
     assert!(map("y", &["--boundaries"]).status.success());
     assert!(map("y", &["--boundaries"]).status.success());
+    // The boundaries are files of the map's set (committed with it, listed by its JSON), so a
+    // map written at y without them removes them (they stayed beside the new map, round 6
+    // M1); a map at x leaves the set at x-boundaries, a map's, alone.
+    let listed = |json: &str| -> Vec<String> {
+        let j = common::json(&d.join(json));
+        j["files"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| f.as_str().unwrap().to_string())
+            .collect()
+    };
+    let ys = listed("y.json");
+    for f in ["y-boundaries.png", "y-boundaries.csv", "y-boundaries.json"] {
+        assert!(
+            ys.contains(&f.to_string()),
+            "{f} not in y.json's files: {ys:?}"
+        );
+        assert!(d.join(f).exists(), "{f}");
+    }
+    assert!(map("y", &[]).status.success());
+    for f in ["y-boundaries.png", "y-boundaries.csv", "y-boundaries.json"] {
+        assert!(
+            !d.join(f).exists(),
+            "{f} left beside a map written without boundaries"
+        );
+    }
+    assert!(map("x", &[]).status.success());
+    assert!(d.join("x-boundaries-class.npy").exists());
+    assert!(d.join("x-boundaries.json").exists());
 }

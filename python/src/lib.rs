@@ -170,6 +170,7 @@ fn detached<T: Send + 'static>(
     work: impl FnOnce(&Reporter) -> rattle::Result<T> + Send + 'static,
 ) -> PyResult<T> {
     quiet_cancel_panics();
+    rattle::progress::clear_interrupt();
     let reporter = Arc::new(Reporter::default());
     let (tx, rx) = std::sync::mpsc::channel();
     {
@@ -195,7 +196,9 @@ fn detached<T: Send + 'static>(
                 return match r {
                     Ok(Ok(v)) => Ok(v),
                     Ok(Err(e)) => Err(to_py(py, e)),
-                    Err(p) if p.is::<Cancelled>() => Err(PyKeyboardInterrupt::new_err(())),
+                    Err(p) if p.is::<Cancelled>() || p.is::<rattle::progress::Interrupted>() => {
+                        Err(PyKeyboardInterrupt::new_err(()))
+                    }
                     Err(p) => Err(PyRuntimeError::new_err(format!(
                         "rattle failed: {}",
                         p.downcast_ref::<String>()
@@ -211,8 +214,9 @@ fn detached<T: Send + 'static>(
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
                 if interrupted.is_none() {
                     if let Err(e) = py.check_signals() {
-                        // Stop the work at its next report, then raise.
+                        // Stop the work at its next report or integrator period, then raise.
                         reporter.cancel.store(true, Ordering::Relaxed);
+                        rattle::progress::interrupt();
                         interrupted = Some(e);
                         continue;
                     }
@@ -221,6 +225,7 @@ fn detached<T: Send + 'static>(
                     {
                         // A callback that raises ends the computation as an interrupt does.
                         reporter.cancel.store(true, Ordering::Relaxed);
+                        rattle::progress::interrupt();
                         interrupted = Some(e);
                     }
                 }
@@ -248,7 +253,8 @@ fn quiet_cancel_panics() {
     ONCE.call_once(|| {
         let previous = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
-            if !info.payload().is::<Cancelled>() {
+            let p = info.payload();
+            if !p.is::<Cancelled>() && !p.is::<rattle::progress::Interrupted>() {
                 previous(info);
             }
         }));
@@ -333,8 +339,12 @@ impl MapData {
     /// The typed boundaries between the map's classes (`rattle map --boundaries`), as the
     /// JSON of PREFIX-boundaries.json without its caption and files.
     fn boundaries(&self, py: Python) -> PyResult<String> {
-        let (cfg, f) = (&self.result.cfg, &self.result.fields);
-        let b = guarded(py, || Ok(rattle::map::boundaries::of_fields(cfg, f)))?;
+        // On a thread of its own, as every computation: Ctrl-C stops it at the integrator's
+        // next period.
+        let (cfg, f) = (self.result.cfg.clone(), self.result.fields.clone());
+        let b = detached(py, 1, None, move |_| {
+            Ok(rattle::map::boundaries::of_fields(&cfg, &f))
+        })?;
         serde_json::to_string(&b).map_err(|e| to_py(py, rattle::Error::from(e)))
     }
 

@@ -478,3 +478,35 @@ def test_named_judged_cells_get_the_judges_class_from_point_and_map():
         code = -4 if judge == "chaotic" else int(judge.split("-")[1])
         assert p.cls == judge, (ix, iy, p.cls, judge)
         assert m.classes[1, 1] == code, (ix, iy, m.classes[1, 1], judge)
+
+
+def test_ctrl_c_stops_a_long_look_and_the_boundaries_at_once():
+    # M4: a chaotic point's long look (here up to 10^7 periods on the CPU) reported only at the
+    # end of each look stage, so Ctrl-C took 4-11 s; L6: Map.boundaries() ran without looking
+    # at Ctrl-C at all (1.4-3.1 s). Both now stop within an integrator period of the interrupt.
+    def interrupted_within(f, after):
+        timer = threading.Timer(after, _thread.interrupt_main)
+        timer.start()
+        t0 = time.perf_counter()
+        try:
+            with pytest.raises(KeyboardInterrupt):
+                f()
+        finally:
+            timer.cancel()
+        return time.perf_counter() - t0 - after
+
+    late = interrupted_within(
+        lambda: rattle.point(FIG2, eta=1.72, **{"run.look": 10**7, "method.backend": "cpu"}),
+        1.0,
+    )
+    assert late < 0.5, late
+    m = rattle.map(RL, **dict(SMALL, **{"map.x_points": 48, "map.y_points": 48}))
+    t0 = time.perf_counter()
+    m.boundaries()
+    whole = time.perf_counter() - t0
+    assert whole > 1.0, f"the boundaries took {whole:.2f} s: too short for the test to bite"
+    late = interrupted_within(m.boundaries, 0.3)
+    assert late < 0.5, late
+    # The package still works afterwards, and the boundaries are whole again.
+    assert rattle.point(FIG2, eta=1.5).cls == "period-1"
+    assert len(m.boundaries()["points"]["x"]) > 0

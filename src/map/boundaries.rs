@@ -500,6 +500,7 @@ fn persists(
             .any(|q| (0..4).all(|i| (q[i] - y[i]).abs() < 1e-4 * scale))
     };
     for k in 1..=periods {
+        crate::progress::poll();
         it.period(&mut st);
         if st.diag.nonfinite {
             return Ok(());

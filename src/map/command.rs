@@ -284,7 +284,7 @@ pub struct MapResult {
 impl MapResult {
     /// Writes the set [`run`] writes for this map (images, NPY layers, JSON).
     pub fn write(&self, out: &Path) -> crate::Result<Vec<PathBuf>> {
-        write_outputs(out, &self.cfg, &self.fields, &self.report)
+        write_outputs(out, &self.cfg, &self.fields, &self.report, None)
     }
 }
 
@@ -406,14 +406,13 @@ pub fn run(
     }
     report.timings.wall_s = Some(t.elapsed().as_secs_f64());
     let t_files = std::time::Instant::now();
+    let b = o
+        .boundaries
+        .then(|| super::boundaries::of_fields(&cfg, &fields));
     summary
         .files
-        .extend(write_outputs(out, &cfg, &fields, &report)?);
-    if o.boundaries {
-        let (files, line) = write_boundaries_of(out, &cfg, &fields)?;
-        summary.files.extend(files);
-        summary.boundaries = Some(line);
-    }
+        .extend(write_outputs(out, &cfg, &fields, &report, b.as_ref())?);
+    summary.boundaries = b.as_ref().map(super::boundaries::summary_line);
     summary.files_s = t_files.elapsed().as_secs_f64();
     summary.host_s = host_s;
     summary.decide_s = decide_s;
@@ -427,18 +426,6 @@ pub fn run(
     summary.counts = fields.counts();
     summary.wall_s = t.elapsed().as_secs_f64();
     Ok(summary)
-}
-
-/// Locates the boundaries of the whole map `fields` and writes `PREFIX-boundaries.*`; returns
-/// the files and the terminal's line.
-fn write_boundaries_of(
-    out: &Path,
-    cfg: &Config,
-    fields: &Fields,
-) -> crate::Result<(Vec<PathBuf>, String)> {
-    let b = super::boundaries::of_fields(cfg, fields);
-    let files = super::write_boundaries(out, cfg, &fields.class, &fields.attractors, &b)?;
-    Ok((files, super::boundaries::summary_line(&b)))
 }
 
 /// The parts of a whole map: one, or with `--checkpoint K` K shards, each reused where a
@@ -568,13 +555,11 @@ pub fn run_shared(
         },
         ..MapReport::default()
     };
-    let mut files = write_outputs(out, &cfg, &fields, &report)?;
-    let mut boundaries = None;
-    if o.boundaries {
-        let (more, line) = write_boundaries_of(out, &cfg, &fields)?;
-        files.extend(more);
-        boundaries = Some(line);
-    }
+    let b = o
+        .boundaries
+        .then(|| super::boundaries::of_fields(&cfg, &fields));
+    let files = write_outputs(out, &cfg, &fields, &report, b.as_ref())?;
+    let boundaries = b.as_ref().map(super::boundaries::summary_line);
     Ok(MapSummary {
         backend: "gpu".into(),
         device: format!("{n} engines"),
@@ -620,7 +605,7 @@ pub fn merge_files(paths: &[PathBuf], out: &Path) -> crate::Result<MapSummary> {
         ..MapReport::default()
     };
     Ok(MapSummary {
-        files: write_outputs(out, &cfg, &fields, &report)?,
+        files: write_outputs(out, &cfg, &fields, &report, None)?,
         counts: fields.counts(),
         ..MapSummary::default()
     })

@@ -467,10 +467,28 @@ pub fn write_outputs(
     cfg: &Config,
     fields: &Fields,
     report: &MapReport,
+    boundaries: Option<&super::boundaries::Boundaries>,
 ) -> crate::Result<Vec<PathBuf>> {
     let t_files = std::time::Instant::now();
     let m = &cfg.map;
     let mut st = Staged::new();
+    // The boundaries are files of the map's set, committed with it: a map written without them
+    // removes the ones an earlier map at this prefix wrote (its JSON lists them), and an
+    // interrupt while they are located leaves the earlier set whole.
+    match boundaries {
+        Some(b) => stage_boundaries(&mut st, prefix, cfg, &fields.class, &fields.attractors, b)?,
+        None => {
+            // Boundaries written as a set of their own (rattle 0.3.0) are removed too, where
+            // their JSON is a boundaries JSON (not a map written at PREFIX-boundaries).
+            let json = with_ext(&crate::output::with_suffix(prefix, "boundaries"), "json");
+            if is_boundaries_json(&json) {
+                for f in crate::output::set_files(&json) {
+                    st.remove_stale(&f);
+                }
+                st.remove_stale(&json);
+            }
+        }
+    }
     let images = Images { prefix, cfg };
     let cells = shown_cells(fields);
     let look = look_seen(fields);
@@ -658,20 +676,36 @@ struct BoundariesJson<'a> {
     version: &'static str,
 }
 
-/// Writes the boundaries of the map of `cfg` (`class` and `attractors`: its layers) as their
-/// own set: `PREFIX-boundaries.png` (the class map with the curves over it),
-/// `PREFIX-boundaries.csv` (the points) and `PREFIX-boundaries.json` (curves and points).
-pub fn write_boundaries(
+/// Whether `json` is the JSON of a map's boundaries (its curves and points), not another set's.
+fn is_boundaries_json(json: &Path) -> bool {
+    #[derive(serde::Deserialize)]
+    struct Probe {
+        curves: Option<serde::de::IgnoredAny>,
+        points: Option<serde::de::IgnoredAny>,
+        x_param: Option<serde::de::IgnoredAny>,
+    }
+    let Ok(text) = std::fs::read(json) else {
+        return false;
+    };
+    serde_json::from_slice::<Probe>(&text)
+        .is_ok_and(|p| p.curves.is_some() && p.points.is_some() && p.x_param.is_some())
+}
+
+/// Stages the boundaries of the map of `cfg` (`class` and `attractors`: its layers) in the
+/// map's set `st`: `PREFIX-boundaries.png` (the class map with the curves over it),
+/// `PREFIX-boundaries.csv` (the points) and `PREFIX-boundaries.json` (curves and points; its
+/// `files` names the three, the map's JSON lists them with the map's files).
+fn stage_boundaries(
+    st: &mut Staged,
     prefix: &Path,
     cfg: &Config,
     class: &[i32],
     attractors: &[u8],
     b: &super::boundaries::Boundaries,
-) -> crate::Result<Vec<PathBuf>> {
+) -> crate::Result<()> {
     use super::boundaries::Type;
     let base = crate::output::with_suffix(prefix, "boundaries");
     let m = &cfg.map;
-    let mut st = Staged::new();
     let cells: Vec<u16> = class
         .iter()
         .zip(attractors)
@@ -742,7 +776,17 @@ pub fn write_boundaries(
     }
     st.write(&with_ext(&base, "csv"), csv.as_bytes())?;
     let json_path = with_ext(&base, "json");
-    let files = st.manifest(&json_path);
+    let files: Vec<String> = ["csv", "json", "png"]
+        .iter()
+        .filter_map(|x| {
+            Some(
+                with_ext(&base, x)
+                    .file_name()?
+                    .to_string_lossy()
+                    .into_owned(),
+            )
+        })
+        .collect();
     let located = b.points.iter().filter(|p| p.located).count();
     let j = BoundariesJson {
         caption: format!(
@@ -771,5 +815,5 @@ pub fn write_boundaries(
         version: env!("CARGO_PKG_VERSION"),
     };
     st.write(&json_path, &serde_json::to_vec_pretty(&j)?)?;
-    Ok(st.commit()?)
+    Ok(())
 }

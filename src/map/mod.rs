@@ -19,7 +19,7 @@ pub use command::{
 pub use fields::{Fields, Layer};
 pub use files::{
     CoarseReport, CompareReport, MapReport, MapTimings, category, map_caption, npy_layers,
-    write_boundaries, write_compare, write_outputs,
+    write_compare, write_outputs,
 };
 pub use parts::{Part, compute_part, merge, part_path, read_part, write_part};
 

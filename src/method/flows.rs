@@ -94,6 +94,7 @@ fn finish_scalar<T: FlowTask>(
     left: u32,
 ) {
     for _ in 0..left {
+        crate::progress::poll();
         t.integrator().period_observed(&mut st, &mut tan);
         if st.diag.nonfinite {
             break;
@@ -195,6 +196,7 @@ fn run_queue_portable<T: FlowTask + Send>(queue: &Queue<T>) {
         {
             let its: [&Integrator<f64>; NEWTON_LANES] =
                 std::array::from_fn(|l| slot[l].as_deref().map_or(&pad, |t| t.integrator()));
+            crate::progress::poll();
             b.period(&its, false);
         }
         for l in 0..NEWTON_LANES {

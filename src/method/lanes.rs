@@ -629,6 +629,7 @@ pub fn run_lanes_portable<F: Real>(
             if !b.live.iter().any(|&x| x) {
                 break;
             }
+            crate::progress::poll();
             b.period(&its, false);
         }
         // Sampling, as `Integrator::sample`: the tangent vector starts along y1.
@@ -647,6 +648,7 @@ pub fn run_lanes_portable<F: Real>(
             if !b.live.iter().any(|&x| x) {
                 break;
             }
+            crate::progress::poll();
             b.period(&its, true);
             for l in (0..LANES).filter(|&l| b.live[l]) {
                 taken[l].push(b.st[l].y.map(|v| v.to_f64()));

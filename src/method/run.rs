@@ -35,6 +35,7 @@ impl<F: Real> Integrator<F> {
             if st.diag.nonfinite {
                 break;
             }
+            crate::progress::poll();
             self.period(st);
         }
         self.sample(st, samples)
@@ -57,6 +58,7 @@ impl<F: Real> Integrator<F> {
             if st.diag.nonfinite {
                 break;
             }
+            crate::progress::poll();
             if tangent_ok {
                 self.period_observed(st, &mut tangent);
             } else {
