@@ -370,3 +370,57 @@ fn edges_beside_inferred_cells_say_so() {
         "no unlocated edge beside an inferred cell: the test cannot bite"
     );
 }
+
+/// The boundary points do not depend on which way the axes run (round 6 M3: with x running
+/// from 0.7 down to 0.5 one edge's point was the other side's continuation, 2.75e-5 away with
+/// an uncertainty of 6e-9): the same points, types, class pairs and uncertainties for a 16 x 16
+/// R x lambda map at eta 1.26 and its two mirror images.
+#[test]
+fn boundaries_do_not_depend_on_the_axes_direction() {
+    let d = scratch("boundaries-axes");
+    let cfg = d.join("m.toml");
+    std::fs::write(
+        &cfg,
+        "[model]\neta = 1.26\nfriction = \"coulomb\"\n[method]\nsteps_per_period = 64\n\
+         [run]\ntransient_periods = 20\nsample_periods = 16\n[map]\nx = \"R\"\nx_from = 0.5\n\
+         x_to = 0.7\nx_points = 16\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 16\n",
+    )
+    .unwrap();
+    let points = |out: &str, sets: &[&str]| {
+        let mut c = rattle();
+        c.args(["map", "--backend", "cpu", "--boundaries", "--config"])
+            .arg(&cfg);
+        for s in sets {
+            c.args(["--set", s]);
+        }
+        ok(c.arg("--out").arg(d.join(out)));
+        let b = json(&d.join(format!("{out}-boundaries.json")));
+        let round = |v: &serde_json::Value| (v.as_f64().unwrap() * 1e12).round() as i64;
+        let mut p: Vec<_> = b["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| {
+                let mut classes = [p["classes"][0].to_string(), p["classes"][1].to_string()];
+                classes.sort();
+                (
+                    round(&p["x"]),
+                    round(&p["y"]),
+                    p["type"].to_string(),
+                    p["located"] == true,
+                    classes,
+                    round(&p["uncertainty"]),
+                )
+            })
+            .collect();
+        p.sort();
+        p
+    };
+    let a = points("a", &[]);
+    assert!(
+        a.iter().any(|p| p.3),
+        "nothing located: the test cannot bite"
+    );
+    assert_eq!(a, points("x", &["map.x_from=0.7", "map.x_to=0.5"]));
+    assert_eq!(a, points("y", &["map.y_from=0.1", "map.y_to=0.0"]));
+}

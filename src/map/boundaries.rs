@@ -19,7 +19,7 @@ use crate::cycles::{Cycle, Refine};
 use crate::engine::Decider;
 use crate::method::{Integrator, PointState};
 use crate::model::{Mode, Params};
-use crate::stability::{Change, Found, Kind, locate_changes};
+use crate::stability::{BifurcationPoint, Change, Found, Kind, locate_changes};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 
@@ -359,19 +359,41 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
                 Kind::NonSmooth => 2,
                 _ => 1,
             };
-            let located = f
+            // Between the two sides' changes of one rank, the one continued from the side of
+            // the smaller parameter value: the same point whichever way the axes run. Its
+            // uncertainty covers the other side's change of that rank, where both located one
+            // (the two continuations differ by the method's error, more than the bisection's).
+            let along = |c: usize| if along_x { xs[c % nx] } else { ys[c / nx] };
+            let candidates: Vec<(&BifurcationPoint, u32, usize)> = f
                 .iter()
                 .filter_map(|(f, n, from)| match f {
                     Found::Located(p) => Some((p, *n, *from)),
                     _ => None,
                 })
-                .min_by_key(|(p, _, _)| rank(p.kind));
+                .collect();
+            let located = candidates
+                .iter()
+                .min_by(|x, y| {
+                    (rank(x.0.kind), along(x.2))
+                        .partial_cmp(&(rank(y.0.kind), along(y.2)))
+                        .unwrap_or(std::cmp::Ordering::Equal)
+                })
+                .map(|&(p, n, from)| {
+                    let other = candidates
+                        .iter()
+                        .find(|o| o.2 != from && rank(o.0.kind) == rank(p.kind));
+                    let uncertainty = other.map_or(p.uncertainty, |o| {
+                        p.uncertainty
+                            .max((o.0.value - p.value).abs() + o.0.uncertainty)
+                    });
+                    (p, n, from, uncertainty)
+                });
             let stable_there = f.iter().any(|(f, _, _)| matches!(f, Found::StableThere));
             let verdict = |c: usize| coexists.get(&(a, b, c)).copied();
             let mut reason = "";
             let (mut from, mut section) = (None, None);
             let (ty, x, y, uncertainty, located, period) = match located {
-                Some((p, n, c)) => {
+                Some((p, n, c, uncertainty)) => {
                     from = Some(c);
                     section = Some(p.section);
                     let ty = match p.kind {
@@ -395,7 +417,7 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
                     } else {
                         (mx, p.value)
                     };
-                    (ty, x, y, p.uncertainty, true, n)
+                    (ty, x, y, uncertainty, true, n)
                 }
                 None if cells.inferred[a] != 0 || cells.inferred[b] != 0 => {
                     reason = INFERRED;
@@ -403,7 +425,10 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
                 }
                 None if carried || stable_there => {
                     // Coexistence only where both attractors persist at the edge's midpoint.
-                    match [a, b].into_iter().find_map(verdict) {
+                    // The side of the smaller parameter value first, whichever way the axes run.
+                    let mut sides = [a, b];
+                    sides.sort_by(|p, q| along(*p).total_cmp(&along(*q)));
+                    match sides.into_iter().find_map(verdict) {
                         Some(Ok(())) | None => (Type::Coexistence, mx, my, half, false, 0),
                         Some(Err(why)) => {
                             reason = why;
