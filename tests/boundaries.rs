@@ -327,20 +327,30 @@ fn reference_cycle(r: &DryReference, mut x: [f64; 4], n: u32) -> Option<([f64; 4
     None
 }
 
+/// An n x n R x lambda map at eta 1.26 with short runs (N = 64, 20 + 16 periods), written
+/// into `d`: cheap where what matters is the boundaries' bookkeeping.
+fn short_map(d: &Path, n: u32) -> std::path::PathBuf {
+    let cfg = d.join("m.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[model]\neta = 1.26\nfriction = \"coulomb\"\n[method]\nsteps_per_period = 64\n\
+             [run]\ntransient_periods = 20\nsample_periods = 16\n[map]\nx = \"R\"\n\
+             x_from = 0.5\nx_to = 0.7\nx_points = {n}\ny = \"lambda\"\ny_from = 0.0\n\
+             y_to = 0.1\ny_points = {n}\n"
+        ),
+    )
+    .unwrap();
+    cfg
+}
+
 /// `--refine 4 --boundaries`: an edge beside a cell the coarse pass inferred (no state, not
 /// computed) that has nothing located says why (it came out `coexistence` or `undetermined`
 /// with no word of the inferred cell).
 #[test]
 fn edges_beside_inferred_cells_say_so() {
     let d = scratch("boundaries-refine");
-    let cfg = d.join("m.toml");
-    std::fs::write(
-        &cfg,
-        "[model]\neta = 1.26\nfriction = \"coulomb\"\n[method]\nsteps_per_period = 64\n\
-         [run]\ntransient_periods = 20\nsample_periods = 16\n[map]\nx = \"R\"\nx_from = 0.5\n\
-         x_to = 0.7\nx_points = 32\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 32\n",
-    )
-    .unwrap();
+    let cfg = short_map(&d, 32);
     ok(rattle()
         .args([
             "map",
@@ -378,14 +388,7 @@ fn edges_beside_inferred_cells_say_so() {
 #[test]
 fn boundaries_do_not_depend_on_the_axes_direction() {
     let d = scratch("boundaries-axes");
-    let cfg = d.join("m.toml");
-    std::fs::write(
-        &cfg,
-        "[model]\neta = 1.26\nfriction = \"coulomb\"\n[method]\nsteps_per_period = 64\n\
-         [run]\ntransient_periods = 20\nsample_periods = 16\n[map]\nx = \"R\"\nx_from = 0.5\n\
-         x_to = 0.7\nx_points = 16\ny = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 16\n",
-    )
-    .unwrap();
+    let cfg = short_map(&d, 16);
     let points = |out: &str, sets: &[&str]| {
         let mut c = rattle();
         c.args(["map", "--backend", "cpu", "--boundaries", "--config"])
