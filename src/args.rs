@@ -73,6 +73,12 @@ pub enum Cmd {
         #[arg(long, default_value = "map")]
         out: PathBuf,
     },
+    /// Locate and type the boundaries of a map already written (PREFIX.json and its layers),
+    /// as `map --boundaries` does, and add PREFIX-boundaries.* to that map's set.
+    Boundaries {
+        /// The map's prefix (the `--out` it was written with).
+        prefix: PathBuf,
+    },
     /// Figures for reports: `paper` renders Figs. 2, 3, 4a and 4b side by side.
     Figure(FigureArgs),
     /// Work-precision chart and failure fractions of every method, precision and backend.

@@ -171,6 +171,15 @@ fn run(cli: Cli) -> Result<()> {
             check_prefix(&out, &["png", "json"])?;
             map::merge_files(&parts, &out)?.files
         }
+        Cmd::Boundaries { prefix } => {
+            let b = rattle::output::with_suffix(&prefix, "boundaries");
+            let own = rattle::output::with_ext(&prefix, "json");
+            rattle::output::check_prefix_within(&b, &["png", "csv", "json"], Some(&own))?;
+            rattle::output::check_implied_prefix(&b, &["png", "csv", "json"])?;
+            let (files, line) = map::add_boundaries(&prefix)?;
+            eprintln!("{line}");
+            files
+        }
         Cmd::Figure(a) => figure_command(a)?,
         Cmd::Accuracy {
             common,

@@ -427,3 +427,59 @@ fn boundaries_do_not_depend_on_the_axes_direction() {
     assert_eq!(a, points("x", &["map.x_from=0.7", "map.x_to=0.5"]));
     assert_eq!(a, points("y", &["map.y_from=0.1", "map.y_to=0.0"]));
 }
+
+/// `rattle boundaries PREFIX` locates the boundaries of a map already written (round 6 M5:
+/// there was no way to): the same points and curves as `map --boundaries`, committed into the
+/// map's set (its JSON lists them, so a map written there later without them removes them); a
+/// layer changed since the map wrote it is refused (exit 2) and nothing is written.
+#[test]
+fn boundaries_of_a_written_map() {
+    let d = scratch("boundaries-of-a-set");
+    let cfg = short_map(&d, 16);
+    let map = |out: &str, extra: &[&str]| {
+        ok(rattle()
+            .args(["map", "--backend", "cpu", "--config"])
+            .arg(&cfg)
+            .args(extra)
+            .arg("--out")
+            .arg(d.join(out)));
+    };
+    map("a", &["--boundaries"]);
+    map("p", &[]);
+    ok(rattle().arg("boundaries").arg(d.join("p")));
+    let (a, p) = (
+        json(&d.join("a-boundaries.json")),
+        json(&d.join("p-boundaries.json")),
+    );
+    assert_eq!(a["points"], p["points"]);
+    assert_eq!(a["curves"], p["curves"]);
+    let set = json(&d.join("p.json"));
+    for f in [
+        "p-boundaries.png",
+        "p-boundaries.csv",
+        "p-boundaries.json",
+        "p-class.npy",
+    ] {
+        assert!(
+            set["files"].as_array().unwrap().iter().any(|n| n == f),
+            "{f}"
+        );
+        if f != "p-boundaries.json" {
+            assert!(set["file_sums"][f].is_string(), "{f} has no sum");
+        }
+    }
+    map("p", &[]);
+    assert!(!d.join("p-boundaries.json").exists());
+    // A layer changed since: refused, nothing written.
+    let mut class = std::fs::read(d.join("p-class.npy")).unwrap();
+    class.push(b'x');
+    std::fs::write(d.join("p-class.npy"), class).unwrap();
+    let o = rattle()
+        .arg("boundaries")
+        .arg(d.join("p"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("p-class.npy"));
+    assert!(!d.join("p-boundaries.json").exists());
+}

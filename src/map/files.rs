@@ -676,6 +676,72 @@ struct BoundariesJson<'a> {
     version: &'static str,
 }
 
+/// Locates the boundaries of the map written at `prefix` (its JSON's config, its `class`,
+/// `coexist`, `state`, `mode`, `inferred` and `attractors` layers, each still as the map wrote
+/// it) and commits `PREFIX-boundaries.*` into that map's set (its JSON then lists them):
+/// `rattle boundaries PREFIX`, for a map computed without `--boundaries`. Returns the files
+/// and the terminal's line.
+pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
+    let json = with_ext(prefix, "json");
+    let not_a_map = |why: String| crate::Error::Merge(format!("{}: {why}", json.display()));
+    let own = crate::output::set_files(&json);
+    let text = std::fs::read(&json).map_err(|e| not_a_map(e.to_string()))?;
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&text).map_err(|e| not_a_map(e.to_string()))?;
+    let cfg: Config = serde_json::from_value(v["config"].clone())
+        .map_err(|_| not_a_map("not the JSON of a map (no map config)".into()))?;
+    let layer = |name: &str| -> crate::Result<Vec<u8>> {
+        let path = with_ext(&crate::output::with_suffix(prefix, name), "npy");
+        if !own.contains(&path) {
+            return Err(not_a_map(format!(
+                "its layer {} is missing or not as the map wrote it",
+                path.display()
+            )));
+        }
+        std::fs::read(&path).map_err(|e| not_a_map(e.to_string()))
+    };
+    fn values<T: npyz::Deserialize>(bytes: &[u8], n: usize) -> Option<Vec<T>> {
+        let v: Vec<T> = npyz::NpyFile::new(bytes).ok()?.into_vec().ok()?;
+        (v.len() == n).then_some(v)
+    }
+    let n = cfg.map.x_points as usize * cfg.map.y_points as usize;
+    let bad = |name: &str| not_a_map(format!("its layer {name} does not hold the map's cells"));
+    let class: Vec<i32> = values(&layer("class")?, n).ok_or_else(|| bad("class"))?;
+    let coexist: Vec<i32> = values(&layer("coexist")?, n).ok_or_else(|| bad("coexist"))?;
+    let state: Vec<f64> = values(&layer("state")?, 4 * n).ok_or_else(|| bad("state"))?;
+    let mode: Vec<u8> = values(&layer("mode")?, n).ok_or_else(|| bad("mode"))?;
+    let inferred: Vec<u8> = values(&layer("inferred")?, n).ok_or_else(|| bad("inferred"))?;
+    let attractors: Vec<u8> = values(&layer("attractors")?, n).ok_or_else(|| bad("attractors"))?;
+    let b = super::boundaries::locate(
+        &cfg,
+        &super::boundaries::Cells {
+            class: &class,
+            coexist: &coexist,
+            state: &state,
+            mode: &mode,
+            inferred: &inferred,
+        },
+    );
+    let mut st = Staged::new();
+    stage_boundaries(&mut st, prefix, &cfg, &class, &attractors, &b)?;
+    // The map's own files stay as they are, listed (with their sums) beside the new ones.
+    let base = crate::output::with_suffix(prefix, "boundaries");
+    let ours: Vec<PathBuf> = ["png", "csv", "json"]
+        .iter()
+        .map(|x| with_ext(&base, x))
+        .collect();
+    for f in own.iter().filter(|f| **f != json && !ours.contains(f)) {
+        st.also_list(f);
+    }
+    let files = st.manifest(&json);
+    if let Some(o) = v.as_object_mut() {
+        o.remove("file_sums");
+        o.insert("files".into(), files.into());
+    }
+    st.write(&json, &serde_json::to_vec_pretty(&v)?)?;
+    Ok((st.commit()?, super::boundaries::summary_line(&b)))
+}
+
 /// Whether `json` is the JSON of a map's boundaries (its curves and points), not another set's.
 fn is_boundaries_json(json: &Path) -> bool {
     #[derive(serde::Deserialize)]
