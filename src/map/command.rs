@@ -108,8 +108,8 @@ impl MapOptions<'_> {
         if self.boundaries && self.shard.is_some() {
             return bad(OptionError::Unsuitable {
                 option: "boundaries",
-                why: "it needs the whole map's layers, and a shard writes a part (run the map \
-                      without --shard, or with --checkpoint)"
+                why: "it needs the whole map's layers, and a shard writes a part (after `rattle \
+                      merge`, `rattle boundaries PREFIX` locates them)"
                     .into(),
             });
         }
