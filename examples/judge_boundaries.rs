@@ -25,90 +25,10 @@
 //! rest, where central differences cross the at-rest rule) is counted "cannot tell".
 //! Prints one line per point and the counts by type.
 
-use nalgebra::Matrix4;
 use rattle::config::Config;
 use rattle::reference::dry::DryReference;
 use std::collections::BTreeMap;
 use std::path::Path;
-
-/// A cycle of the reference: its section point, least period and multipliers ([re, im],
-/// modulus descending).
-struct RefCycle {
-    point: [f64; 4],
-    period: u32,
-    multipliers: Vec<[f64; 2]>,
-}
-
-impl RefCycle {
-    fn lead(&self) -> [f64; 2] {
-        self.multipliers[0]
-    }
-    fn stable(&self) -> bool {
-        self.lead()[0].hypot(self.lead()[1]) < 1.0
-    }
-}
-
-/// P^n(x) of the reference, `None` where it cannot follow the motion.
-fn map_n(r: &DryReference, x: [f64; 4], n: u32) -> Option<[f64; 4]> {
-    let mut st = r.start(x);
-    r.run(&mut st, n, None).ok().and_then(|s| s.last().copied())
-}
-
-/// Newton's method for a fixed point of P^n from `x`, the Jacobian by central differences.
-fn newton(r: &DryReference, mut x: [f64; 4], n: u32) -> Option<RefCycle> {
-    let scale = x.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-    let h = 1e-7 * scale;
-    let jacobian = |x: &[f64; 4]| -> Option<Matrix4<f64>> {
-        let mut j = Matrix4::zeros();
-        for c in 0..4 {
-            let (mut a, mut b) = (*x, *x);
-            a[c] += h;
-            b[c] -= h;
-            let (pa, pb) = (map_n(r, a, n)?, map_n(r, b, n)?);
-            for i in 0..4 {
-                j[(i, c)] = (pa[i] - pb[i]) / (2.0 * h);
-            }
-        }
-        Some(j)
-    };
-    for _ in 0..30 {
-        let p = map_n(r, x, n)?;
-        let f: Vec<f64> = (0..4).map(|i| p[i] - x[i]).collect();
-        let res = f.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let j = jacobian(&x)?;
-        if res < 1e-10 * scale {
-            let mut mult: Vec<[f64; 2]> = j
-                .complex_eigenvalues()
-                .iter()
-                .map(|c| [c.re, c.im])
-                .collect();
-            mult.sort_by(|a, b| b[0].hypot(b[1]).total_cmp(&a[0].hypot(a[1])));
-            // The least period: the shortest lag after which the point returns.
-            let mut s = r.start(x);
-            let pts = r.run(&mut s, n, None).ok()?;
-            let period = (1..=n)
-                .find(|&d| {
-                    n.is_multiple_of(d)
-                        && (0..4).all(|i| (pts[d as usize - 1][i] - x[i]).abs() < 1e-6 * scale)
-                })
-                .unwrap_or(n);
-            return Some(RefCycle {
-                point: x,
-                period,
-                multipliers: mult,
-            });
-        }
-        let rhs = nalgebra::Vector4::from_fn(|i, _| -f[i]);
-        let dx = (j - Matrix4::identity()).lu().solve(&rhs)?;
-        if !dx.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        for i in 0..4 {
-            x[i] += dx[i];
-        }
-    }
-    None
-}
 
 #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Debug)]
 enum Verdict {
@@ -174,7 +94,7 @@ fn main() -> anyhow::Result<()> {
                 if class[c] <= 0 {
                     continue;
                 }
-                let Some(cy) = newton(&r, cell_state(c), class[c] as u32) else {
+                let Some(cy) = r.cycle(cell_state(c), class[c] as u32) else {
                     continue;
                 };
                 if !cy.stable() || cy.period != class[c] as u32 {
@@ -240,7 +160,7 @@ fn main() -> anyhow::Result<()> {
         let Some(r0) = here(cf) else {
             return (Verdict::CannotTell, "no reference".into());
         };
-        let Some(mut before) = newton(&r0, cell_state(from), n) else {
+        let Some(mut before) = r0.cycle(cell_state(from), n) else {
             return (
                 Verdict::CannotTell,
                 "no cycle at the cell (reference)".into(),
@@ -262,7 +182,7 @@ fn main() -> anyhow::Result<()> {
             let Some(r) = here(v) else {
                 return (Verdict::CannotTell, "no reference".into());
             };
-            match newton(&r, before.point, n) {
+            match r.cycle(before.point, n) {
                 Some(c) if c.stable() && c.period == n => before = c,
                 Some(c) => {
                     return (
@@ -284,7 +204,7 @@ fn main() -> anyhow::Result<()> {
                 }
             }
         }
-        let after = newton(&ra, before.point, n);
+        let after = ra.cycle(before.point, n);
         let desc = match &after {
             Some(c) => format!(
                 "before lead {:.4?}, after period {} lead {:.4?}",

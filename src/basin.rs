@@ -16,7 +16,7 @@ use crate::config::{Config, StateCoord};
 use crate::cycles::{Cycle, modulus};
 use crate::engine::Engine;
 use crate::error::Result;
-use crate::method::{Integrator, PointState, Split, Timings};
+use crate::method::{Integrator, Split, Timings};
 use crate::model::{Mode, field};
 use crate::output::{Staged, save_npy, with_ext};
 use crate::progress::Progress;
@@ -215,11 +215,7 @@ fn close(p: &[f64; 4], q: &[f64; 4], tol: f64) -> bool {
 
 /// The n section points of a period-n cycle: its point iterated n - 1 periods.
 fn section_points(it: &Integrator<f64>, c: &Cycle) -> Vec<[f64; 4]> {
-    let mut st = PointState {
-        y: c.point,
-        mode: c.mode,
-        diag: Default::default(),
-    };
+    let mut st = c.state();
     let mut v = vec![c.point];
     for _ in 1..c.period {
         it.period(&mut st);
@@ -237,11 +233,7 @@ fn mirror_point(it: &Integrator<f64>, c: &Cycle) -> Option<[f64; 4]> {
     if !n.is_multiple_of(2) {
         return None;
     }
-    let mut st = PointState {
-        y: c.point,
-        mode: c.mode,
-        diag: Default::default(),
-    };
+    let mut st = c.state();
     let mut f0 = field(&it.p, &st.y, st.mode, it.forcing(0, 0.0).0);
     for k in 0..n / 2 {
         it.step(&mut st, k, &mut f0);

@@ -57,6 +57,15 @@ impl Cycle {
         self.multipliers.first().map_or(f64::NAN, modulus)
     }
 
+    /// The section point with its mode, as a state to integrate or iterate from.
+    pub fn state(&self) -> PointState<f64> {
+        PointState {
+            y: self.point,
+            mode: self.mode,
+            diag: Default::default(),
+        }
+    }
+
     /// Converged, with every multiplier strictly inside the unit circle: an attracting cycle.
     pub fn is_stable(&self) -> bool {
         self.converged && self.leading_modulus() < 1.0

@@ -221,8 +221,8 @@ fn a_newton_failure_from_afar_is_not_the_cycles_end() {
 /// lambda 0.048828125), continued towards R 0.52265625, ends where its leading multiplier
 /// reaches +1 like the square root of the distance: a fold (it was `undetermined` while a
 /// failure from afar counted as the end, and is a fold only where 1 - mu shrinks so). The
-/// judge, the reference's own Newton (central differences of its exact map; its multipliers by
-/// nalgebra): 1 - mu shrinks like the square root of the distance before the point, and no
+/// judge, the reference's own Newton (`DryReference::cycle`: central differences of its exact
+/// map, its multipliers by nalgebra): 1 - mu shrinks like the square root of the distance before the point, and no
 /// stable period-15 cycle continues after it.
 #[test]
 fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
@@ -272,8 +272,9 @@ fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
         cfg.map.x.set(&mut q, v);
         DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
     };
-    let far = reference_cycle(&at(b.value - edge / 64.0), b.section, 15).expect("a cycle");
-    let near = reference_cycle(&at(b.value - edge / 1024.0), far.0, 15).expect("a cycle");
+    let cycle = |v: f64, x: [f64; 4]| at(v).cycle(x, 15).map(|c| (c.point, c.lead()));
+    let far = cycle(b.value - edge / 64.0, b.section).expect("a cycle");
+    let near = cycle(b.value - edge / 1024.0, far.0).expect("a cycle");
     eprintln!(
         "leading multipliers before the fold: {:?}, {:?}",
         far.1, near.1
@@ -281,50 +282,11 @@ fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
     assert!(far.1[1] == 0.0 && near.1[1] == 0.0 && near.1[0] < 1.0);
     let ratio = (1.0 - near.1[0]) / (1.0 - far.1[0]);
     assert!((0.15..0.4).contains(&ratio), "{ratio}");
-    let after = reference_cycle(&at(b.value + edge / 1024.0), near.0, 15);
+    let after = cycle(b.value + edge / 1024.0, near.0);
     assert!(
         after.is_none_or(|c| c.1[0].hypot(c.1[1]) >= 1.0),
         "a stable period-15 cycle after the fold: {after:?}"
     );
-}
-
-/// Newton's method on the reference's map P^n (central differences, h = 1e-7): the fixed
-/// point and its leading multiplier ([re, im]), `None` where it does not converge.
-fn reference_cycle(r: &DryReference, mut x: [f64; 4], n: u32) -> Option<([f64; 4], [f64; 2])> {
-    use nalgebra::{Matrix4, Vector4};
-    let map_n = |x: [f64; 4]| -> Option<[f64; 4]> {
-        let mut st = r.start(x);
-        r.run(&mut st, n, None).ok().and_then(|s| s.last().copied())
-    };
-    let scale = x.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-    let h = 1e-7 * scale;
-    for _ in 0..30 {
-        let p = map_n(x)?;
-        let f = Vector4::from_fn(|i, _| p[i] - x[i]);
-        let mut j = Matrix4::zeros();
-        for c in 0..4 {
-            let (mut a, mut b) = (x, x);
-            a[c] += h;
-            b[c] -= h;
-            let (pa, pb) = (map_n(a)?, map_n(b)?);
-            for i in 0..4 {
-                j[(i, c)] = (pa[i] - pb[i]) / (2.0 * h);
-            }
-        }
-        if f.amax() < 1e-10 * scale {
-            let lead = j
-                .complex_eigenvalues()
-                .iter()
-                .map(|c| [c.re, c.im])
-                .max_by(|a, b| a[0].hypot(a[1]).total_cmp(&b[0].hypot(b[1])))?;
-            return Some((x, lead));
-        }
-        let dx = (j - Matrix4::identity()).lu().solve(&(-f))?;
-        for i in 0..4 {
-            x[i] += dx[i];
-        }
-    }
-    None
 }
 
 /// An n x n R x lambda map at eta 1.26 with short runs (N = 64, 20 + 16 periods), written

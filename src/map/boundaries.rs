@@ -494,11 +494,7 @@ fn persists(
     periods: u32,
 ) -> Result<(), &'static str> {
     let it = Integrator::<f64>::new(p, settings);
-    let start = PointState {
-        y: cycle.point,
-        mode: cycle.mode,
-        diag: Default::default(),
-    };
+    let start = cycle.state();
     let here = crate::cycles::refine(&it, &start, cycle.period);
     if !(here.is_stable() && here.period == cycle.period) {
         return Err(NOT_STABLE_AT_MIDPOINT);
@@ -509,11 +505,7 @@ fn persists(
     // On the cycle: within 1e-4 of one of its section points (checked every 100 periods, so
     // that a motion that falls onto the cycle early stops early).
     let mut orbit = Vec::with_capacity(here.period as usize);
-    let mut on = PointState {
-        y: here.point,
-        mode: here.mode,
-        diag: Default::default(),
-    };
+    let mut on = here.state();
     for _ in 0..here.period {
         orbit.push(on.y);
         it.period(&mut on);

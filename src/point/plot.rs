@@ -20,7 +20,7 @@ use crate::error::OptionError;
 use crate::error::{Error, Result};
 use crate::method::{
     EV_IMPACT_NEG, EV_IMPACT_POS, EV_RELEASE_NEG, EV_RELEASE_POS, EV_REVERSAL, Event, Integrator,
-    PointState, StepObserver,
+    StepObserver,
 };
 use crate::model::{Mode, Params};
 use crate::output::{Staged, with_ext};
@@ -318,11 +318,7 @@ pub fn compute(cfg: &Config, o: &PlotOptions, progress: &dyn Progress) -> Result
 
 /// The n section points of a refined cycle of period n.
 fn cycle_points(it: &Integrator<f64>, c: &Cycle) -> Vec<[f64; 4]> {
-    let mut st = PointState {
-        y: c.point,
-        mode: c.mode,
-        diag: Default::default(),
-    };
+    let mut st = c.state();
     (0..c.period)
         .map(|_| {
             let y = st.y;

@@ -509,6 +509,94 @@ impl DryReference {
     }
 }
 
+/// A cycle of the reference ([`DryReference::cycle`]): its section point, least period and multipliers ([re, im],
+/// modulus descending).
+pub struct RefCycle {
+    pub point: [f64; 4],
+    pub period: u32,
+    pub multipliers: Vec<[f64; 2]>,
+}
+
+impl RefCycle {
+    /// The leading multiplier.
+    pub fn lead(&self) -> [f64; 2] {
+        self.multipliers[0]
+    }
+    /// Every multiplier inside the unit circle.
+    pub fn stable(&self) -> bool {
+        self.lead()[0].hypot(self.lead()[1]) < 1.0
+    }
+}
+
+impl DryReference {
+    /// P^n(x): `n` periods from `x`, `None` where the reference cannot follow the motion.
+    pub fn map_n(&self, x: [f64; 4], n: u32) -> Option<[f64; 4]> {
+        let mut st = self.start(x);
+        self.run(&mut st, n, None)
+            .ok()
+            .and_then(|s| s.last().copied())
+    }
+
+    /// Newton's method for a fixed point of P^n from `x`, the Jacobian by central differences
+    /// (h = 1e-7 of the state's scale) of the exact motion, the multipliers its eigenvalues
+    /// (nalgebra): the judges' own cycles and multipliers, sharing no code with rattle's
+    /// Newton. `None` where it does not converge to 1e-10 of the scale within 30 iterations.
+    pub fn cycle(&self, mut x: [f64; 4], n: u32) -> Option<RefCycle> {
+        let scale = x.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        let h = 1e-7 * scale;
+        let jacobian = |x: &[f64; 4]| -> Option<nalgebra::Matrix4<f64>> {
+            let mut j = nalgebra::Matrix4::zeros();
+            for c in 0..4 {
+                let (mut a, mut b) = (*x, *x);
+                a[c] += h;
+                b[c] -= h;
+                let (pa, pb) = (self.map_n(a, n)?, self.map_n(b, n)?);
+                for i in 0..4 {
+                    j[(i, c)] = (pa[i] - pb[i]) / (2.0 * h);
+                }
+            }
+            Some(j)
+        };
+        for _ in 0..30 {
+            let p = self.map_n(x, n)?;
+            let f: Vec<f64> = (0..4).map(|i| p[i] - x[i]).collect();
+            let res = f.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let j = jacobian(&x)?;
+            if res < 1e-10 * scale {
+                let mut mult: Vec<[f64; 2]> = j
+                    .complex_eigenvalues()
+                    .iter()
+                    .map(|c| [c.re, c.im])
+                    .collect();
+                mult.sort_by(|a, b| b[0].hypot(b[1]).total_cmp(&a[0].hypot(a[1])));
+                // The least period: the shortest lag after which the point returns.
+                let mut s = self.start(x);
+                let pts = self.run(&mut s, n, None).ok()?;
+                let period = (1..=n)
+                    .find(|&d| {
+                        n.is_multiple_of(d)
+                            && (0..4).all(|i| (pts[d as usize - 1][i] - x[i]).abs() < 1e-6 * scale)
+                    })
+                    .unwrap_or(n);
+                return Some(RefCycle {
+                    point: x,
+                    period,
+                    multipliers: mult,
+                });
+            }
+            let rhs = nalgebra::Vector4::from_fn(|i, _| -f[i]);
+            let dx = (j - nalgebra::Matrix4::identity()).lu().solve(&rhs)?;
+            if !dx.iter().all(|v| v.is_finite()) {
+                return None;
+            }
+            for i in 0..4 {
+                x[i] += dx[i];
+            }
+        }
+        None
+    }
+}
+
 /// The point in [lo, hi] where `falling` turns false (it holds at lo, not at hi), by bisection.
 fn bisect_rate(mut lo: f64, mut hi: f64, falling: impl Fn(f64) -> bool) -> f64 {
     for _ in 0..ROOT_ITERS {

@@ -12,7 +12,7 @@
 
 use super::Kind;
 use crate::cycles::Cycle;
-use crate::method::{EV_IMPACT_NEG, EV_IMPACT_POS, Event, Integrator, PointState, StepObserver};
+use crate::method::{EV_IMPACT_NEG, EV_IMPACT_POS, Event, Integrator, StepObserver};
 use crate::model::{Mode, Params};
 
 /// The smallest of each vanishing candidate over one cycle (infinity where the cycle has none).
@@ -56,11 +56,7 @@ pub fn structure(it: &Integrator<f64>, c: &Cycle) -> Structure {
             slip_speed: f64::INFINITY,
         },
     };
-    let mut st = PointState {
-        y: c.point,
-        mode: c.mode,
-        diag: Default::default(),
-    };
+    let mut st = c.state();
     for pass in 0..2 {
         if pass == 1 {
             obs.from = obs.t;

@@ -397,11 +397,7 @@ impl<'a> Locate<'a> {
     fn at(base: &Params<f64>, param: Param, settings: &Settings, v: f64, c: &Cycle) -> Refine {
         let mut p = *base;
         param.set(&mut p, v);
-        let st = PointState {
-            y: c.point,
-            mode: c.mode,
-            diag: Default::default(),
-        };
+        let st = c.state();
         Refine::new(Integrator::<f64>::new(&p, settings), &st, c.period)
     }
 
@@ -538,7 +534,7 @@ impl<'a> Locate<'a> {
         if !self.halves_at(self.mid, c) {
             return None;
         }
-        let half = crate::cycles::refine(&self.integrator(self.mid), &state(c), c.period / 2);
+        let half = crate::cycles::refine(&self.integrator(self.mid), &c.state(), c.period / 2);
         half.is_stable().then_some(half)
     }
 
@@ -565,11 +561,7 @@ impl<'a> Locate<'a> {
             return false;
         }
         let it = self.integrator(v);
-        let mut st = PointState {
-            y: c.point,
-            mode: c.mode,
-            diag: Default::default(),
-        };
+        let mut st = c.state();
         for _ in 0..c.period / 2 {
             it.period(&mut st);
         }
@@ -686,19 +678,11 @@ impl<'a> Locate<'a> {
             .history
             .iter()
             .min_by(|a, b| (a.0 - v).abs().total_cmp(&(b.0 - v).abs()))?;
-        let c = crate::cycles::refine(&self.integrator(v), &state(&from.1), from.1.period);
+        let c = crate::cycles::refine(&self.integrator(v), &from.1.state(), from.1.period);
         if c.is_stable() && c.period == self.start.period {
             return Some((v, c));
         }
         found.cloned()
-    }
-}
-
-fn state(c: &Cycle) -> PointState<f64> {
-    PointState {
-        y: c.point,
-        mode: c.mode,
-        diag: Default::default(),
     }
 }
 
