@@ -25,15 +25,22 @@ const STEP_ON: u32 = 0u;
 const STEP_ENDS: u32 = 1u;
 const STEP_CONVERGED: u32 = 2u;
 
+// shader-only: the dispatches of a call run without the host between them.
+// Whether trial `i` goes on in a dispatch: open, not cut short, not paused.
+fn newton_open(i: u32) -> bool {
+    let n = ctl.n_points;
+    return i < n && us[U_NEWTON_DONE * n + i] == NEWTON_OPEN && us[U_TRUNCATED * n + i] == 0u
+        && us[U_NEWTON_ITERS * n + i] < us[U_NEWTON_PAUSE * n + i];
+}
+
 // twin: refine
 @compute @workgroup_size(WORKGROUP)
 fn newton(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x + gid.y * ctl.row;
     let n = ctl.n_points;
-    if (i >= n) {
-        return;
-    }
-    if (us[U_NEWTON_DONE * n + i] != NEWTON_OPEN || us[U_TRUNCATED * n + i] != 0u) {
+    // The dispatches of one call are queued without the host between them: a trial that
+    // has ended or paused stays as it is.
+    if (!newton_open(i)) {
         return;
     }
     flow_load(i);
@@ -129,8 +136,7 @@ fn newton(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         newton_store(i);
         left = newton_flow(periods);
-        // The call's iterations are done: the host gathers the trials still open for the
-        // next (a lane whose trial has ended waits for the others of its SIMD group).
+        // The call's iterations are done: the trial pauses until the host's next call.
         if (nt.iters >= us[U_NEWTON_PAUSE * n + i]) {
             break;
         }

@@ -337,8 +337,10 @@ fn decide_row(
     // production rows' kernels are compiled before their timed runs).
     let _ = decider.refine(&settings, tasks[..1].to_vec());
     let t0 = std::time::Instant::now();
+    let transfers0 = engine.transfers();
     let done = decider.refine(&settings, tasks);
     let secs = t0.elapsed().as_secs_f64();
+    let transfers = engine.transfers().since(&transfers0);
     let flows: u64 = done
         .into_iter()
         .map(|t| u64::from(t.cycle().iterations))
@@ -363,6 +365,7 @@ fn decide_row(
         rk4_steps: flows as f64 * f64::from(n),
         timings: Timings {
             integration_s: secs,
+            transfers,
             ..Timings::default()
         },
         steps_per_s: flows as f64 * f64::from(n) / secs,
@@ -374,7 +377,7 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12} {:>8} {:>10} {:>9} {:>10} {:>11} {:>7}  device",
+        "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12} {:>8} {:>10} {:>9} {:>10} {:>11} {:>7} {:>6} {:>6}  device",
         "backend",
         "prec",
         "points",
@@ -386,7 +389,9 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
         "readb. s",
         "kernel s",
         "steps/s",
-        "of bare"
+        "of bare",
+        "trips",
+        "polls"
     );
     // The same backend's bare step in the same precision.
     let bare = |r: &BenchRow| {
@@ -404,7 +409,7 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
                 };
                 let _ = writeln!(
                     s,
-                    "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12.4e} {:>8.3} {:>10.3} {:>9.4} {:>10} {:>11.3e} {:>7}  {}",
+                    "{:<8} {:<7} {:>8} {:>7} {:>6} {:>12.4e} {:>8.3} {:>10.3} {:>9.4} {:>10} {:>11.3e} {:>7} {:>6} {:>6}  {}",
                     r.label(),
                     prec,
                     r.points,
@@ -422,6 +427,8 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
                         "{:.2}",
                         r.steps_per_s / b.steps_per_s
                     )),
+                    on_device(r, r.timings.transfers.round_trips),
+                    on_device(r, r.timings.transfers.polls),
                     r.device
                 );
             }
@@ -431,6 +438,14 @@ pub fn bench_table(rows: &[Result<BenchRow>]) -> String {
         }
     }
     s + &ratio_lines(rows)
+}
+
+/// A device's count, "-" on the CPU (nothing crosses) and for the bare step (not counted).
+fn on_device(r: &BenchRow, count: u64) -> String {
+    match (r.backend, r.schedule) {
+        (Backend::Gpu, s) if s != Schedule::Bare => count.to_string(),
+        _ => "-".into(),
+    }
 }
 
 /// The lines under the table: GPU against CPU, the CPU against the adapter's bare step,

@@ -101,33 +101,44 @@ pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) 
     let mut tried: Vec<Vec<u32>> = vec![Vec::new(); points.len()];
     let passes = periods.iter().map(Vec::len).max().unwrap_or(0);
     let (t_proposals, mut t_trials, mut trials) = (t0.elapsed().as_secs_f64(), 0.0, 0);
-    for pass in 0..passes {
+    // On the device every pass runs in one call (a point's later periods are tried even where
+    // an earlier one is stable, and not counted there): the host sees the trials once instead
+    // of once a pass. The answers are the passes' own: each trial starts from the point's
+    // final state whichever call runs it.
+    let all: usize = periods.iter().map(Vec::len).sum();
+    let fused = passes > 1 && decider.on_device(all);
+    let mut calls = 0;
+    let mut pass = 0;
+    while pass < passes {
+        let upto = if fused { passes } else { pass + 1 };
         // In parallel: each task's integrator tabulates the forcing (a 512 x 512 map has a
         // quarter of a million of them).
-        let (idx, tasks): (Vec<usize>, Vec<Refine>) = points
+        let (keys, tasks): (Vec<(usize, usize)>, Vec<Refine>) = points
             .par_iter()
             .enumerate()
             .filter(|&(i, _)| stable[i].is_none())
-            .filter_map(|(i, q)| {
-                let n = periods[i].get(pass)?.0;
+            .flat_map_iter(|(i, q)| {
                 let start = PointState {
                     y: q.run.final_y,
                     mode: q.run.final_mode,
                     diag: Default::default(),
                 };
                 let it = Integrator::<f64>::new(&q.params, settings);
-                Some((i, Refine::new(it, &start, n)))
+                let mine = &periods[i];
+                (pass..upto.min(mine.len()))
+                    .map(move |k| ((i, k), Refine::new(it.clone(), &start, mine[k].0)))
             })
             .unzip();
         let t_pass = std::time::Instant::now();
         trials += tasks.len();
+        calls += 1;
         let tasks = decider.refine(settings, tasks);
         t_trials += t_pass.elapsed().as_secs_f64();
-        let found: Vec<(Cycle, bool)> = idx
+        let found: Vec<(Cycle, bool)> = keys
             .par_iter()
             .zip(tasks)
-            .map(|(&i, t)| {
-                let cand = periods[i][pass].1;
+            .map(|(&(i, k), t)| {
+                let cand = periods[i][k].1;
                 let c = t.cycle();
                 let r = points[i].run;
                 let on_it = |cand: &Candidate| {
@@ -137,18 +148,23 @@ pub fn confirm_many(decider: Decider, settings: &Settings, points: &[Proposal]) 
                 (c, stable)
             })
             .collect();
-        for (i, (c, is_stable)) in idx.into_iter().zip(found) {
-            tried[i].push(periods[i][pass].0);
+        // In each point's order of proposals: the first stable cycle decides it.
+        for ((i, k), (c, is_stable)) in keys.into_iter().zip(found) {
+            if stable[i].is_some() {
+                continue;
+            }
+            tried[i].push(periods[i][k].0);
             if is_stable {
                 stable[i] = Some(c);
             } else if first[i].is_none() {
                 first[i] = Some(c);
             }
         }
+        pass = upto;
     }
     log::debug!(
-        "newton: {} points, {trials} trials in {passes} passes, {:.3} s: proposals {t_proposals:.3} s, \
-         trials {t_trials:.3} s",
+        "newton: {} points, {trials} trials of {passes} passes in {calls} calls, {:.3} s: \
+         proposals {t_proposals:.3} s, trials {t_trials:.3} s",
         points.len(),
         t0.elapsed().as_secs_f64(),
     );

@@ -242,7 +242,8 @@ fn run_tangent_chooses_what_the_tangent_dynamics_compute() {
 
 /// Every command's JSON `timings` share the keys of `method::Split`: the engine's
 /// integration, Newton on the device, the host's deciding, the files and the wall time up to
-/// them, each non-negative and the parts within the wall (CPU backend: no device deciding).
+/// them, each non-negative and the parts within the wall, and what crossed to the device
+/// (CPU backend: no device deciding, nothing crossed).
 #[test]
 fn every_commands_timings_share_the_split_keys() {
     let d = scratch("split");
@@ -259,6 +260,10 @@ fn every_commands_timings_share_the_split_keys() {
         );
         assert!(integration > 0.0 && host > 0.0, "{what}: {t}");
         assert_eq!(device, 0.0, "{what}: the CPU backend has no device: {t}");
+        // Nothing crosses to a device on the CPU backend, and every command says so.
+        for k in ["round_trips", "polls", "readback_bytes"] {
+            assert_eq!(t[k].as_u64(), Some(0), "{what}: timings.{k}: {t}");
+        }
         assert!(integration + host <= wall + 1e-9, "{what}: {t}");
         assert_eq!(
             t["files_s"].as_f64().is_some_and(|f| f > 0.0),

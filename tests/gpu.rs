@@ -378,6 +378,44 @@ fn a_map_decided_on_the_device_has_the_classes_decided_on_the_host() {
     assert!(periodic >= 40, "{periodic} periodic cells");
 }
 
+/// Deciding on the device crosses to the host once per round of work, not once per Newton
+/// pass or iteration: the R x lambda map of configs/r_lambda.toml on 128 x 128 cells with
+/// `run.decide = "device"` (8 adaptive stages and the look's stage runs, each one readback of
+/// the integration and one of Newton's trials) in at most 60 round trips (1,204 readbacks
+/// before the passes and iterations of a call were fused), with the class and period layers
+/// of the host's deciding.
+#[test]
+fn a_map_decided_on_the_device_crosses_once_per_round() {
+    let Some(engine) = common::gpu_engine() else {
+        return;
+    };
+    let root = env!("CARGO_MANIFEST_DIR");
+    let text = std::fs::read_to_string(format!("{root}/configs/r_lambda.toml")).unwrap();
+    let sets = ["map.x_points=128".to_string(), "map.y_points=128".into()];
+    let mut cfg = rattle::config::Config::from_toml(&text, &sets).unwrap();
+    let cells = rattle::map::cell_count(&cfg);
+    let mut runs = Vec::new();
+    for decide in [rattle::config::Decide::Device, rattle::config::Decide::Host] {
+        cfg.run.decide = decide;
+        let (cs, t) = rattle::map::compute(&engine, &cfg, 0..cells, 1, &Silent).unwrap();
+        eprintln!("{decide:?}: {:?}", t.transfers);
+        runs.push((cs, t));
+    }
+    let ((device, td), (host, th)) = (&runs[0], &runs[1]);
+    let trips = td.transfers.round_trips;
+    assert!((16..=60).contains(&trips), "{trips} round trips");
+    // On the host, Newton's trials cross nothing: one readback per engine run.
+    assert!(th.transfers.round_trips < trips, "{:?}", th.transfers);
+    assert!(td.transfers.readback_bytes > 0 && td.transfers.polls > 0);
+    for (i, (a, b)) in device.iter().zip(host).enumerate() {
+        assert_eq!(
+            (a.0.class, a.0.periods),
+            (b.0.class, b.0.periods),
+            "cell {i}"
+        );
+    }
+}
+
 #[test]
 fn map_over_all_adapters_equals_the_single_adapter_map() {
     if gpu().is_none() {

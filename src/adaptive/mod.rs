@@ -714,6 +714,7 @@ pub fn run_samples(
         settings: spec.settings,
         newton_s: 0.0,
     };
+    let transfers0 = engine.transfers();
     let (mut done, mut periods, mut timings) =
         drive(engine, spec, points, early, &mut keep, progress)?;
     let (t, look) = look::look(
@@ -736,6 +737,7 @@ pub fn run_samples(
         &keep,
         &mut done,
     );
+    timings.transfers = engine.transfers().since(&transfers0);
     let mut settle = Vec::with_capacity(done.len());
     let mut coexist = Vec::with_capacity(done.len());
     let (results, verdicts) = done
@@ -863,6 +865,7 @@ pub fn run_summaries(
     (nb, own): (&Neighbours, usize),
     progress: &dyn Progress,
 ) -> Result<(Vec<Summary>, Timings), EngineError> {
+    let transfers0 = engine.transfers();
     let (mut out, mut timings) = configured_summaries(engine, spec, points, early, progress)?;
     let mut periods: Vec<u32> = out.iter().map(|s| s.periods).collect();
     let (t, _) = look::look(
@@ -877,6 +880,8 @@ pub fn run_summaries(
         progress,
     )?;
     timings.add(&t);
+    // Every thread's (the streams'), once: the engine's own counts of each run are not added.
+    timings.transfers = engine.transfers().since(&transfers0);
     Ok((out, timings))
 }
 

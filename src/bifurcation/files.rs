@@ -245,6 +245,10 @@ struct TimingsJson {
     total_s: f64,
     /// `total_s` under the key every command's timings share (`method::Split`).
     wall_s: f64,
+    /// What crossed between the host and the device (`round_trips`, `polls`,
+    /// `readback_bytes`; absent for continuation, which runs many small jobs).
+    #[serde(flatten)]
+    transfers: Option<crate::method::Transfers>,
 }
 
 #[derive(Serialize)]
@@ -426,6 +430,7 @@ fn json(
             wall_s: b.total_s,
             rk4_steps: steps,
             steps_per_s: steps / b.integration_s,
+            transfers: b.timings.map(|t| t.transfers),
         },
         class_counts: counts,
         points: (!cont).then(|| Chain(&b.runs[0].1)),

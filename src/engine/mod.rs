@@ -172,6 +172,14 @@ impl Engine {
         }
     }
 
+    /// What crossed between the host and the device so far (none on the CPU).
+    pub fn transfers(&self) -> crate::method::Transfers {
+        match self {
+            Engine::Gpu(g) => g.transfers(),
+            Engine::Cpu => Default::default(),
+        }
+    }
+
     pub fn name(&self) -> &'static str {
         match self {
             Engine::Gpu(_) => "gpu",

@@ -31,6 +31,11 @@ pub enum Decider<'a> {
 pub const DEVICE_MIN_TRIALS: usize = 8192;
 
 impl Decider<'_> {
+    /// Whether a call of `trials` trials runs on the device.
+    pub fn on_device(&self, trials: usize) -> bool {
+        matches!(self, Decider::Device { min_trials, .. } if trials >= *min_trials && trials > 0)
+    }
+
     /// Runs the Newton trials `tasks` to their end and returns them in their order.
     pub fn refine(self, settings: &Settings, mut tasks: Vec<Refine>) -> Vec<Refine> {
         if let Decider::Device {
@@ -48,27 +53,19 @@ impl Decider<'_> {
     }
 }
 
-/// Iterations of Newton's method per call on `gpu`: on a CPU adapter one (the host gathers
-/// the trials still open after each, so that no SIMD lane idles behind a trial that has ended:
-/// with four per call the 20,000 period-1 trials of `rattle bench` took 1.34 s on lavapipe
-/// against 0.98 s); on a GPU all of them, so that no trial waits for a round trip.
-fn iterations_per_call(gpu: &Gpu) -> u32 {
-    if gpu.info.device_type == wgpu::DeviceType::Cpu {
-        1
-    } else {
-        crate::cycles::NEWTON_ITERS
-    }
-}
-
 /// Residual (max |P^n(x) - x| over max(1, |x|)) of an f32 device iterate below which the host
 /// polishes it as a fresh start ([`refine_on_device`]): f32 flows of a period reach 1e-6 to
 /// 1e-5 of the scale near a cycle; far above that the trial was not converging.
 pub const F32_POLISH: f64 = 1e-4;
 
-/// Newton's iterations of the open `tasks` on the device ([`Gpu::newton`]), call by call,
-/// each trial handed back to its task where the device stopped: the step that ends a trial is
-/// the host's (`Refine::resume`), in parallel; a trial whose flow the driver cut short is left
-/// to the host.
+/// Newton's iterations of the open `tasks` on the device ([`Gpu::newton`]), every iteration
+/// in one call (a round trip; another only for the trials that started again at a divisor
+/// and paused), each trial handed back to its task where the device stopped: the step that
+/// ends a trial is the host's (`Refine::resume`), in parallel; a trial whose flow the driver
+/// cut short is left to the host. On llvmpipe this costs lanes: 2,000 period-1 trials of
+/// `rattle bench` took 0.14 s against 0.11 s when the host gathered the open trials after
+/// every iteration (a round trip each); workgroup-local packing of the open trials and one
+/// step per dispatch were tried and were slower (docs/performance.md, "Round trips").
 ///
 /// In f32 the device's iteration stops at f32's floor (a residual that no longer shrinks,
 /// far above `NEWTON_TOL`), and no f32 flow ends a trial: where the flow from the last
@@ -100,7 +97,9 @@ pub fn refine_on_device(
             .iter()
             .map(|&i| (tasks[i].integrator().p, tasks[i].iterate().unwrap()))
             .collect();
-        let ends = gpu.newton(settings, &trials, iterations_per_call(gpu), precision)?;
+        // Every iteration in one call: the host sees each trial once, when it has ended (its
+        // last step is the host's) or paused (a trial started again at a divisor).
+        let ends = gpu.newton(settings, &trials, crate::cycles::NEWTON_ITERS, precision)?;
         let mut by_task: Vec<Option<NewtonEnd>> = vec![None; tasks.len()];
         let mut next = Vec::new();
         for (i, e) in open.into_iter().zip(ends) {

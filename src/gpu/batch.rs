@@ -347,7 +347,7 @@ impl<F: Real + Pod> Batch<F> {
         if job.store_samples {
             parts.push((&self.samples, 0, m * plan.store_bytes));
         }
-        gpu.read_storages(&parts, |p| ReadBack {
+        gpu.read_storages(&parts, super::Read::Decide, |p| ReadBack {
             start: self.range.start,
             m: self.range.len(),
             ys: super::collect(p[0]),

@@ -14,6 +14,9 @@ const LLVMPIPE_ITERS_PER_STEP: u32 = 24;
 /// rate is measured.
 const FIRST_DISPATCH_STEPS: f64 = 4.0e6;
 
+/// Dispatches [`Gpu::dispatch`] submits per wait.
+const QUEUED_PER_WAIT: u32 = 16;
+
 /// Wall time each later dispatch aims at, seconds.
 const DISPATCH_SECONDS: f64 = 0.25;
 
@@ -99,6 +102,7 @@ impl Gpu {
                 batch.grid,
                 shared,
                 &ctl,
+                1,
                 timer.as_deref_mut(),
             )?;
             let secs = t0.elapsed().as_secs_f64();
@@ -111,8 +115,11 @@ impl Gpu {
         Ok(())
     }
 
-    /// One dispatch of `pipeline` over `grid` with the control block `ctl`, waited for; with
-    /// `timer`, its kernel time added.
+    /// `count` dispatches of `pipeline` over `grid` with the control block `ctl`, queued
+    /// without a readback between them (each sees the state the one before left); the host
+    /// waits once per [`QUEUED_PER_WAIT`] of them (a poll), for the timeout. With `timer`, their
+    /// kernel time is added.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn dispatch(
         &self,
         pipeline: &wgpu::ComputePipeline,
@@ -120,15 +127,40 @@ impl Gpu {
         grid: (u32, u32),
         shared: &Shared,
         ctl: &super::layout::Control,
-        timer: Option<&mut Timer>,
+        count: u32,
+        mut timer: Option<&mut Timer>,
     ) -> Result<(), GpuError> {
         self.queue
             .write_buffer(&shared.control, 0, bytemuck::bytes_of(ctl));
+        let mut left = count;
+        while left > 0 {
+            let k = left.min(QUEUED_PER_WAIT);
+            let index = self.submit_dispatches((pipeline, bind, grid), k, timer.as_deref());
+            self.wait(index.clone(), "dispatch")?;
+            self.count(|t| t.polls += 1);
+            if let Some(t) = timer.as_deref_mut() {
+                let ts: Vec<u64> = self.read_buffer(&t.read, 16, index, super::Read::Timing)?;
+                let period = self.queue.get_timestamp_period() as f64;
+                t.ns += ts[1].saturating_sub(ts[0]) as f64 * period;
+            }
+            left -= k;
+        }
+        Ok(())
+    }
+
+    /// Submits `k` dispatches of `pipeline` over `grid` in one pass (with `timer`: timestamps
+    /// around it, resolved for reading).
+    fn submit_dispatches(
+        &self,
+        (pipeline, bind, grid): (&wgpu::ComputePipeline, &wgpu::BindGroup, (u32, u32)),
+        k: u32,
+        timer: Option<&Timer>,
+    ) -> wgpu::SubmissionIndex {
         let mut enc = self.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("integrate"),
-                timestamp_writes: timer.as_ref().map(|t| wgpu::ComputePassTimestampWrites {
+                timestamp_writes: timer.map(|t| wgpu::ComputePassTimestampWrites {
                     query_set: &t.set,
                     beginning_of_pass_write_index: Some(0),
                     end_of_pass_write_index: Some(1),
@@ -136,18 +168,14 @@ impl Gpu {
             });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind, &[]);
-            pass.dispatch_workgroups(grid.0, grid.1, 1);
+            for _ in 0..k {
+                pass.dispatch_workgroups(grid.0, grid.1, 1);
+            }
         }
-        if let Some(t) = &timer {
+        if let Some(t) = timer {
             enc.resolve_query_set(&t.set, 0..2, &t.resolve, 0);
             enc.copy_buffer_to_buffer(&t.resolve, 0, &t.read, 0, 16);
         }
-        let index = self.queue.submit([enc.finish()]);
-        self.wait(index.clone(), "dispatch")?;
-        if let Some(t) = timer {
-            let ts: Vec<u64> = self.read_buffer(&t.read, 16, index)?;
-            t.ns += ts[1].saturating_sub(ts[0]) as f64 * self.queue.get_timestamp_period() as f64;
-        }
-        Ok(())
+        self.queue.submit([enc.finish()])
     }
 }

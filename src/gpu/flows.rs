@@ -134,7 +134,7 @@ impl Gpu {
         let mut done = 0u32;
         while done < longest {
             ctl.periods = b.chunk.min(longest - done);
-            self.dispatch(&b.pipeline, &b.bind, b.grid, &b.shared, &ctl, None)?;
+            self.dispatch(&b.pipeline, &b.bind, b.grid, &b.shared, &ctl, 1, None)?;
             done += ctl.periods;
         }
         let (ys, us) = self.read_back(&b, m)?;
@@ -180,31 +180,16 @@ impl Gpu {
             },
         )?;
         // Every trial ends or pauses within `iterations` flows of its period and a least-period
-        // pass of half of it (one where it starts again at a divisor may pause); on CPU
-        // adapters the states are read every longest flow to stop once all have.
+        // pass of half of it (one where it starts again at a divisor may pause). The dispatches
+        // (one on a GPU; a few periods each on CPU adapters, for llvmpipe's loop limit) are
+        // queued without a readback between them: a trial that has ended returns at once, and
+        // the host sees the trials once, when all have ended or paused.
         let longest = flows.iter().map(|f| f.periods).max().unwrap_or(0).max(1);
         let total = longest.saturating_mul(iterations.min(NEWTON_ITERS) + 2);
         let mut ctl = b.ctl;
-        let mut done = 0u32;
-        let mut since_check = 0u32;
-        while done < total {
-            ctl.periods = b.chunk.min(total - done);
-            self.dispatch(&b.pipeline, &b.bind, b.grid, &b.shared, &ctl, None)?;
-            done += ctl.periods;
-            since_check += ctl.periods;
-            if since_check >= longest && done < total {
-                since_check = 0;
-                let us: Vec<u32> = self.read_storage(&b.us, b.u_slots as u64 * m as u64 * 4)?;
-                let open = |i| {
-                    us[at(U_NEWTON_DONE, m, i)] == NEWTON_OPEN
-                        && us[at(U_TRUNCATED, m, i)] == 0
-                        && us[at(U_NEWTON_ITERS, m, i)] < us[at(U_NEWTON_PAUSE, m, i)]
-                };
-                if !(0..m).any(open) {
-                    break;
-                }
-            }
-        }
+        ctl.periods = b.chunk.min(total);
+        let dispatches = total.div_ceil(ctl.periods);
+        self.dispatch(&b.pipeline, &b.bind, b.grid, &b.shared, &ctl, dispatches, None)?;
         let (ys, us) = self.read_back(&b, m)?;
         Ok((0..m)
             .map(|i| {
@@ -354,18 +339,25 @@ impl Gpu {
         })
     }
 
-    /// The batch's `ys` (widened to f64) and `us`.
+    /// The batch's `ys` (widened to f64) and `us`, in one readback.
     fn read_back(&self, b: &Batch, m: usize) -> Result<(Vec<f64>, Vec<u32>), GpuError> {
         let n = b.y_slots as u64 * m as u64;
-        let ys = match b.precision {
-            Precision::F64 => self.read_storage(&b.ys, n * 8)?,
-            Precision::F32 => {
-                let ys: Vec<f32> = self.read_storage(&b.ys, n * 4)?;
-                ys.into_iter().map(f64::from).collect()
-            }
+        let y_bytes = match b.precision {
+            Precision::F64 => n * 8,
+            Precision::F32 => n * 4,
         };
-        let us = self.read_storage(&b.us, b.u_slots as u64 * m as u64 * 4)?;
-        Ok((ys, us))
+        let u_bytes = b.u_slots as u64 * m as u64 * 4;
+        let parts = [(&b.ys, 0, y_bytes), (&b.us, 0, u_bytes)];
+        self.read_storages(&parts, super::Read::Decide, |p| {
+            let ys = match b.precision {
+                Precision::F64 => super::collect::<f64>(p[0]),
+                Precision::F32 => super::collect::<f32>(p[0])
+                    .into_iter()
+                    .map(f64::from)
+                    .collect(),
+            };
+            (ys, super::collect::<u32>(p[1]))
+        })
     }
 }
 

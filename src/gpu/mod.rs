@@ -21,7 +21,7 @@ pub use flows::{Flow, FlowEnd, NewtonEnd};
 pub use kernel::{BARE_SHADER, FLOWS_SHADER, SHADER, bare_source, flows_source, shader_source};
 
 use crate::config::Precision;
-use crate::method::{RunResult, Timings};
+use crate::method::{RunResult, Timings, Transfers};
 use crate::progress::Progress;
 use crate::real::Real;
 use crate::spec::{Points, RunSpec};
@@ -88,6 +88,15 @@ pub struct GpuOutput {
     pub truncated: Vec<usize>,
 }
 
+/// What a readback is for ([`Transfers`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Read {
+    /// The host decides from it what the device does next: a round trip.
+    Decide,
+    /// Timestamps read after a dispatch that was already waited for (counted as that wait).
+    Timing,
+}
+
 /// An opened adapter and device.
 pub struct Gpu {
     pub info: wgpu::AdapterInfo,
@@ -102,6 +111,8 @@ pub struct Gpu {
     /// calling thread: the streams of an overlapped run ([`crate::adaptive::run_summaries`])
     /// each count their own.
     decide_s: Mutex<HashMap<std::thread::ThreadId, f64>>,
+    /// What crossed between the host and this device so far, by every thread.
+    transfers: Mutex<Transfers>,
     /// Longest wait for one dispatch before giving up.
     pub timeout: Duration,
 }
@@ -265,6 +276,7 @@ impl Gpu {
             error,
             kernels: Kernels::default(),
             decide_s: Mutex::new(HashMap::new()),
+            transfers: Mutex::new(Transfers::default()),
             timeout: Duration::from_secs(120),
         })
     }
@@ -286,6 +298,15 @@ impl Gpu {
             .get(&me)
             .copied()
             .unwrap_or(0.0)
+    }
+
+    /// What crossed between the host and this device so far (every thread's).
+    pub fn transfers(&self) -> Transfers {
+        *self.transfers.lock().unwrap()
+    }
+
+    fn count(&self, f: impl FnOnce(&mut Transfers)) {
+        f(&mut self.transfers.lock().unwrap());
     }
 
     /// Adds `seconds` of Newton's flows to the calling thread's count.
@@ -368,6 +389,7 @@ impl Gpu {
         self.check_error()?;
         let shared = Shared::new::<F>(self, spec);
         let mut timer = self.timestamps.then(|| Timer::new(self));
+        let transfers0 = self.transfers();
         let mut timings = Timings {
             setup_s: t_setup.elapsed().as_secs_f64(),
             ..Timings::default()
@@ -409,6 +431,7 @@ impl Gpu {
             timings.readback_s += t_read.elapsed().as_secs_f64();
         }
         timings.kernel_s = timer.and_then(|t| t.seconds());
+        timings.transfers = self.transfers().since(&transfers0);
         Ok(GpuOutput {
             results,
             timings,
@@ -445,17 +468,13 @@ impl Gpu {
         })
     }
 
-    /// Copies a storage buffer to a mappable one and reads it.
-    fn read_storage<T: Pod>(&self, src: &wgpu::Buffer, size: u64) -> Result<Vec<T>, GpuError> {
-        self.read_storages(&[(src, 0, size)], |p| collect(p[0]))
-    }
-
     /// Copies `size` bytes from `offset` of each buffer of `parts` (buffer, offset, size), one
     /// after the other, to one mappable buffer in one submission, and hands `read` each part's
     /// bytes: one wait and one mapping for all of them.
     fn read_storages<R>(
         &self,
         parts: &[(&wgpu::Buffer, u64, u64)],
+        kind: Read,
         read: impl FnOnce(&[&[u8]]) -> R,
     ) -> Result<R, GpuError> {
         let total: u64 = parts.iter().map(|p| p.2).sum();
@@ -469,7 +488,7 @@ impl Gpu {
             at += size;
         }
         let index = self.queue.submit([enc.finish()]);
-        self.map_buffer(&dst, total, index, |all| {
+        self.map_buffer(&dst, total, index, kind, |all| {
             let mut rest = all;
             let split: Vec<&[u8]> = parts
                 .iter()
@@ -489,8 +508,9 @@ impl Gpu {
         buf: &wgpu::Buffer,
         size: u64,
         index: wgpu::SubmissionIndex,
+        kind: Read,
     ) -> Result<Vec<T>, GpuError> {
-        self.map_buffer(buf, size, index, collect::<T>)
+        self.map_buffer(buf, size, index, kind, collect::<T>)
     }
 
     /// Maps `buf`, last written by submission `index`, and hands its first `size` bytes to
@@ -500,9 +520,17 @@ impl Gpu {
         buf: &wgpu::Buffer,
         size: u64,
         index: wgpu::SubmissionIndex,
+        kind: Read,
         read: impl FnOnce(&[u8]) -> R,
     ) -> Result<R, GpuError> {
         let t0 = Instant::now();
+        self.count(|t| {
+            t.readback_bytes += size;
+            match kind {
+                Read::Decide => t.round_trips += 1,
+                Read::Timing => {}
+            }
+        });
         let slice = buf.slice(0..size);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {

@@ -219,6 +219,8 @@ pub struct MapSummary {
     pub streams: u32,
     /// With `--boundaries`: what was located ([`super::boundaries::summary_line`]).
     pub boundaries: Option<String>,
+    /// What crossed between the host and the device.
+    pub transfers: crate::method::Transfers,
 }
 
 impl MapSummary {
@@ -242,9 +244,20 @@ impl MapSummary {
             k if k > 1 => format!(", summed over {k} streams run at once"),
             _ => String::new(),
         };
+        let t = &self.transfers;
+        let trips = if self.backend == "gpu" {
+            format!(
+                ", {} round trips, {} polls, {:.1} MB read back",
+                t.round_trips,
+                t.polls,
+                t.readback_bytes as f64 / 1e6
+            )
+        } else {
+            String::new()
+        };
         s + &format!(
             "map: {} x {} cells on {} ({}, {}) in {:.2} s ({:.2} s integration, {:.2} s device \
-             deciding, {:.2} s host deciding{streams}, {:.2} s files); {:?}\n",
+             deciding, {:.2} s host deciding{streams}, {:.2} s files{trips}); {:?}\n",
             cfg.map.x_points,
             cfg.map.y_points,
             self.backend,
@@ -331,6 +344,7 @@ fn assemble(engine: &Engine, o: &MapOptions, parts: Vec<Part>) -> crate::Result<
             rk4_steps: Some(steps),
             steps_per_s: Some(steps / secs),
             streams: Some(timings.streams.max(1)),
+            transfers: Some(timings.transfers),
             ..MapTimings::default()
         },
         refine: o.refine.map(|k| CoarseReport {
@@ -417,6 +431,7 @@ pub fn run(
     summary.host_s = host_s;
     summary.decide_s = decide_s;
     summary.streams = timings.streams;
+    summary.transfers = timings.transfers;
     if n > 1 {
         for i in 0..n {
             let _ = std::fs::remove_file(part_path(out, i, n));

@@ -127,6 +127,10 @@ pub struct MapTimings {
     /// `files_s` and `wall_s` are the streams' sums and can add up to more than the wall.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub streams: Option<u32>,
+    /// What crossed between the host and the device, summed over the parts
+    /// (docs/performance.md, "Round trips"): `round_trips`, `polls`, `readback_bytes`.
+    #[serde(flatten)]
+    pub transfers: Option<crate::method::Transfers>,
 }
 
 /// The `--compare` result.

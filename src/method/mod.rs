@@ -31,7 +31,7 @@ pub use events::{
 pub use flows::{FlowTask, NEWTON_LANES, Queue, run_flows, run_flows_portable, run_queue};
 pub use lanes::{LANES, batches, run_lanes, run_lanes_portable};
 pub use result::{
-    Diagnostics, ImpactMethod, PointState, RunResult, Settings, Split, Timings, energy,
+    Diagnostics, ImpactMethod, PointState, RunResult, Settings, Split, Timings, Transfers, energy,
     impact_speed,
 };
 

@@ -256,6 +256,42 @@ pub struct Timings {
     /// seconds above are then the streams' sums, which ran at once.
     #[serde(default)]
     pub streams: u32,
+    /// What crossed between the host and the device ([`Transfers`]; zero on the CPU).
+    #[serde(default)]
+    pub transfers: Transfers,
+}
+
+/// What crossed between the host and a device adapter (docs/performance.md, "Round trips"):
+/// on a card each wait is a fence, and a readback whose contents the host must see before it
+/// can say what the device does next leaves the device idle until the host has answered.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Transfers {
+    /// Readbacks whose contents decide what the device does next: a batch's results (which
+    /// points run on, what Newton tries), Newton's trials (what the host ends or starts
+    /// again).
+    pub round_trips: u64,
+    /// Waits for progress and interrupts between the dispatches of one piece of work (the
+    /// device's work does not depend on them).
+    pub polls: u64,
+    /// Bytes read back from the device, in all.
+    pub readback_bytes: u64,
+}
+
+impl Transfers {
+    /// What crossed since `before` (counts of the same device).
+    pub fn since(&self, before: &Transfers) -> Transfers {
+        Transfers {
+            round_trips: self.round_trips - before.round_trips,
+            polls: self.polls - before.polls,
+            readback_bytes: self.readback_bytes - before.readback_bytes,
+        }
+    }
+
+    pub fn add(&mut self, o: &Transfers) {
+        self.round_trips += o.round_trips;
+        self.polls += o.polls;
+        self.readback_bytes += o.readback_bytes;
+    }
 }
 
 /// Where a command's wall time went: the keys every command's JSON `timings` shares (the map's
@@ -275,6 +311,9 @@ pub struct Split {
     pub files_s: Option<f64>,
     /// The computation's wall time up to its files (`files_s` is theirs).
     pub wall_s: f64,
+    /// What crossed between the host and the device.
+    #[serde(flatten)]
+    pub transfers: Transfers,
 }
 
 impl Split {
@@ -287,6 +326,7 @@ impl Split {
             host_s: t.host_s + host_s,
             files_s: None,
             wall_s,
+            transfers: t.transfers,
         }
     }
 
@@ -315,5 +355,6 @@ impl Timings {
         self.host_s += o.host_s;
         self.decide_s += o.decide_s;
         self.streams = self.streams.max(o.streams);
+        self.transfers.add(&o.transfers);
     }
 }
