@@ -52,6 +52,10 @@ pub enum Cmd {
     },
     /// A 2-D map of attractor classes and Lyapunov exponents over two parameters.
     Map(MapArgs),
+    /// The map as a live page in the browser: zoom recomputes, a click shows the point's
+    /// orbit (a local HTTP server; prints its URL).
+    #[cfg(feature = "explore")]
+    Explore(ExploreArgs),
     /// Basins of attraction at one parameter point: a grid of initial states, one colour per
     /// attractor (identified by its Newton-refined cycle).
     Basin {
@@ -111,6 +115,21 @@ pub enum Cmd {
     },
     /// Measure RK4 steps/s of every backend and precision in one run.
     Bench(BenchArgs),
+}
+
+/// The arguments of `rattle explore`.
+#[cfg(feature = "explore")]
+#[derive(Args)]
+pub struct ExploreArgs {
+    #[command(flatten)]
+    pub common: Common,
+    /// Port to listen on (0: any free one; the URL printed names it).
+    #[arg(long, default_value_t = 8750)]
+    pub port: u16,
+    /// Address to bind: the loopback unless told otherwise (anyone who reaches another
+    /// address can start computations on this machine).
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: std::net::IpAddr,
 }
 
 /// The arguments of `rattle map`.

@@ -4,7 +4,8 @@
 //! dynamics, twin of the kernel's pieces in `shaders/`), [`cpu`] and [`gpu`] (the backends) under
 //! [`engine`], [`class`], [`classify`], [`decide`], [`cycles`] and [`stability`] (what a run is),
 //! [`adaptive`] (the one driver every command asks: horizon, long look) and [`carry`],
-//! [`bifurcation`], [`map`], [`basin`] and [`point`] (the commands), [`config`], [`render`],
+//! [`bifurcation`], [`map`], [`basin`] and [`point`] (the commands), [`explore`] (a map as a
+//! live page: its library half), [`config`], [`render`],
 //! [`output`].
 
 pub mod accuracy;
@@ -22,6 +23,7 @@ pub mod cycles;
 pub mod decide;
 pub mod engine;
 pub mod error;
+pub mod explore;
 pub mod gpu;
 
 pub mod map;

@@ -18,6 +18,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod args;
+#[cfg(feature = "explore")]
+mod serve;
 
 use args::{
     Adapters, BenchArgs, Cli, Cmd, Common, Figure, FigureArgs, MapArgs, PointArgs, SensitivityArgs,
@@ -156,6 +158,14 @@ fn run(cli: Cli) -> Result<()> {
             files
         }
         Cmd::Map(a) => map_command(a)?,
+        #[cfg(feature = "explore")]
+        Cmd::Explore(a) => {
+            let (explorer, loaded) =
+                rattle::explore::Explorer::new(a.common.request(&a.common.config))?;
+            args::said(loaded);
+            serve::serve(explorer, (a.host, a.port))?;
+            Vec::new()
+        }
         Cmd::Basin { common, out } => {
             let cfg = common.load(&common.config, Command::Basin)?;
             check_prefix(&out, &["png", "npy", "json"])?;

@@ -54,6 +54,14 @@ fn flags(o: &Overrides) -> [(&'static str, &'static str, Option<String>); 5] {
     ]
 }
 
+/// The typed flags of `o` that are given, as the command line spells them (flag, value).
+pub fn flag_args(o: &Overrides) -> Vec<(&'static str, String)> {
+    flags(o)
+        .into_iter()
+        .filter_map(|(flag, _, v)| v.map(|v| (flag, v)))
+        .collect()
+}
+
 /// The full key of an override (`model.` added to a bare model key).
 fn full_key(set: &str) -> String {
     let key = set.split('=').next().unwrap_or("").trim();

@@ -189,7 +189,15 @@ impl Gpu {
         let mut ctl = b.ctl;
         ctl.periods = b.chunk.min(total);
         let dispatches = total.div_ceil(ctl.periods);
-        self.dispatch(&b.pipeline, &b.bind, b.grid, &b.shared, &ctl, dispatches, None)?;
+        self.dispatch(
+            &b.pipeline,
+            &b.bind,
+            b.grid,
+            &b.shared,
+            &ctl,
+            dispatches,
+            None,
+        )?;
         let (ys, us) = self.read_back(&b, m)?;
         Ok((0..m)
             .map(|i| {

@@ -1,0 +1,245 @@
+"""`rattle explore` in a real browser (Debian's chromium, driven by selenium through
+chromium-driver): the page's class layer is `rattle map`'s NPY, a clicked cell's panel is
+`rattle point` at that cell, a dragged box recomputes that region, the exported command and
+TOML reproduce the layer byte for byte; and the server refuses bad requests with the command
+line's messages and stays up through a storm of them. Without the browser these tests fail
+(they are not skipped)."""
+
+import json
+import os
+import re
+import signal
+import subprocess
+import threading
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+from selenium import webdriver
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.action_chains import ActionChains
+
+ROOT = Path(__file__).resolve().parents[2]
+BIN = Path(os.environ.get("RATTLE_BIN", ROOT / "target" / "release" / "rattle"))
+SHOTS = Path(os.environ.get("RATTLE_SHOTS", "/tmp"))
+# The page's plotting area inside its canvas (src/serve/page.js, `M`).
+LEFT, RIGHT, TOP, BOTTOM = 78, 16, 16, 52
+
+CONFIG = """[model]
+eta = 1.26
+friction = "coulomb"
+[method]
+steps_per_period = 128
+[run]
+transient_periods = 200
+sample_periods = 100
+[map]
+x = "R"
+x_from = 0.5
+x_to = 0.7
+x_points = 24
+y = "lambda"
+y_from = 0.0
+y_to = 0.1
+y_points = 20
+"""
+
+
+def run(*args, cwd=None):
+    r = subprocess.run([str(BIN), *args], capture_output=True, text=True, cwd=cwd, timeout=600)
+    assert r.returncode == 0, r.stderr
+    return r
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    assert BIN.exists(), f"build the command line first: {BIN}"
+    d = tmp_path_factory.mktemp("explore")
+    cfg = d / "map.toml"
+    cfg.write_text(CONFIG)
+    p = subprocess.Popen([str(BIN), "explore", "--config", str(cfg), "--port", "0"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    line = p.stdout.readline()
+    m = re.search(r"http://127\.0\.0\.1:\d+/", line)
+    assert m, f"no URL printed: {line!r}"
+    yield {"url": m.group(0), "cfg": cfg, "dir": d, "proc": p}
+    p.send_signal(signal.SIGINT)
+    p.wait(timeout=30)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    o = webdriver.ChromeOptions()
+    for a in ["--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
+              "--window-size=1300,900"]:
+        o.add_argument(a)
+    o.binary_location = "/usr/bin/chromium"
+    d = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=o)
+    yield d
+    d.quit()
+
+
+def settled(b, timeout=300):
+    """Waits for the page's map at the configured grid, no request pending."""
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        s = b.execute_script("return window.rattle && window.rattle.map && "
+                             "[window.rattle.map.coarse, window.rattle.busy]")
+        if s and not s[0] and not s[1]:
+            return b.execute_script("return window.rattle.map")
+        time.sleep(0.2)
+    raise AssertionError("the map did not arrive: " + b.find_element("id", "status").text)
+
+
+def post(url, body, timeout=120):
+    data = body if isinstance(body, bytes) else json.dumps(body).encode()
+    req = urllib.request.Request(url, data=data, headers={"Content-Type": "application/json"})
+    try:
+        with urllib.request.urlopen(req, timeout=timeout) as r:
+            return r.status, json.loads(r.read())
+    except urllib.error.HTTPError as e:
+        return e.code, json.loads(e.read())
+
+
+def get(url, timeout=60):
+    try:
+        with urllib.request.urlopen(url, timeout=timeout) as r:
+            return r.status, r.read()
+    except urllib.error.HTTPError as e:
+        return e.code, e.read()
+
+
+def pixel(b, m, fx, fy):
+    """Canvas offset (from its centre, as ActionChains moves) of the plot fraction (fx, fy),
+    fy from the bottom."""
+    w, h = b.execute_script("const c = document.getElementById('map'); return [c.width, c.height]")
+    aw, ah = w - LEFT - RIGHT, h - TOP - BOTTOM
+    x = LEFT + fx * aw
+    y = TOP + ah - fy * ah
+    return int(round(x - w / 2)), int(round(y - h / 2))
+
+
+def test_the_page_is_rattle_map_and_point_and_zooms_and_exports(server, browser):
+    b, url, d = browser, server["url"], server["dir"]
+    t0 = time.time()
+    b.get(url)
+    m = settled(b)
+    print(f"page to full map: {time.time() - t0:.2f} s")
+    # The class layer the page received is `rattle map`'s NPY for the same config.
+    run("map", "--config", str(server["cfg"]), "--out", str(d / "cli"))
+    npy = np.load(d / "cli-class.npy")
+    assert npy.shape == (m["ny"], m["nx"]) == (20, 24)
+    assert np.array_equal(npy.reshape(-1), np.array(m["class"])), "class layer differs"
+    b.save_screenshot(str(SHOTS / "explore-map.png"))
+
+    # A click on a cell: the panel is `rattle point` at that cell's parameters.
+    canvas = b.find_element("id", "map")
+    ix, iy = 5, 3
+    off = pixel(b, m, (ix + 0.5) / m["nx"], (iy + 0.5) / m["ny"])
+    ActionChains(b).move_to_element_with_offset(canvas, *off).click().perform()
+    t0 = time.time()
+    while b.execute_script("return window.rattle.point") is None:
+        assert time.time() - t0 < 120, b.find_element("id", "panel").text
+        time.sleep(0.1)
+    print(f"click to panel: {time.time() - t0:.2f} s")
+    p = b.execute_script("return window.rattle.point")
+    v = m["view"]
+    assert p["x"] == pytest.approx(v["x_from"] + (v["x_to"] - v["x_from"]) * (ix + 0.5) / m["nx"], abs=0)
+    assert p["y"] == pytest.approx(v["y_from"] + (v["y_to"] - v["y_from"]) * (iy + 0.5) / m["ny"], abs=0)
+    cli = json.loads(run("point", "--config", str(server["cfg"]), "--set", f"R={p['x']!r}",
+                         "--set", f"lambda={p['y']!r}", "--json").stdout)
+    assert (p["report"]["class"], p["report"]["period"]) == (cli["class"], cli["period"])
+    assert b.find_element("id", "panel").get_attribute("data-cls") == cli["class"]
+    time.sleep(1)  # the figure
+    b.save_screenshot(str(SHOTS / "explore-point.png"))
+
+    # A dragged box: the region recomputed at the full grid, the view in the URL.
+    a, c = pixel(b, m, 0.25, 0.25), pixel(b, m, 0.75, 0.6)
+    ActionChains(b).move_to_element_with_offset(canvas, *a).click_and_hold() \
+        .move_to_element_with_offset(canvas, *c).release().perform()
+    t0 = time.time()
+    while b.execute_script("return window.rattle.map.view.x_from") == v["x_from"]:
+        assert time.time() - t0 < 60
+        time.sleep(0.1)
+    z = settled(b)
+    zv = z["view"]
+    span = v["x_to"] - v["x_from"], v["y_to"] - v["y_from"]
+    assert zv["x_from"] == pytest.approx(v["x_from"] + 0.25 * span[0], abs=span[0] / 100)
+    assert zv["x_to"] == pytest.approx(v["x_from"] + 0.75 * span[0], abs=span[0] / 100)
+    assert zv["y_from"] == pytest.approx(v["y_from"] + 0.25 * span[1], abs=span[1] / 100)
+    assert zv["y_to"] == pytest.approx(v["y_from"] + 0.6 * span[1], abs=span[1] / 100)
+    assert (z["nx"], z["ny"]) == (24, 20) and len(z["class"]) == 24 * 20
+    assert f"x_from={zv['x_from']}" in b.current_url.replace("%2E", ".") or "x_from=" in b.current_url
+    b.save_screenshot(str(SHOTS / "explore-zoom.png"))
+
+    # The exports: the command line and the TOML reproduce the layer byte for byte.
+    st, command = get(url + "api/export/command")
+    assert st == 200
+    args = command.decode().split()
+    assert args[:2] == ["rattle", "map"] and args[-2] == "--out"
+    run("map", *args[2:-1], str(d / "again"))
+    again = np.load(d / "again-class.npy")
+    assert np.array_equal(again.reshape(-1), np.array(z["class"]))
+    st, toml = get(url + "api/export/toml")
+    assert st == 200
+    (d / "view.toml").write_bytes(toml)
+    run("map", "--config", str(d / "view.toml"), "--out", str(d / "fromtoml"))
+    assert (d / "fromtoml-class.npy").read_bytes() == (d / "again-class.npy").read_bytes()
+    st, npy_bytes = get(url + "api/export/class.npy")
+    assert st == 200 and npy_bytes == (d / "again-class.npy").read_bytes()
+    st, png = get(url + "api/export/png")
+    assert st == 200 and png[:8] == b"\x89PNG\r\n\x1a\n"
+
+    # Back: the first view again, from the URL.
+    b.back()
+    t0 = time.time()
+    while b.execute_script("return window.rattle.map.view.x_from") != v["x_from"]:
+        assert time.time() - t0 < 60
+        time.sleep(0.1)
+    assert settled(b)["class"] == m["class"]
+
+
+def test_bad_requests_get_the_command_lines_message_and_the_server_stays_up(server):
+    url = server["url"]
+    # The command line's message for the same bad view.
+    cli = subprocess.run([str(BIN), "map", "--config", str(server["cfg"]), "--set",
+                          "map.x_from=1.5", "--out", str(server["dir"] / "bad")],
+                         capture_output=True, text=True)
+    assert cli.returncode == 2
+    said = cli.stderr.strip().removeprefix("error: ")
+    view = {"x_from": 1.5, "x_to": 0.7, "y_from": 0.0, "y_to": 0.1}
+    st, j = post(url + "api/map", {"view": view})
+    assert st == 400 and j["error"] == said, (j, said)
+    assert not (server["dir"] / "bad.json").exists()
+    for body in [b"{", b"[]", b'{"view": 3}', json.dumps({"view": view, "extra": 1}).encode()]:
+        st, j = post(url + "api/map", body)
+        assert st == 400 and j["error"].startswith("malformed request"), (body, j)
+    st, j = post(url + "api/point", {"view": {**view, "x_from": 0.5}, "x": -1.0, "y": 0.05})
+    assert st == 400 and "`model.R` = -1" in j["error"] and "[0, 1]" in j["error"], j
+    # Nothing from a request names a file.
+    for name in ["..%2F..%2Fetc%2Fpasswd", "view.json", "nope.npy"]:
+        st, _ = get(url + "api/export/" + name)
+        assert st in (404, 409), name
+    # A storm of views and clients that go away: the last view computes, the server is up.
+    good = {"x_from": 0.5, "x_to": 0.7, "y_from": 0.0, "y_to": 0.1}
+
+    def zoom(k):
+        v = {**good, "x_to": 0.7 - 1e-4 * (k % 50)}
+        try:
+            post(url + "api/map", {"view": v, "coarse": True}, timeout=0.05)
+        except Exception:
+            pass  # the client went away
+
+    threads = [threading.Thread(target=zoom, args=(k,)) for k in range(300)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    st, j = post(url + "api/map", {"view": good, "coarse": True}, timeout=300)
+    assert st == 200 and j["coarse"] and len(j["class"]) == j["nx"] * j["ny"]
+    assert server["proc"].poll() is None
+    st, _ = get(url + "api/base")
+    assert st == 200

@@ -1,0 +1,200 @@
+//! `rattle explore`'s library half: what a view of a map is, how a request for one becomes a
+//! checked configuration (the command line's own request path: the same keys, ranges and
+//! messages), what the page receives for a computed map, and the command line and TOML that
+//! reproduce a view. The HTTP server is the binary's (`src/serve.rs`); nothing here knows of it.
+
+use crate::class::{Class, Shown};
+use crate::config::Config;
+use crate::map::Fields;
+use crate::map::MapOptions;
+use crate::request::{Command, Loaded, Request, Source};
+use serde::{Deserialize, Serialize};
+
+/// A view of the map: the ranges of its two axes (the grid stays the configured one).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct View {
+    pub x_from: f64,
+    pub x_to: f64,
+    pub y_from: f64,
+    pub y_to: f64,
+}
+
+impl View {
+    /// The configured map's view.
+    pub fn of(cfg: &Config) -> View {
+        View {
+            x_from: cfg.map.x_from,
+            x_to: cfg.map.x_to,
+            y_from: cfg.map.y_from,
+            y_to: cfg.map.y_to,
+        }
+    }
+
+    /// The view as `--set` overrides (Rust's shortest representation of each value reads back
+    /// to the same f64).
+    pub fn sets(&self) -> Vec<String> {
+        vec![
+            format!("map.x_from={}", self.x_from),
+            format!("map.x_to={}", self.x_to),
+            format!("map.y_from={}", self.y_from),
+            format!("map.y_to={}", self.y_to),
+        ]
+    }
+}
+
+/// Cells per axis of the coarse first picture, at most.
+pub const COARSE_POINTS: u32 = 32;
+
+/// The explorer's base: the configuration and overrides it was started with.
+#[derive(Clone, Debug)]
+pub struct Explorer {
+    pub base: Request,
+    /// The base configuration, checked as `rattle map` checks it.
+    pub cfg: Config,
+}
+
+impl Explorer {
+    /// The explorer of `base`, checked as `rattle map` checks it; with its notes and warnings.
+    pub fn new(base: Request) -> crate::Result<(Explorer, Loaded)> {
+        let loaded = base.load(Command::Map)?;
+        MapOptions::default().check(&loaded.cfg)?;
+        let cfg = loaded.cfg.clone();
+        Ok((Explorer { base, cfg }, loaded))
+    }
+
+    /// The request of `view`: the base's, with the view's ranges set last.
+    fn request(&self, view: &View, more: &[String]) -> Request {
+        let mut r = self.base.clone();
+        r.sets.extend(view.sets());
+        r.sets.extend(more.iter().cloned());
+        r
+    }
+
+    /// The map configuration of `view`, checked as `rattle map` checks its own (ranges, the
+    /// grid's memory): a bad view gets the command line's message.
+    pub fn map_config(&self, view: &View) -> crate::Result<Config> {
+        let cfg = self.request(view, &[]).load(Command::Map)?.cfg;
+        MapOptions::default().check(&cfg)?;
+        Ok(cfg)
+    }
+
+    /// The point at (`x`, `y`) of `view`'s axes, as `rattle point` reads it.
+    pub fn point_config(&self, view: &View, (x, y): (f64, f64)) -> crate::Result<Config> {
+        let (px, py) = (self.cfg.map.x, self.cfg.map.y);
+        let sets = [
+            format!("model.{}={x}", px.name()),
+            format!("model.{}={y}", py.name()),
+        ];
+        Ok(self.request(view, &sets).load(Command::Point)?.cfg)
+    }
+
+    /// The command line that computes `view` as `rattle map` does, its files at `out`.
+    pub fn command_line(&self, view: &View, out: &str) -> String {
+        let r = self.request(view, &[]);
+        let mut args = vec!["rattle".to_string(), "map".into()];
+        match &r.source {
+            Source::File(p) => args.extend(["--config".into(), p.display().to_string()]),
+            Source::Text(_) => {}
+        }
+        for (flag, value) in crate::request::flag_args(&r.flags) {
+            args.extend([flag.to_string(), value]);
+        }
+        for s in &r.sets {
+            args.extend(["--set".into(), s.clone()]);
+        }
+        args.extend(["--out".into(), out.to_string()]);
+        args.iter()
+            .map(|a| shell_word(a))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+}
+
+/// `a` as one word of a POSIX shell.
+fn shell_word(a: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c);
+    if !a.is_empty() && a.chars().all(plain) {
+        a.to_string()
+    } else {
+        format!("'{}'", a.replace('\'', r"'\''"))
+    }
+}
+
+/// The coarse first picture's configuration: `cfg` with at most [`COARSE_POINTS`] cells per
+/// axis over the same ranges.
+pub fn coarse(cfg: &Config) -> Config {
+    let mut c = cfg.clone();
+    c.map.x_points = c.map.x_points.min(COARSE_POINTS);
+    c.map.y_points = c.map.y_points.min(COARSE_POINTS);
+    c
+}
+
+/// What the page draws of a computed map: its axes, the class layer as `rattle map`'s NPY
+/// holds it (`class`, row 0 at `y_from`), each cell's legend entry (`shown`), the legend
+/// (label, colour, cells) in the PNG's order, and the scalar layers the page can show.
+#[derive(Clone, Debug, Serialize)]
+pub struct MapView {
+    pub view: View,
+    pub x_param: String,
+    pub y_param: String,
+    pub nx: u32,
+    pub ny: u32,
+    /// The coarse first picture (not the configured grid).
+    pub coarse: bool,
+    pub class: Vec<i32>,
+    pub period: Vec<i32>,
+    pub shown: Vec<u16>,
+    pub legend: Vec<LegendEntry>,
+    /// Scalar layers by name (null: no value).
+    pub layers: Vec<(String, Vec<Option<f64>>)>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct LegendEntry {
+    pub label: String,
+    pub rgb: [u8; 3],
+    pub cells: usize,
+}
+
+/// The page's map of `fields` computed for `cfg`.
+pub fn map_view(cfg: &Config, fields: &Fields, coarse: bool) -> MapView {
+    let kinds: Vec<Shown> = fields
+        .class
+        .iter()
+        .zip(&fields.attractors)
+        .map(|(&c, &a)| Shown::of(Class::from_code(c), a))
+        .collect();
+    let order = Shown::all();
+    let present: Vec<Shown> = order
+        .iter()
+        .copied()
+        .filter(|s| kinds.contains(s))
+        .collect();
+    let index = |s: Shown| present.iter().position(|&p| p == s).unwrap_or(0) as u16;
+    let legend = present
+        .iter()
+        .map(|&s| LegendEntry {
+            label: s.label(),
+            rgb: s.rgb(crate::render::period_color),
+            cells: kinds.iter().filter(|&&k| k == s).count(),
+        })
+        .collect();
+    let as_f64 = |v: &[u32]| v.iter().map(|&x| Some(f64::from(x))).collect();
+    MapView {
+        view: View::of(cfg),
+        x_param: cfg.map.x.name().to_string(),
+        y_param: cfg.map.y.name().to_string(),
+        nx: cfg.map.x_points,
+        ny: cfg.map.y_points,
+        coarse,
+        class: fields.class.clone(),
+        period: fields.period.clone(),
+        shown: kinds.into_iter().map(index).collect(),
+        legend,
+        layers: vec![
+            ("lyapunov".into(), fields.lyapunov.clone()),
+            ("multiplier".into(), fields.multiplier.clone()),
+            ("settle".into(), as_f64(&fields.settle)),
+        ],
+    }
+}

@@ -1,0 +1,475 @@
+//! `rattle explore`'s HTTP server: one page (HTML, JavaScript and CSS embedded in the binary)
+//! and a small JSON API over the library ([`rattle::explore`]). Every request is checked by the
+//! command line's own request path before anything is computed (a bad one gets that message
+//! as a 400 with JSON); one computation runs at a time, and a new view interrupts the one
+//! running ([`rattle::progress::interrupt`]); nothing a request says names a file: exports are
+//! written to a directory of the server's own and handed to the browser.
+
+use anyhow::{Context, Result};
+use axum::Router;
+use axum::body::Bytes;
+use axum::extract::{Path as UrlPath, State};
+use axum::http::{StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use rattle::config::Config;
+use rattle::engine::Engine;
+use rattle::explore::{Explorer, View, coarse, map_view};
+use rattle::map::{MapOptions, MapResult};
+use serde::Deserialize;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+
+const PAGE: &str = include_str!("serve/page.html");
+const SCRIPT: &str = include_str!("serve/page.js");
+const STYLE: &str = include_str!("serve/page.css");
+
+/// The server's state.
+struct App {
+    explorer: Explorer,
+    engine: Engine,
+    /// Held by the computation running (one at a time).
+    running: Mutex<()>,
+    /// The newest map request's number: an older one gives way.
+    newest: AtomicU64,
+    /// The newest point request's number.
+    newest_point: AtomicU64,
+    /// Work done and to do of the computation running.
+    done: AtomicU64,
+    total: AtomicU64,
+    busy: AtomicBool,
+    /// The last map computed at the configured grid, for the exports.
+    last: Mutex<Option<Arc<MapResult>>>,
+    /// The last clicked point's figure (PNG).
+    point_png: Mutex<Option<Vec<u8>>>,
+    /// Where the exports are written before they are handed out (the server's own).
+    scratch: PathBuf,
+}
+
+impl rattle::progress::Progress for App {
+    fn advance(&self, n: u64) {
+        self.done.fetch_add(n, Ordering::Relaxed);
+    }
+
+    fn more(&self, n: u64) {
+        self.total.fetch_add(n, Ordering::Relaxed);
+    }
+}
+
+/// What a computation came to.
+enum Outcome<T> {
+    Done(T),
+    /// A newer request took its place, or its client went away.
+    Cancelled,
+    Failed(String),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MapRequest {
+    view: View,
+    #[serde(default)]
+    coarse: bool,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PointRequest {
+    view: View,
+    x: f64,
+    y: f64,
+}
+
+/// A JSON error reply.
+fn error(status: StatusCode, message: impl std::fmt::Display) -> Response {
+    let body = serde_json::json!({ "error": message.to_string() });
+    (status, axum::Json(body)).into_response()
+}
+
+/// A request refused: its status and message (the reply is [`error`]'s).
+struct Refusal(StatusCode, String);
+
+impl IntoResponse for Refusal {
+    fn into_response(self) -> Response {
+        error(self.0, self.1)
+    }
+}
+
+/// An internal failure as a refusal.
+fn internal(e: impl std::fmt::Display) -> Refusal {
+    Refusal(StatusCode::INTERNAL_SERVER_ERROR, e.to_string())
+}
+
+fn json_reply(value: &impl serde::Serialize) -> Response {
+    match serde_json::to_vec(value) {
+        Ok(v) => ([(header::CONTENT_TYPE, "application/json")], v).into_response(),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
+    }
+}
+
+fn parse<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<T, Refusal> {
+    serde_json::from_slice(body)
+        .map_err(|e| Refusal(StatusCode::BAD_REQUEST, format!("malformed request: {e}")))
+}
+
+/// Interrupts the computation of map request `ticket` if its client goes away before it ends.
+struct CancelOnDrop {
+    app: Arc<App>,
+    ticket: u64,
+    armed: bool,
+}
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        if self.armed && self.app.newest.load(Ordering::SeqCst) == self.ticket {
+            rattle::progress::interrupt();
+        }
+    }
+}
+
+impl App {
+    /// Runs `work` as the one computation, unless a newer request (`is_newest` false) took
+    /// its place; an interrupt unwinds it.
+    fn exclusive<T>(
+        &self,
+        is_newest: impl Fn() -> bool,
+        total: u64,
+        work: impl FnOnce() -> rattle::Result<T>,
+    ) -> Outcome<T> {
+        let _one = self.running.lock().unwrap_or_else(|p| p.into_inner());
+        rattle::progress::clear_interrupt();
+        // A newer request's interrupt after this check stops this one.
+        if !is_newest() {
+            return Outcome::Cancelled;
+        }
+        self.done.store(0, Ordering::Relaxed);
+        self.total.store(total, Ordering::Relaxed);
+        self.busy.store(true, Ordering::Relaxed);
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
+        self.busy.store(false, Ordering::Relaxed);
+        match r {
+            Ok(Ok(v)) => Outcome::Done(v),
+            Ok(Err(e)) => Outcome::Failed(e.to_string()),
+            Err(p) if p.is::<rattle::progress::Interrupted>() => Outcome::Cancelled,
+            Err(_) => Outcome::Failed("the computation failed (see the server's log)".into()),
+        }
+    }
+
+    fn compute_map(&self, ticket: u64, cfg: Config, is_coarse: bool) -> Outcome<Arc<MapResult>> {
+        let o = MapOptions::default();
+        let total = rattle::map::work(&self.engine, &cfg, &o);
+        let newest = || self.newest.load(Ordering::SeqCst) == ticket;
+        let out = self.exclusive(newest, total, || {
+            rattle::map::compute_map(&self.engine, &cfg, &o, self).map(Arc::new)
+        });
+        if let Outcome::Done(m) = &out
+            && !is_coarse
+        {
+            *self.last.lock().unwrap_or_else(|p| p.into_inner()) = Some(m.clone());
+        }
+        out
+    }
+
+    fn compute_point(&self, ticket: u64, view: View, xy: (f64, f64)) -> Outcome<serde_json::Value> {
+        let newest = || self.newest_point.load(Ordering::SeqCst) == ticket;
+        let cfg = match self.explorer.point_config(&view, xy) {
+            Ok(c) => c,
+            Err(e) => return Outcome::Failed(e.to_string()),
+        };
+        let out = self.exclusive(newest, 0, || {
+            let report = rattle::point::run(&self.engine, &cfg, &rattle::progress::Silent)?;
+            // The figure as `point --plot` draws it (CPU, f64).
+            use rattle::point::plot::{PlotOptions, compute, write_outputs};
+            let o = PlotOptions::default();
+            let png = match o.check(&cfg) {
+                Ok(()) => {
+                    let p = compute(&cfg, &o, &rattle::progress::Silent)?;
+                    let files = write_outputs(&scratch_dir(&self.scratch)?.join("point"), &p)?;
+                    let at = files
+                        .iter()
+                        .find(|f| f.extension().is_some_and(|e| e == "png"));
+                    let png = at.map(|f| {
+                        std::fs::read(f).map_err(|source| rattle::output::OutputError::Io {
+                            path: f.display().to_string(),
+                            source,
+                        })
+                    });
+                    let png = png.transpose();
+                    remove(&files);
+                    png?
+                }
+                Err(_) => None,
+            };
+            Ok((report, png))
+        });
+        match out {
+            Outcome::Done((report, png)) => {
+                let figure = png.is_some();
+                *self.point_png.lock().unwrap_or_else(|p| p.into_inner()) = png;
+                Outcome::Done(serde_json::json!({
+                    "x": xy.0,
+                    "y": xy.1,
+                    "x_param": self.explorer.cfg.map.x.name(),
+                    "y_param": self.explorer.cfg.map.y.name(),
+                    "report": report,
+                    "figure": figure,
+                }))
+            }
+            Outcome::Cancelled => Outcome::Cancelled,
+            Outcome::Failed(e) => Outcome::Failed(e),
+        }
+    }
+
+    /// The last full map's file `what` as `rattle map` writes it (written to the server's own
+    /// directory, read and removed): (content type, file name, bytes).
+    fn export(&self, what: &str) -> Result<(&'static str, String, Vec<u8>), Refusal> {
+        let last = self.last.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        let Some(m) = last else {
+            let why = "no map computed at the full grid yet";
+            return Err(Refusal(StatusCode::CONFLICT, why.into()));
+        };
+        let view = View::of(&m.cfg);
+        let text = |s: String| Ok(("text/plain; charset=utf-8", String::new(), s.into_bytes()));
+        match what {
+            "command" => return text(self.explorer.command_line(&view, "view")),
+            "toml" => {
+                let t = toml::to_string(&m.cfg).map_err(internal)?;
+                return Ok(("application/toml", "view.toml".into(), t.into_bytes()));
+            }
+            _ => {}
+        }
+        let (ext, kind) = match what {
+            "png" => ("png", "image/png"),
+            "json" => ("json", "application/json"),
+            _ => match what.strip_suffix(".npy") {
+                Some(layer) if rattle::map::Fields::LAYERS.iter().any(|l| l.0 == layer) => {
+                    ("npy", "application/octet-stream")
+                }
+                _ => {
+                    let why = format!("no export {what:?}");
+                    return Err(Refusal(StatusCode::NOT_FOUND, why));
+                }
+            },
+        };
+        let _one = self.running.lock().unwrap_or_else(|p| p.into_inner());
+        let dir = scratch_dir(&self.scratch).map_err(internal)?;
+        let prefix = dir.join("view");
+        let files = m.write(&prefix).map_err(internal)?;
+        let name = if ext == "npy" {
+            format!("view-{what}")
+        } else {
+            format!("view.{ext}")
+        };
+        let bytes = std::fs::read(self.scratch.join(&name));
+        remove(&files);
+        let bytes = bytes.map_err(internal)?;
+        Ok((kind, name, bytes))
+    }
+}
+
+/// Removes files written for a reply, and their directory once empty (nothing of the
+/// server's stays on disk between requests).
+fn remove(files: &[PathBuf]) {
+    for f in files {
+        let _ = std::fs::remove_file(f);
+    }
+    if let Some(dir) = files.first().and_then(|f| f.parent()) {
+        let _ = std::fs::remove_dir(dir);
+    }
+}
+
+/// The server's own directory for the files of one reply (created when needed).
+fn scratch_dir(dir: &std::path::Path) -> rattle::Result<&std::path::Path> {
+    std::fs::create_dir_all(dir).map_err(|source| rattle::output::OutputError::Io {
+        path: dir.display().to_string(),
+        source,
+    })?;
+    Ok(dir)
+}
+
+async fn page() -> Response {
+    ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], PAGE).into_response()
+}
+
+async fn script() -> Response {
+    (
+        [(header::CONTENT_TYPE, "text/javascript; charset=utf-8")],
+        SCRIPT,
+    )
+        .into_response()
+}
+
+async fn style() -> Response {
+    ([(header::CONTENT_TYPE, "text/css; charset=utf-8")], STYLE).into_response()
+}
+
+async fn base(State(app): State<Arc<App>>) -> Response {
+    let c = &app.explorer.cfg;
+    json_reply(&serde_json::json!({
+        "view": View::of(c),
+        "x_param": c.map.x.name(),
+        "y_param": c.map.y.name(),
+        "nx": c.map.x_points,
+        "ny": c.map.y_points,
+        "backend": app.engine.name(),
+        "device": app.engine.device(),
+        "precision": c.method.precision.name(),
+    }))
+}
+
+async fn progress(State(app): State<Arc<App>>) -> Response {
+    json_reply(&serde_json::json!({
+        "busy": app.busy.load(Ordering::Relaxed),
+        "done": app.done.load(Ordering::Relaxed),
+        "total": app.total.load(Ordering::Relaxed),
+    }))
+}
+
+async fn map(State(app): State<Arc<App>>, body: Bytes) -> Response {
+    let req: MapRequest = match parse(&body) {
+        Ok(r) => r,
+        Err(e) => return e.into_response(),
+    };
+    let cfg = match app.explorer.map_config(&req.view) {
+        Ok(c) => c,
+        Err(e) => return error(StatusCode::BAD_REQUEST, e),
+    };
+    let cfg = if req.coarse { coarse(&cfg) } else { cfg };
+    let ticket = app.newest.fetch_add(1, Ordering::SeqCst) + 1;
+    // The computation running gives way to this view.
+    rattle::progress::interrupt();
+    let mut guard = CancelOnDrop {
+        app: app.clone(),
+        ticket,
+        armed: true,
+    };
+    let worker = app.clone();
+    let is_coarse = req.coarse;
+    let out = tokio::task::spawn_blocking(move || {
+        let out = worker.compute_map(ticket, cfg, is_coarse);
+        out_map(out, is_coarse)
+    })
+    .await;
+    guard.armed = false;
+    out.unwrap_or_else(|e| error(StatusCode::INTERNAL_SERVER_ERROR, e))
+}
+
+fn out_map(out: Outcome<Arc<MapResult>>, is_coarse: bool) -> Response {
+    match out {
+        Outcome::Done(m) => {
+            let mut v =
+                serde_json::to_value(map_view(&m.cfg, &m.fields, is_coarse)).unwrap_or_default();
+            v["timings"] = serde_json::to_value(&m.report.timings).unwrap_or_default();
+            json_reply(&v)
+        }
+        Outcome::Cancelled => error(StatusCode::CONFLICT, "cancelled: a newer view was asked"),
+        Outcome::Failed(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
+    }
+}
+
+async fn point(State(app): State<Arc<App>>, body: Bytes) -> Response {
+    let req: PointRequest = match parse(&body) {
+        Ok(r) => r,
+        Err(e) => return e.into_response(),
+    };
+    // Checked before anything waits: a bad point is refused at once.
+    if let Err(e) = app.explorer.point_config(&req.view, (req.x, req.y)) {
+        return error(StatusCode::BAD_REQUEST, e);
+    }
+    let ticket = app.newest_point.fetch_add(1, Ordering::SeqCst) + 1;
+    let worker = app.clone();
+    let out =
+        tokio::task::spawn_blocking(move || worker.compute_point(ticket, req.view, (req.x, req.y)))
+            .await;
+    match out {
+        Ok(Outcome::Done(v)) => json_reply(&v),
+        Ok(Outcome::Cancelled) => error(
+            StatusCode::CONFLICT,
+            "cancelled: a newer point or view was asked",
+        ),
+        Ok(Outcome::Failed(e)) => error(StatusCode::BAD_REQUEST, e),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
+    }
+}
+
+async fn point_png(State(app): State<Arc<App>>) -> Response {
+    match app
+        .point_png
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .clone()
+    {
+        Some(png) => ([(header::CONTENT_TYPE, "image/png")], png).into_response(),
+        None => error(StatusCode::NOT_FOUND, "no point computed yet"),
+    }
+}
+
+async fn export(State(app): State<Arc<App>>, UrlPath(what): UrlPath<String>) -> Response {
+    let worker = app.clone();
+    match tokio::task::spawn_blocking(move || worker.export(&what)).await {
+        Ok(Ok((kind, name, bytes))) => {
+            let mut r = ([(header::CONTENT_TYPE, kind)], bytes).into_response();
+            if !name.is_empty()
+                && let Ok(v) = format!("attachment; filename=\"{name}\"").parse()
+            {
+                r.headers_mut().insert(header::CONTENT_DISPOSITION, v);
+            }
+            r
+        }
+        Ok(Err(e)) => e.into_response(),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
+    }
+}
+
+/// Serves `explorer` at `addr` until the process is interrupted (Ctrl-C ends it, as every
+/// command: nothing of the server's is half-written on disk).
+pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
+    let engine = Engine::open(explorer.cfg.method.backend)?;
+    let scratch = std::env::temp_dir().join(format!("rattle-explore-{}", std::process::id()));
+    // An interrupt unwinds the computation it stops: not a crash, nothing to print.
+    let previous = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !info.payload().is::<rattle::progress::Interrupted>() {
+            previous(info);
+        }
+    }));
+    let app = Arc::new(App {
+        explorer,
+        engine,
+        running: Mutex::new(()),
+        newest: AtomicU64::new(0),
+        newest_point: AtomicU64::new(0),
+        done: AtomicU64::new(0),
+        total: AtomicU64::new(0),
+        busy: AtomicBool::new(false),
+        last: Mutex::new(None),
+        point_png: Mutex::new(None),
+        scratch,
+    });
+    let router = Router::new()
+        .route("/", get(page))
+        .route("/page.js", get(script))
+        .route("/page.css", get(style))
+        .route("/api/base", get(base))
+        .route("/api/progress", get(progress))
+        .route("/api/map", post(map))
+        .route("/api/point", post(point))
+        .route("/api/point.png", get(point_png))
+        .route("/api/export/{what}", get(export))
+        .with_state(app);
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    rt.block_on(async move {
+        let listener = tokio::net::TcpListener::bind(addr)
+            .await
+            .with_context(|| format!("cannot listen on {}:{}", addr.0, addr.1))?;
+        let at = listener.local_addr()?;
+        println!("rattle explore: http://{at}/ (Ctrl-C stops it)");
+        use std::io::Write;
+        std::io::stdout().flush()?;
+        axum::serve(listener, router).await?;
+        Ok(())
+    })
+}

@@ -1,0 +1,98 @@
+//! `rattle explore`'s library half without a browser (the page is tested in one:
+//! python/tests/test_explore.py): a view is checked by the command line's own request path,
+//! the command line it exports computes that very view, and the page's map carries
+//! `rattle map`'s class layer with a legend that counts every cell.
+
+use rattle::config::Command;
+use rattle::explore::{Explorer, View, coarse, map_view};
+use rattle::request::{Request, Source};
+
+/// Configurations compared by their JSON (every key).
+fn same(a: &rattle::config::Config, b: &rattle::config::Config) -> bool {
+    serde_json::to_value(a).unwrap() == serde_json::to_value(b).unwrap()
+}
+
+fn explorer(sets: &[&str]) -> Explorer {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let r = Request::new(
+        Source::File(format!("{root}/configs/r_lambda.toml").into()),
+        sets.iter().map(|s| s.to_string()).collect(),
+    );
+    Explorer::new(r).unwrap().0
+}
+
+#[test]
+fn a_view_is_checked_as_the_command_line_checks_it() {
+    let e = explorer(&["method.backend=cpu"]);
+    let home = View::of(&e.cfg);
+    assert!(same(&e.map_config(&home).unwrap(), &e.cfg));
+    // The same message as `rattle map --set map.x_from=1.5` (R lies in [0, 1]).
+    let bad = View {
+        x_from: 1.5,
+        ..home
+    };
+    let said = e.map_config(&bad).unwrap_err().to_string();
+    let mut r = e.base.clone();
+    r.sets.push("map.x_from=1.5".into());
+    let cli = r.load(Command::Map).unwrap_err().to_string();
+    assert_eq!(said, cli);
+    assert!(
+        said.contains("`map.x_from` = 1.5") && said.contains("[0, 1]"),
+        "{said}"
+    );
+    // A point outside its parameter's range too.
+    let p = e.point_config(&home, (-0.1, 0.05)).unwrap_err().to_string();
+    assert!(p.contains("`model.R` = -0.1"), "{p}");
+    // A point's parameters are the clicked ones.
+    let c = e.point_config(&home, (0.6125, 0.0375)).unwrap();
+    assert_eq!((c.model.restitution, c.model.lambda), (0.6125, 0.0375));
+}
+
+#[test]
+fn the_exported_command_line_computes_that_view() {
+    let e = explorer(&["method.backend=cpu", "run.look=400"]);
+    let v = View {
+        x_from: 0.55,
+        x_to: 0.6125,
+        y_from: 0.01,
+        y_to: 0.0375,
+    };
+    let line = e.command_line(&v, "out dir/view");
+    assert!(line.starts_with("rattle map --config "), "{line}");
+    assert!(line.ends_with("--out 'out dir/view'"), "{line}");
+    // Read back as the shell would, the command's configuration is the view's.
+    let words: Vec<String> = line
+        .split(" --set ")
+        .skip(1)
+        .map(|w| w.split(" --out").next().unwrap().to_string())
+        .collect();
+    let mut r = Request::new(e.base.source.clone(), words);
+    r.flags = e.base.flags;
+    assert!(same(
+        &r.load(Command::Map).unwrap().cfg,
+        &e.map_config(&v).unwrap()
+    ));
+}
+
+#[test]
+fn the_pages_map_is_the_maps_class_layer_with_every_cell_in_its_legend() {
+    let e = explorer(&["method.backend=cpu", "map.x_points=12", "map.y_points=9"]);
+    let cfg = coarse(&e.cfg);
+    assert_eq!((cfg.map.x_points, cfg.map.y_points), (12, 9));
+    let engine = rattle::engine::Engine::Cpu;
+    let o = rattle::map::MapOptions::default();
+    let m = rattle::map::compute_map(&engine, &cfg, &o, &rattle::progress::Silent).unwrap();
+    let page = map_view(&m.cfg, &m.fields, false);
+    assert_eq!(page.class, m.fields.class);
+    assert_eq!(page.shown.len(), 12 * 9);
+    assert_eq!(page.legend.iter().map(|l| l.cells).sum::<usize>(), 12 * 9);
+    for (i, &s) in page.shown.iter().enumerate() {
+        let label = &page.legend[s as usize].label;
+        let class = rattle::class::Class::from_code(page.class[i]);
+        let want = rattle::class::Shown::of(class, m.fields.attractors[i]).label();
+        assert_eq!(label, &want, "cell {i}");
+    }
+    // The coarse picture of the default grid has at most 32 cells a side.
+    let c = coarse(&explorer(&[]).cfg);
+    assert_eq!((c.map.x_points, c.map.y_points), (32, 32));
+}
