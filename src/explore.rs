@@ -43,7 +43,7 @@ impl View {
 }
 
 /// Cells per axis of the coarse first picture, at most.
-pub const COARSE_POINTS: u32 = 32;
+pub const COARSE_POINTS: u32 = 16;
 
 /// The explorer's base: the configuration and overrides it was started with.
 #[derive(Clone, Debug)]

@@ -92,7 +92,7 @@ fn the_pages_map_is_the_maps_class_layer_with_every_cell_in_its_legend() {
         let want = rattle::class::Shown::of(class, m.fields.attractors[i]).label();
         assert_eq!(label, &want, "cell {i}");
     }
-    // The coarse picture of the default grid has at most 32 cells a side.
+    // The coarse picture of the default grid has at most 16 cells a side.
     let c = coarse(&explorer(&[]).cfg);
-    assert_eq!((c.map.x_points, c.map.y_points), (32, 32));
+    assert_eq!((c.map.x_points, c.map.y_points), (16, 16));
 }
