@@ -75,6 +75,12 @@ struct MapRequest {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
+struct ViewRequest {
+    view: View,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct PointRequest {
     view: View,
     x: f64,
@@ -336,8 +342,21 @@ async fn map(State(app): State<Arc<App>>, body: Bytes) -> Response {
         Err(e) => return error(StatusCode::BAD_REQUEST, e),
     };
     let cfg = if req.coarse { coarse(&cfg) } else { cfg };
+    let is_coarse = req.coarse;
+    let out = newest_view(&app, move |worker, ticket| {
+        out_map(worker.compute_map(ticket, cfg, is_coarse), is_coarse)
+    })
+    .await;
+    out.unwrap_or_else(|e| error(StatusCode::INTERNAL_SERVER_ERROR, e))
+}
+
+/// Runs `work` (given the app and its ticket) as the newest view's computation: the one running
+/// gives way to it, and a client that goes away before it ends interrupts it.
+async fn newest_view<T: Send + 'static>(
+    app: &Arc<App>,
+    work: impl FnOnce(&App, u64) -> T + Send + 'static,
+) -> Result<T, tokio::task::JoinError> {
     let ticket = app.newest.fetch_add(1, Ordering::SeqCst) + 1;
-    // The computation running gives way to this view.
     rattle::progress::interrupt();
     let mut guard = CancelOnDrop {
         app: app.clone(),
@@ -345,14 +364,9 @@ async fn map(State(app): State<Arc<App>>, body: Bytes) -> Response {
         armed: true,
     };
     let worker = app.clone();
-    let is_coarse = req.coarse;
-    let out = tokio::task::spawn_blocking(move || {
-        let out = worker.compute_map(ticket, cfg, is_coarse);
-        out_map(out, is_coarse)
-    })
-    .await;
+    let out = tokio::task::spawn_blocking(move || work(&worker, ticket)).await;
     guard.armed = false;
-    out.unwrap_or_else(|e| error(StatusCode::INTERNAL_SERVER_ERROR, e))
+    out
 }
 
 fn out_map(out: Outcome<Arc<MapResult>>, is_coarse: bool) -> Response {
@@ -389,6 +403,42 @@ async fn point(State(app): State<Arc<App>>, body: Bytes) -> Response {
             "cancelled: a newer point or view was asked",
         ),
         Ok(Outcome::Failed(e)) => error(StatusCode::BAD_REQUEST, e),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
+    }
+}
+
+/// The typed boundaries of the view's map (`rattle map --boundaries`'s), once the map of that
+/// view has been computed at the configured grid; a new view interrupts them as it does a map.
+async fn boundaries(State(app): State<Arc<App>>, body: Bytes) -> Response {
+    let req: ViewRequest = match parse(&body) {
+        Ok(r) => r,
+        Err(e) => return e.into_response(),
+    };
+    let last = app.last.lock().unwrap_or_else(|p| p.into_inner()).clone();
+    let Some(m) = last.filter(|m| View::of(&m.cfg) == req.view) else {
+        let why = "the boundaries need that view's map at the configured grid first";
+        return error(StatusCode::CONFLICT, why);
+    };
+    let out = newest_view(&app, move |worker, ticket| {
+        let newest = || worker.newest.load(Ordering::SeqCst) == ticket;
+        worker.exclusive(newest, 0, || {
+            Ok(rattle::map::boundaries::of_fields(&m.cfg, &m.fields))
+        })
+    })
+    .await;
+    match out {
+        Ok(Outcome::Done(b)) => {
+            let mut v = serde_json::to_value(&b).unwrap_or_default();
+            v["view"] = serde_json::to_value(req.view).unwrap_or_default();
+            v["colours"] = rattle::map::boundaries::Type::ALL
+                .iter()
+                .map(|t| (t.name().to_string(), serde_json::json!(t.rgb())))
+                .collect::<serde_json::Map<_, _>>()
+                .into();
+            json_reply(&v)
+        }
+        Ok(Outcome::Cancelled) => error(StatusCode::CONFLICT, "cancelled: a newer view was asked"),
+        Ok(Outcome::Failed(e)) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
         Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
     }
 }
@@ -455,6 +505,7 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
         .route("/api/progress", get(progress))
         .route("/api/map", post(map))
         .route("/api/point", post(point))
+        .route("/api/boundaries", post(boundaries))
         .route("/api/point.png", get(point_png))
         .route("/api/export/{what}", get(export))
         .with_state(app);

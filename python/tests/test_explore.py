@@ -129,10 +129,20 @@ def test_the_page_is_rattle_map_and_point_and_zooms_and_exports(server, browser)
     m = settled(b)
     print(f"page to full map: {time.time() - t0:.2f} s")
     # The class layer the page received is `rattle map`'s NPY for the same config.
-    run("map", "--config", str(server["cfg"]), "--out", str(d / "cli"))
+    run("map", "--config", str(server["cfg"]), "--boundaries", "--out", str(d / "cli"))
     npy = np.load(d / "cli-class.npy")
     assert npy.shape == (m["ny"], m["nx"]) == (20, 24)
     assert np.array_equal(npy.reshape(-1), np.array(m["class"])), "class layer differs"
+    # The boundaries over it are `rattle map --boundaries`'s.
+    b.find_element("id", "bounds").click()
+    t0 = time.time()
+    while b.execute_script("return window.rattle.bounds") is None:
+        assert time.time() - t0 < 300, b.find_element("id", "status").text
+        time.sleep(0.2)
+    got = b.execute_script("return window.rattle.bounds.points")
+    want = json.loads((d / "cli-boundaries.json").read_text())["points"]
+    key = lambda p: (p["type"], p["x"], p["y"], tuple(p["classes"]))
+    assert len(got) > 10 and sorted(map(key, got)) == sorted(map(key, want))
     b.save_screenshot(str(SHOTS / "explore-map.png"))
 
     # A click on a cell: the panel is `rattle point` at that cell's parameters.
@@ -153,6 +163,7 @@ def test_the_page_is_rattle_map_and_point_and_zooms_and_exports(server, browser)
                          "--set", f"lambda={p['y']!r}", "--json").stdout)
     assert (p["report"]["class"], p["report"]["period"]) == (cli["class"], cli["period"])
     assert b.find_element("id", "panel").get_attribute("data-cls") == cli["class"]
+    assert b.find_element("id", "nearest").text.startswith("nearest boundary: ")
     time.sleep(1)  # the figure
     b.save_screenshot(str(SHOTS / "explore-point.png"))
 

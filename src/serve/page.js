@@ -11,6 +11,7 @@ const ctx = canvas.getContext("2d");
 const box = document.getElementById("box");
 const state = (window.rattle = {
   base: null, view: null, map: null, point: null, layer: "class", busy: false, loads: 0,
+  bounds: null,
 });
 
 function status(text, bad) {
@@ -149,6 +150,36 @@ function draw() {
     ctx.beginPath(); ctx.moveTo(a.x - 5, py); ctx.lineTo(a.x, py); ctx.stroke();
     ctx.fillText(String(t), a.x - 7, py);
   }
+  // The typed boundaries of this view, where asked for.
+  const b = boundsOf(m);
+  const toPx = (q) => [a.x + ((q[0] - v.x_from) / (v.x_to - v.x_from)) * a.w,
+    a.y + a.h - ((q[1] - v.y_from) / (v.y_to - v.y_from)) * a.h];
+  if (b) {
+    ctx.save();
+    ctx.beginPath(); ctx.rect(a.x, a.y, a.w, a.h); ctx.clip();
+    ctx.lineWidth = 2;
+    for (const c of b.curves) {
+      ctx.strokeStyle = ctx.fillStyle = `rgb(${b.colours[c.type].join(",")})`;
+      const pts = c.points.map(toPx);
+      if (pts.length === 1) {
+        ctx.beginPath(); ctx.arc(pts[0][0], pts[0][1], 2, 0, 2 * Math.PI); ctx.fill();
+        continue;
+      }
+      ctx.beginPath();
+      pts.forEach((q, k) => (k ? ctx.lineTo(q[0], q[1]) : ctx.moveTo(q[0], q[1])));
+      ctx.stroke();
+    }
+    ctx.restore();
+  }
+  const bl = document.getElementById("blegend");
+  bl.replaceChildren(...(b ? Object.entries(countTypes(b)).map(([t, n]) => {
+    const li = document.createElement("li");
+    const sw = document.createElement("span");
+    sw.className = "swatch";
+    sw.style.background = `rgb(${b.colours[t].join(",")})`;
+    li.append(sw, document.createTextNode(`${t.replace(/_/g, " ")} (${n} points)`));
+    return li;
+  }) : []));
   // The clicked point, where it is in this view.
   const p = state.point;
   if (p) {
@@ -180,6 +211,70 @@ function draw() {
   document.getElementById("where").textContent =
     `${m.x_param} ${v.x_from} .. ${v.x_to}, ${m.y_param} ${v.y_from} .. ${v.y_to}, ` +
     `${m.nx} x ${m.ny}${m.coarse ? " (coarse first picture)" : ""}`;
+}
+
+// The boundaries computed for the view `m` shows, if any.
+function boundsOf(m) {
+  const b = state.bounds;
+  if (!b || !m || m.coarse || !document.getElementById("bounds").checked) return null;
+  const v = m.view, w = b.view;
+  return v.x_from === w.x_from && v.x_to === w.x_to && v.y_from === w.y_from && v.y_to === w.y_to
+    ? b : null;
+}
+
+function countTypes(b) {
+  const n = {};
+  for (const p of b.points) n[p.type] = (n[p.type] || 0) + 1;
+  return n;
+}
+
+// The boundaries of the view shown (once its map is at the configured grid).
+async function bounds() {
+  const m = state.map;
+  if (!document.getElementById("bounds").checked || !m || m.coarse || boundsOf(m)) return;
+  const token = state.loads;
+  state.busy = true;
+  status("boundaries...");
+  watch("boundaries", token);
+  try {
+    const b = await call("/api/boundaries", { view: m.view });
+    if (state.loads !== token) return;
+    state.bounds = b;
+    state.busy = false;
+    status(`boundaries: ${b.points.filter((p) => p.located).length} changes located on ` +
+      `${b.edges} edges in ${b.seconds.toFixed(2)} s`);
+    draw();
+    if (state.point) showNearest(state.point);
+  } catch (e) {
+    if (state.loads !== token) return;
+    state.busy = false;
+    if (e.status !== 409) status(e.message, true);
+  }
+}
+
+// The boundary point nearest to `p` (in cells of this view), in the panel.
+function showNearest(p) {
+  const m = state.map, b = boundsOf(m);
+  const old = document.getElementById("nearest");
+  if (old) old.remove();
+  if (!b || !b.points.length) return;
+  const v = m.view;
+  const cx = (x) => ((x - v.x_from) / (v.x_to - v.x_from)) * m.nx;
+  const cy = (y) => ((y - v.y_from) / (v.y_to - v.y_from)) * m.ny;
+  let best = null, dist = Infinity;
+  for (const q of b.points) {
+    const d = Math.hypot(cx(q.x) - cx(p.x), cy(q.y) - cy(p.y));
+    if (d < dist) { dist = d; best = q; }
+  }
+  const div = document.createElement("p");
+  div.id = "nearest";
+  const period = best.period ? `, period-${best.period} cycle` : "";
+  const why = best.reason ? ` (${best.reason})` : "";
+  div.textContent = `nearest boundary: ${best.type.replace(/_/g, " ")}${period} between ` +
+    `${best.classes[0]} and ${best.classes[1]}, at ${m.x_param} = ${best.x.toPrecision(6)}, ` +
+    `${m.y_param} = ${best.y.toPrecision(6)}: ${dist.toFixed(2)} cells away${why}`;
+  const t = document.querySelector("#panel table");
+  if (t) t.after(div);
 }
 
 // Progress while a computation runs.
@@ -216,6 +311,7 @@ async function load(view, push) {
     status(`done: ${t.wall_s.toFixed(2)} s (${t.round_trips || 0} round trips)`);
     const c = await fetch("/api/export/command");
     if (c.ok) document.getElementById("command").textContent = await c.text();
+    bounds();
   } catch (e) {
     if (state.loads !== token) return;
     state.busy = false;
@@ -265,6 +361,7 @@ async function point(c) {
     if (r.coexisting) t.append(row("coexisting", JSON.stringify(r.coexisting)));
     panel.replaceChildren(t);
     panel.dataset.cls = r.class;
+    showNearest(p);
     if (p.figure) {
       const img = document.createElement("img");
       img.alt = "time series, phase portrait, Poincare section";
@@ -310,6 +407,7 @@ window.addEventListener("mouseup", (ev) => {
   }
 });
 
+document.getElementById("bounds").addEventListener("change", () => { draw(); bounds(); });
 document.getElementById("layer").addEventListener("change", (ev) => {
   state.layer = ev.target.value;
   draw();
