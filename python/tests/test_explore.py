@@ -14,6 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 import time
 import urllib.error
 import urllib.request
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -144,6 +145,22 @@ def test_the_page_is_rattle_map_and_point_and_zooms_and_exports(server, browser)
     key = lambda p: (p["type"], p["x"], p["y"], tuple(p["classes"]))
     assert len(got) > 10 and sorted(map(key, got)) == sorted(map(key, want))
     b.save_screenshot(str(SHOTS / "explore-map.png"))
+    # The SVG export is the view as shown: every cell under a rectangle of its legend colour,
+    # every boundary curve drawn.
+    svg = ET.fromstring(b.execute_script("return window.rattle.svg()"))
+    ns = "{http://www.w3.org/2000/svg}"
+    cells = [r for r in svg.iter(ns + "rect") if r.get("class") == "cells"]
+    covered = np.zeros((m["ny"], m["nx"]), dtype=int)
+    for r in cells:
+        iy, a, z = int(r.get("data-row")), int(r.get("data-from")), int(r.get("data-to"))
+        covered[iy, a:z] += 1
+        for ix in range(a, z):
+            legend = m["legend"][m["shown"][iy * m["nx"] + ix]]
+            assert r.get("fill") == "rgb({},{},{})".format(*legend["rgb"]), (iy, ix)
+    assert (covered == 1).all()
+    curves = b.execute_script("return window.rattle.bounds.curves")
+    lines = list(svg.iter(ns + "polyline")) + list(svg.iter(ns + "circle"))
+    assert len(lines) == len(curves)
 
     # A click on a cell: the panel is `rattle point` at that cell's parameters.
     canvas = b.find_element("id", "map")

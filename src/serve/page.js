@@ -10,6 +10,7 @@ const canvas = document.getElementById("map");
 const ctx = canvas.getContext("2d");
 const box = document.getElementById("box");
 const state = (window.rattle = {
+  svg: () => svgOfView(),
   base: null, view: null, map: null, point: null, layer: "class", busy: false, loads: 0,
   bounds: null,
 });
@@ -319,6 +320,73 @@ async function load(view, push) {
   }
 }
 
+// The view as the page shows it (the layer chosen, its legend, the boundaries where shown), as
+// an SVG document: each row's runs of one colour as one rectangle, the axes and the legend as
+// text, so that it prints sharp at any size.
+function svgOfView() {
+  const m = state.map;
+  if (!m) return null;
+  const { out, legend } = colours(m, state.layer);
+  const W = 1000, H = 640, L = 90, R = 300, T = 20, B = 60;
+  const aw = W - L - R, ah = H - T - B, v = m.view;
+  const esc = (t) => String(t).replace(/&/g, "&amp;").replace(/</g, "&lt;");
+  const rgb = (c) => `rgb(${c.join(",")})`;
+  const parts = [`<svg xmlns="http://www.w3.org/2000/svg" width="${W}" height="${H}" ` +
+    `viewBox="0 0 ${W} ${H}" font-family="DejaVu Sans, sans-serif" font-size="12">`,
+    `<rect width="${W}" height="${H}" fill="#fff"/>`, `<g shape-rendering="crispEdges">`];
+  const cw = aw / m.nx, ch = ah / m.ny;
+  for (let iy = 0; iy < m.ny; iy++) {
+    for (let ix = 0; ix < m.nx;) {
+      const c = out[iy * m.nx + ix];
+      let e = ix + 1;
+      while (e < m.nx && out[iy * m.nx + e].join() === c.join()) e++;
+      const y = T + ah - (iy + 1) * ch;
+      parts.push(`<rect class="cells" x="${(L + ix * cw).toFixed(3)}" y="${y.toFixed(3)}" ` +
+        `width="${((e - ix) * cw).toFixed(3)}" height="${ch.toFixed(3)}" fill="${rgb(c)}" ` +
+        `data-row="${iy}" data-from="${ix}" data-to="${e}"/>`);
+      ix = e;
+    }
+  }
+  parts.push("</g>");
+  const X = (x) => L + ((x - v.x_from) / (v.x_to - v.x_from)) * aw;
+  const Y = (y) => T + ah - ((y - v.y_from) / (v.y_to - v.y_from)) * ah;
+  const b = boundsOf(m);
+  if (b) {
+    for (const c of b.curves) {
+      const pts = c.points.map((q) => `${X(q[0]).toFixed(2)},${Y(q[1]).toFixed(2)}`);
+      const col = rgb(b.colours[c.type]);
+      parts.push(pts.length === 1
+        ? `<circle cx="${pts[0].split(",")[0]}" cy="${pts[0].split(",")[1]}" r="2" fill="${col}"/>`
+        : `<polyline points="${pts.join(" ")}" fill="none" stroke="${col}" stroke-width="2"/>`);
+    }
+  }
+  parts.push(`<rect x="${L}" y="${T}" width="${aw}" height="${ah}" fill="none" stroke="#000"/>`);
+  for (const t of ticks(v.x_from, v.x_to, 6)) {
+    parts.push(`<line x1="${X(t)}" y1="${T + ah}" x2="${X(t)}" y2="${T + ah + 5}" stroke="#000"/>`,
+      `<text x="${X(t)}" y="${T + ah + 18}" text-anchor="middle">${t}</text>`);
+  }
+  for (const t of ticks(v.y_from, v.y_to, 6)) {
+    parts.push(`<line x1="${L - 5}" y1="${Y(t)}" x2="${L}" y2="${Y(t)}" stroke="#000"/>`,
+      `<text x="${L - 8}" y="${Y(t) + 4}" text-anchor="end">${t}</text>`);
+  }
+  parts.push(`<text x="${L + aw / 2}" y="${H - 12}" text-anchor="middle">${esc(m.x_param)}</text>`,
+    `<text transform="translate(18 ${T + ah / 2}) rotate(-90)" text-anchor="middle">` +
+    `${esc(m.y_param)}</text>`);
+  const rows = legend.map((e) => [e.rgb, e.label + (e.cells === undefined ? "" : ` (${e.cells} cells)`)]);
+  if (b) {
+    for (const [t, n] of Object.entries(countTypes(b))) {
+      rows.push([b.colours[t], `${t.replace(/_/g, " ")} (${n} points)`]);
+    }
+  }
+  rows.forEach(([c, label], k) => {
+    const y = T + 14 * k;
+    parts.push(`<rect x="${W - R + 20}" y="${y}" width="10" height="10" fill="${rgb(c)}" stroke="#999"/>`,
+      `<text x="${W - R + 36}" y="${y + 9}">${esc(label)}</text>`);
+  });
+  parts.push("</svg>");
+  return parts.join("\n");
+}
+
 // The cell under canvas pixel (px, py), and its centre's parameters.
 function cellAt(px, py) {
   const m = state.map, a = area(), v = m.view;
@@ -408,6 +476,16 @@ window.addEventListener("mouseup", (ev) => {
 });
 
 document.getElementById("bounds").addEventListener("change", () => { draw(); bounds(); });
+document.getElementById("ex-svg").addEventListener("click", (ev) => {
+  ev.preventDefault();
+  const svg = svgOfView();
+  if (!svg) return;
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(new Blob([svg], { type: "image/svg+xml" }));
+  a.download = "view.svg";
+  a.click();
+  URL.revokeObjectURL(a.href);
+});
 document.getElementById("layer").addEventListener("change", (ev) => {
   state.layer = ev.target.value;
   draw();
