@@ -145,7 +145,8 @@ pub struct MapView {
     pub period: Vec<i32>,
     pub shown: Vec<u16>,
     pub legend: Vec<LegendEntry>,
-    /// Scalar layers by name (null: no value).
+    /// Scalar layers by name (null: no value): the exponent, the multiplier, the settle time,
+    /// and the risk where `map.risk` is set.
     pub layers: Vec<(String, Vec<Option<f64>>)>,
 }
 
@@ -191,10 +192,17 @@ pub fn map_view(cfg: &Config, fields: &Fields, coarse: bool) -> MapView {
         period: fields.period.clone(),
         shown: kinds.into_iter().map(index).collect(),
         legend,
-        layers: vec![
-            ("lyapunov".into(), fields.lyapunov.clone()),
-            ("multiplier".into(), fields.multiplier.clone()),
-            ("settle".into(), as_f64(&fields.settle)),
-        ],
+        layers: {
+            let mut l = vec![
+                ("lyapunov".into(), fields.lyapunov.clone()),
+                ("multiplier".into(), fields.multiplier.clone()),
+                ("settle".into(), as_f64(&fields.settle)),
+            ];
+            // The risk map where `map.risk` asks for it (the `-risk.npy` layer).
+            if let Some(r) = crate::map::risk_layer(cfg, fields) {
+                l.push(("risk".into(), r.into_iter().map(Some).collect()));
+            }
+            l
+        },
     }
 }

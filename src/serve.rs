@@ -249,7 +249,11 @@ impl App {
             "png" => ("png", "image/png"),
             "json" => ("json", "application/json"),
             _ => match what.strip_suffix(".npy") {
-                Some(layer) if rattle::map::Fields::LAYERS.iter().any(|l| l.0 == layer) => {
+                Some(layer)
+                    if rattle::map::Fields::LAYERS.iter().any(|l| l.0 == layer)
+                        || (layer == "risk"
+                            && rattle::map::risk_layer(&m.cfg, &m.fields).is_some()) =>
+                {
                     ("npy", "application/octet-stream")
                 }
                 _ => {

@@ -92,6 +92,22 @@ fn the_pages_map_is_the_maps_class_layer_with_every_cell_in_its_legend() {
         let want = rattle::class::Shown::of(class, m.fields.attractors[i]).label();
         assert_eq!(label, &want, "cell {i}");
     }
+    assert_eq!(
+        page.layers.iter().map(|l| l.0.as_str()).collect::<Vec<_>>(),
+        ["lyapunov", "multiplier", "settle"]
+    );
+    // With `map.risk`, the risk layer too: the values of the map's `-risk.npy`.
+    let mut risky = m.cfg.clone();
+    risky.map.risk = vec![0.02, 0.005];
+    let page = map_view(&risky, &m.fields, false);
+    let (name, risk) = page.layers.last().unwrap();
+    assert_eq!(name, "risk");
+    let npy = rattle::map::npy_layers(&risky, &m.fields);
+    let bytes = &npy.iter().find(|l| l.0 == "risk").unwrap().1;
+    let file: Vec<f64> = npyz::NpyFile::new(&bytes[..]).unwrap().into_vec().unwrap();
+    let page_risk: Vec<f64> = risk.iter().map(|v| v.unwrap()).collect();
+    assert_eq!(page_risk, file);
+    assert!(file.iter().any(|&r| r > 0.0) && file.iter().all(|&r| (0.0..=1.0).contains(&r)));
     // The coarse picture of the default grid has at most 16 cells a side.
     let c = coarse(&explorer(&[]).cfg);
     assert_eq!((c.map.x_points, c.map.y_points), (16, 16));

@@ -449,13 +449,19 @@ fn shown_cells(fields: &Fields) -> Vec<u16> {
         .collect()
 }
 
+/// The risk layer where `map.risk` is set (PREFIX-risk.npy's values, row-major from the
+/// bottom row).
+pub fn risk_layer(cfg: &Config, fields: &Fields) -> Option<Vec<f64>> {
+    risk_of(cfg, &shown_cells(fields)).map(|(r, _)| r)
+}
+
 /// Every NPY layer of the set as (name, the bytes of its file): the fields' layers and the risk
 /// where `map.risk` is set, as [`write_outputs`] writes them.
 pub fn npy_layers(cfg: &Config, fields: &Fields) -> Vec<(&'static str, Vec<u8>)> {
     let m = &cfg.map;
     let (ny, nx) = (m.y_points as usize, m.x_points as usize);
     let mut out = fields.npy_bytes((ny, nx));
-    if let Some((r, _)) = risk_of(cfg, &shown_cells(fields)) {
+    if let Some(r) = risk_layer(cfg, fields) {
         out.push((
             "risk",
             crate::output::npy_bytes(&[ny as u64, nx as u64], &r),

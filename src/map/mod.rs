@@ -19,7 +19,7 @@ pub use command::{
 pub use fields::{Fields, Layer};
 pub use files::{
     CoarseReport, CompareReport, MapReport, MapTimings, add_boundaries, category, map_caption,
-    npy_layers, write_compare, write_outputs,
+    npy_layers, risk_layer, write_compare, write_outputs,
 };
 pub use parts::{Part, compute_part, merge, part_path, read_part, write_part};
 

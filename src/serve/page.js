@@ -114,11 +114,27 @@ function colours(m, layer) {
   return { out, legend };
 }
 
+// The layer menu: the class and the scalar layers this map has (the risk where asked for).
+const LABELS = {
+  class: "class", lyapunov: "largest Lyapunov exponent", multiplier: "leading multiplier |mu|",
+  settle: "settle time (periods)", risk: "risk: P(another class) under map.risk's errors",
+};
+function syncLayers(m) {
+  const sel = document.getElementById("layer");
+  const names = ["class", ...m.layers.map((l) => l[0])];
+  if ([...sel.options].map((o) => o.value).join() !== names.join()) {
+    sel.replaceChildren(...names.map((n) => new Option(LABELS[n] || n, n)));
+  }
+  if (!names.includes(state.layer)) state.layer = "class";
+  sel.value = state.layer;
+}
+
 function draw() {
   const m = state.map;
   ctx.fillStyle = "#fff";
   ctx.fillRect(0, 0, canvas.width, canvas.height);
   if (!m) return;
+  syncLayers(m);
   const a = area();
   const { out, legend } = colours(m, state.layer);
   const img = new ImageData(m.nx, m.ny);
