@@ -143,6 +143,9 @@ pub struct MapView {
     pub coarse: bool,
     pub class: Vec<i32>,
     pub period: Vec<i32>,
+    /// The period of a stable cycle carried from a neighbour that coexists with the cell's own
+    /// attractor (0: none; the map's `coexist` layer).
+    pub coexist: Vec<i32>,
     pub shown: Vec<u16>,
     pub legend: Vec<LegendEntry>,
     /// Scalar layers by name (null: no value): the exponent, the multiplier, the settle time,
@@ -190,6 +193,7 @@ pub fn map_view(cfg: &Config, fields: &Fields, coarse: bool) -> MapView {
         coarse,
         class: fields.class.clone(),
         period: fields.period.clone(),
+        coexist: fields.coexist.clone(),
         shown: kinds.into_iter().map(index).collect(),
         legend,
         layers: {

@@ -442,7 +442,13 @@ async function point(c) {
       row("periods integrated", String(r.periods)),
       row("periods tried by Newton", (r.tried_periods || []).join(", ") || "-"),
     );
-    if (r.coexisting) t.append(row("coexisting", JSON.stringify(r.coexisting)));
+    // What the map's carry found at this cell (a point alone has no neighbours to carry from).
+    const m = state.map;
+    if (m && !m.coarse && c.ix < m.nx && c.iy < m.ny) {
+      const k = m.coexist[c.iy * m.nx + c.ix];
+      t.append(row("coexisting (the map's carry)",
+        k ? `a stable period-${k} cycle carried from a neighbouring cell` : "none found"));
+    }
     panel.replaceChildren(t);
     panel.dataset.cls = r.class;
     showNearest(p);
