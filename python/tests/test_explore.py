@@ -10,6 +10,7 @@ import os
 import re
 import signal
 import subprocess
+import tempfile
 from concurrent.futures import ThreadPoolExecutor
 import time
 import urllib.error
@@ -67,8 +68,10 @@ def server(tmp_path_factory):
     m = re.search(r"http://127\.0\.0\.1:\d+/", line)
     assert m, f"no URL printed: {line!r}"
     yield {"url": m.group(0), "cfg": cfg, "dir": d, "proc": p}
+    # Ctrl-C stops it as every command: the interrupt's exit code, nothing of its own left.
     p.send_signal(signal.SIGINT)
-    p.wait(timeout=30)
+    assert p.wait(timeout=30) == 130
+    assert not (Path(tempfile.gettempdir()) / f"rattle-explore-{p.pid}").exists()
 
 
 @pytest.fixture(scope="module")
