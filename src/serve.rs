@@ -41,6 +41,8 @@ struct App {
     busy: AtomicBool,
     /// The last map computed at the configured grid, for the exports.
     last: Mutex<Option<Arc<MapResult>>>,
+    /// The boundaries located on the last map at the configured grid (its view's).
+    bounds: Mutex<Option<(View, Arc<rattle::map::boundaries::Boundaries>)>>,
     /// The last clicked point's figure (PNG).
     point_png: Mutex<Option<Vec<u8>>>,
     /// Where the exports are written before they are handed out (the server's own).
@@ -245,9 +247,21 @@ impl App {
             }
             _ => {}
         }
+        // The boundaries located on this very map, if any: files of its set.
+        let bounds = self
+            .bounds
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
+            .filter(|(v, _)| *v == view)
+            .map(|(_, b)| b);
         let (ext, kind) = match what {
             "png" => ("png", "image/png"),
             "json" => ("json", "application/json"),
+            "boundaries.csv" | "boundaries.png" if bounds.is_some() => match what {
+                "boundaries.csv" => ("boundaries.csv", "text/csv"),
+                _ => ("boundaries.png", "image/png"),
+            },
             _ => match what.strip_suffix(".npy") {
                 Some(layer)
                     if rattle::map::Fields::LAYERS.iter().any(|l| l.0 == layer)
@@ -265,11 +279,13 @@ impl App {
         let _one = self.running.lock().unwrap_or_else(|p| p.into_inner());
         let dir = scratch_dir(&self.scratch).map_err(internal)?;
         let prefix = dir.join("view");
-        let files = m.write(&prefix).map_err(internal)?;
-        let name = if ext == "npy" {
-            format!("view-{what}")
-        } else {
-            format!("view.{ext}")
+        let files =
+            rattle::map::write_outputs(&prefix, &m.cfg, &m.fields, &m.report, bounds.as_deref())
+                .map_err(internal)?;
+        let name = match ext {
+            "npy" => format!("view-{what}"),
+            "boundaries.csv" | "boundaries.png" => format!("view-{ext}"),
+            _ => format!("view.{ext}"),
         };
         let bytes = std::fs::read(self.scratch.join(&name));
         remove(&files);
@@ -432,7 +448,9 @@ async fn boundaries(State(app): State<Arc<App>>, body: Bytes) -> Response {
     .await;
     match out {
         Ok(Outcome::Done(b)) => {
-            let mut v = serde_json::to_value(&b).unwrap_or_default();
+            let b = Arc::new(b);
+            *app.bounds.lock().unwrap_or_else(|p| p.into_inner()) = Some((req.view, b.clone()));
+            let mut v = serde_json::to_value(&*b).unwrap_or_default();
             v["view"] = serde_json::to_value(req.view).unwrap_or_default();
             v["colours"] = rattle::map::boundaries::Type::ALL
                 .iter()
@@ -498,6 +516,7 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
         total: AtomicU64::new(0),
         busy: AtomicBool::new(false),
         last: Mutex::new(None),
+        bounds: Mutex::new(None),
         point_png: Mutex::new(None),
         scratch,
     });

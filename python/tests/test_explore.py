@@ -147,6 +147,8 @@ def test_the_page_is_rattle_map_and_point_and_zooms_and_exports(server, browser)
     want = json.loads((d / "cli-boundaries.json").read_text())["points"]
     key = lambda p: (p["type"], p["x"], p["y"], tuple(p["classes"]))
     assert len(got) > 10 and sorted(map(key, got)) == sorted(map(key, want))
+    st, csv_bytes = get(url + "api/export/boundaries.csv")
+    assert st == 200 and csv_bytes == (d / "cli-boundaries.csv").read_bytes()
     b.save_screenshot(str(SHOTS / "explore-map.png"))
     # The SVG export is the view as shown: every cell under a rectangle of its legend colour,
     # every boundary curve drawn.

@@ -188,6 +188,7 @@ function draw() {
     }
     ctx.restore();
   }
+  for (const id of ["ex-bcsv", "ex-bpng"]) document.getElementById(id).hidden = !b;
   const bl = document.getElementById("blegend");
   bl.replaceChildren(...(b ? Object.entries(countTypes(b)).map(([t, n]) => {
     const li = document.createElement("li");
