@@ -121,11 +121,14 @@ fn shell_word(a: &str) -> String {
 }
 
 /// The coarse first picture's configuration: `cfg` with at most [`COARSE_POINTS`] cells per
-/// axis over the same ranges.
+/// axis over the same ranges, and without the long look (a preview: the configured grid's map
+/// that replaces it looks as the configuration says; with the look, the default map's preview
+/// took 2 x as long, docs/explore.md).
 pub fn coarse(cfg: &Config) -> Config {
     let mut c = cfg.clone();
     c.map.x_points = c.map.x_points.min(COARSE_POINTS);
     c.map.y_points = c.map.y_points.min(COARSE_POINTS);
+    c.run.look = 0;
     c
 }
 

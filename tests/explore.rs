@@ -108,7 +108,7 @@ fn the_pages_map_is_the_maps_class_layer_with_every_cell_in_its_legend() {
     let page_risk: Vec<f64> = risk.iter().map(|v| v.unwrap()).collect();
     assert_eq!(page_risk, file);
     assert!(file.iter().any(|&r| r > 0.0) && file.iter().all(|&r| (0.0..=1.0).contains(&r)));
-    // The coarse picture of the default grid has at most 16 cells a side.
+    // The coarse picture of the default grid has at most 16 cells a side, and no long look.
     let c = coarse(&explorer(&[]).cfg);
-    assert_eq!((c.map.x_points, c.map.y_points), (16, 16));
+    assert_eq!((c.map.x_points, c.map.y_points, c.run.look), (16, 16, 0));
 }

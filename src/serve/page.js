@@ -228,7 +228,7 @@ function draw() {
   }));
   document.getElementById("where").textContent =
     `${m.x_param} ${v.x_from} .. ${v.x_to}, ${m.y_param} ${v.y_from} .. ${v.y_to}, ` +
-    `${m.nx} x ${m.ny}${m.coarse ? " (coarse first picture)" : ""}`;
+    `${m.nx} x ${m.ny}${m.coarse ? " (coarse first picture, without the long look)" : ""}`;
 }
 
 // The boundaries computed for the view `m` shows, if any.
