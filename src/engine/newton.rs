@@ -62,10 +62,11 @@ pub const F32_POLISH: f64 = 1e-4;
 /// in one call (a round trip; another only for the trials that started again at a divisor
 /// and paused), each trial handed back to its task where the device stopped: the step that
 /// ends a trial is the host's (`Refine::resume`), in parallel; a trial whose flow the driver
-/// cut short is left to the host. On llvmpipe this costs lanes: 2,000 period-1 trials of
+/// cut short is left to the host. On llvmpipe this is slower: 2,000 period-1 trials of
 /// `rattle bench` took 0.14 s against 0.11 s when the host gathered the open trials after
-/// every iteration (a round trip each); workgroup-local packing of the open trials and one
-/// step per dispatch were tried and were slower (docs/performance.md, "Round trips").
+/// every iteration (a round trip each), for reasons not known; workgroup-local packing of the
+/// open trials and one step per dispatch were tried and were slower (docs/performance.md,
+/// "Round trips").
 ///
 /// In f32 the device's iteration stops at f32's floor (a residual that no longer shrinks,
 /// far above `NEWTON_TOL`), and no f32 flow ends a trial: where the flow from the last
