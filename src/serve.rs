@@ -179,12 +179,14 @@ impl App {
         out
     }
 
-    fn compute_point(&self, ticket: u64, view: View, xy: (f64, f64)) -> Outcome<serde_json::Value> {
+    /// The point `cfg` (at `xy` of the view's axes) as `rattle point` decides it, with its figure.
+    fn compute_point(
+        &self,
+        ticket: u64,
+        cfg: Config,
+        xy: (f64, f64),
+    ) -> Outcome<serde_json::Value> {
         let newest = || self.newest_point.load(Ordering::SeqCst) == ticket;
-        let cfg = match self.explorer.point_config(&view, xy) {
-            Ok(c) => c,
-            Err(e) => return Outcome::Failed(e.to_string()),
-        };
         let out = self.exclusive(newest, 0, || {
             let report = rattle::point::run(&self.engine, &cfg, &rattle::progress::Silent)?;
             // The figure as `point --plot` draws it (CPU, f64).
@@ -408,14 +410,14 @@ async fn point(State(app): State<Arc<App>>, body: Bytes) -> Response {
         Err(e) => return e.into_response(),
     };
     // Checked before anything waits: a bad point is refused at once.
-    if let Err(e) = app.explorer.point_config(&req.view, (req.x, req.y)) {
-        return error(StatusCode::BAD_REQUEST, e);
-    }
+    let xy = (req.x, req.y);
+    let cfg = match app.explorer.point_config(&req.view, xy) {
+        Ok(c) => c,
+        Err(e) => return error(StatusCode::BAD_REQUEST, e),
+    };
     let ticket = app.newest_point.fetch_add(1, Ordering::SeqCst) + 1;
     let worker = app.clone();
-    let out =
-        tokio::task::spawn_blocking(move || worker.compute_point(ticket, req.view, (req.x, req.y)))
-            .await;
+    let out = tokio::task::spawn_blocking(move || worker.compute_point(ticket, cfg, xy)).await;
     match out {
         Ok(Outcome::Done(v)) => json_reply(&v),
         Ok(Outcome::Cancelled) => error(

@@ -129,14 +129,20 @@ impl Gpu {
             (Y_FLOW_SLOTS, U_SLOTS),
             |_, _, _| {},
         )?;
+        // Queued as Newton's are: a flow stops at its own periods (U_FLOW_LEFT).
         let longest = flows.iter().map(|f| f.periods).max().unwrap_or(0);
         let mut ctl = b.ctl;
-        let mut done = 0u32;
-        while done < longest {
-            ctl.periods = b.chunk.min(longest - done);
-            self.dispatch(&b.pipeline, &b.bind, b.grid, &b.shared, &ctl, 1, None)?;
-            done += ctl.periods;
-        }
+        ctl.periods = b.chunk.min(longest).max(1);
+        let dispatches = longest.div_ceil(ctl.periods);
+        self.dispatch(
+            &b.pipeline,
+            &b.bind,
+            b.grid,
+            &b.shared,
+            &ctl,
+            dispatches,
+            None,
+        )?;
         let (ys, us) = self.read_back(&b, m)?;
         Ok((0..m)
             .map(|i| flow_end(&flows[i], &ys, &us, m, i))
