@@ -5,7 +5,8 @@
 //! central differences and its multipliers from nalgebra, at 1/64 of a cell before and after
 //! the point along its edge.
 //!
-//! `cargo run --release --example judge_boundaries -- CONFIG PREFIX COUNT SEED`
+//! `cargo run --release --example judge_boundaries -- CONFIG PREFIX COUNT SEED [TYPE]`
+//! (TYPE: only the points of that type, e.g. `grazing`)
 //!
 //! A located point says: the cycle of period n (`period`) continued from the cell `from`
 //! stops being stable here, of `type`. The judge continues its own cycle: Newton at the cell
@@ -17,7 +18,10 @@
 //! - `neimark_sacker`: unstable through a complex pair (modulus above 1);
 //! - `fold`: no cycle of period n is found from the last one, or it is unstable through +1;
 //! - `grazing`, `stick_onset`, `stick_loss`, `undetermined` (located ends): no stable cycle of
-//!   period n continues (the end is confirmed; what ends it is not judged here);
+//!   period n continues, and for `grazing` (`stick_loss`) the reference's cycle has an impact
+//!   speed or a clearance at a reversal (a stick's length) that vanishes at the point: its zero,
+//!   extrapolated from 1/64 and 1/512 of a cell before the point, within 1e-3 of a cell of it
+//!   (`stick_onset` and `undetermined`: the end only);
 //!
 //! `coexistence` points: at the edge's midpoint the reference's Newton from the `from` cell's
 //! final state finds a stable cycle of the cell's period, and the other cell's final state,
@@ -40,9 +44,10 @@ enum Verdict {
 fn main() -> anyhow::Result<()> {
     let a: Vec<String> = std::env::args().collect();
     anyhow::ensure!(
-        a.len() == 5,
-        "usage: judge_boundaries CONFIG PREFIX COUNT SEED"
+        a.len() == 5 || a.len() == 6,
+        "usage: judge_boundaries CONFIG PREFIX COUNT SEED [TYPE]"
     );
+    let only = a.get(5).cloned();
     let cfg = Config::load(Path::new(&a[1]), &[])?;
     let prefix = &a[2];
     let count: usize = a[3].parse()?;
@@ -65,6 +70,7 @@ fn main() -> anyhow::Result<()> {
         .unwrap()
         .iter()
         .filter(|p| p["located"] == true || p["type"] == "coexistence")
+        .filter(|p| only.as_ref().is_none_or(|t| p["type"] == t.as_str()))
         .collect();
     // Fisher-Yates with the fixed generator, then the first `count`.
     for i in (1..pool.len()).rev() {
@@ -214,19 +220,75 @@ fn main() -> anyhow::Result<()> {
             ),
             None => format!("before lead {:.4?}, after no cycle", before.lead()),
         };
-        let ok = match (ty, &after) {
-            // Through -1, or seen from the doubled side: merged into the half.
-            ("period_doubling", Some(c)) => {
-                let l = c.lead();
-                c.period < n || (!c.stable() && l[1] == 0.0 && l[0] < -1.0)
+        // A non-smooth end claims that a feature of the cycle vanishes at the point: the
+        // reference's cycle 1/64 and 1/512 of a cell before it, the feature's zero extrapolated
+        // from there (linearly for a clearance or a stick's length, in its square for an impact
+        // speed) within 1e-3 of a cell of the point.
+        let vanishes = |kinds: &[usize]| -> (bool, String) {
+            let v_near = v_point - delta / 8.0;
+            let Some(r512) = here(v_near) else {
+                return (false, "no reference 1/512 before".into());
+            };
+            let Some(near) = r512
+                .cycle(before.point, n)
+                .filter(|c| c.stable() && c.period == n)
+            else {
+                return (false, "no stable cycle 1/512 of a cell before".into());
+            };
+            let Some(r64) = here(v_before) else {
+                return (false, "no reference".into());
+            };
+            let (f8, f64_) = (features(&r64, &before, n), features(&r512, &near, n));
+            let cell = (co - cf).abs();
+            let (d1, d2) = (delta.abs(), delta.abs() / 8.0);
+            let best = kinds
+                .iter()
+                .filter(|&&k| f8[k].is_finite() && f64_[k].is_finite() && f8[k] > 0.0)
+                .map(|&k| {
+                    let (a, b) = if k == 0 {
+                        (f8[k] * f8[k], f64_[k] * f64_[k])
+                    } else {
+                        (f8[k], f64_[k])
+                    };
+                    // The zero's distance before the point (negative: beyond it), in cells.
+                    let d0 = d2 - b * (d1 - d2) / (a - b);
+                    (k, f64_[k] / f8[k], d0 / cell)
+                })
+                .min_by(|x, y| x.2.abs().total_cmp(&y.2.abs()));
+            match best {
+                Some((k, ratio, d0)) => (
+                    ratio < 0.5 && d0.abs() <= 1e-3,
+                    format!(
+                        "{} {:.3e} -> {:.3e} (ratio {ratio:.3}), zero {d0:+.2e} cell from the point",
+                        FEATURES[k], f8[k], f64_[k]
+                    ),
+                ),
+                None => (false, "no feature on the cycle".into()),
             }
-            ("neimark_sacker", Some(c)) => !c.stable() && c.lead()[1] != 0.0,
-            ("fold", None) => true,
-            ("fold", Some(c)) => !c.stable() && c.lead()[1] == 0.0 && c.lead()[0] > 1.0,
-            ("period_doubling" | "neimark_sacker", None) => false,
-            (_, None) => true,
-            (_, Some(c)) => !(c.stable() && c.period == n),
         };
+        let feature = match ty {
+            "grazing" => Some(vanishes(&[0, 1])),
+            "stick_loss" => Some(vanishes(&[2])),
+            _ => None,
+        };
+        let desc = match &feature {
+            Some((_, why)) => format!("{desc}; {why}"),
+            None => desc,
+        };
+        let ok = feature.as_ref().is_none_or(|f| f.0)
+            && match (ty, &after) {
+                // Through -1, or seen from the doubled side: merged into the half.
+                ("period_doubling", Some(c)) => {
+                    let l = c.lead();
+                    c.period < n || (!c.stable() && l[1] == 0.0 && l[0] < -1.0)
+                }
+                ("neimark_sacker", Some(c)) => !c.stable() && c.lead()[1] != 0.0,
+                ("fold", None) => true,
+                ("fold", Some(c)) => !c.stable() && c.lead()[1] == 0.0 && c.lead()[0] > 1.0,
+                ("period_doubling" | "neimark_sacker", None) => false,
+                (_, None) => true,
+                (_, Some(c)) => !(c.stable() && c.period == n),
+            };
         (if ok { Verdict::Right } else { Verdict::Wrong }, desc)
     };
     let verdicts: Vec<_> = {
@@ -259,4 +321,44 @@ fn main() -> anyhow::Result<()> {
         pool.len() - told
     );
     Ok(())
+}
+
+/// The names of [`features`]'s values.
+const FEATURES: [&str; 3] = ["impact speed", "clearance", "stick length"];
+
+/// The vanishing candidates of the reference's cycle `c` of period `n` over one cycle (after
+/// one cycle from its point): the slowest impact's relative speed, the least clearance
+/// r - |z| where the relative velocity passes zero (z' = y4 - y2: the clearance's minima), the
+/// shortest stick or lock (in periods). Infinity where the cycle has none.
+fn features(r: &DryReference, c: &rattle::reference::dry::RefCycle, n: u32) -> [f64; 3] {
+    let mut log = Vec::new();
+    let mut st = r.start(c.point);
+    if r.run(&mut st, 2 * n, Some(&mut log)).is_err() {
+        return [f64::NAN; 3];
+    }
+    let mut out = [f64::INFINITY; 3];
+    let mut held_from: Option<f64> = None;
+    use rattle::reference::dry::RefMode;
+    for e in &log {
+        let second = e.time >= f64::from(n);
+        if second && e.kind.starts_with("impact") {
+            out[0] = out[0].min(e.v_before.abs());
+        }
+        if second && e.kind == "reversal" {
+            let z = e.y_before[2] - e.y_before[0];
+            out[1] = out[1].min((r.clearance() - z.abs()).max(0.0));
+        }
+        let held = matches!(e.mode, RefMode::Stick | RefMode::Lock(_));
+        match (held, held_from) {
+            (true, None) => held_from = Some(e.time),
+            (false, Some(t)) => {
+                if second && t >= f64::from(n) {
+                    out[2] = out[2].min(e.time - t);
+                }
+                held_from = None;
+            }
+            _ => {}
+        }
+    }
+    out
 }

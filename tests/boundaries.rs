@@ -76,6 +76,24 @@ fn boundaries_meet_fig2s_bifurcations_and_the_reference_confirms_each_side() {
     eprintln!("period doubling at {pd:.6}, Neimark-Sacker at {ns:.6}");
     assert!((pd - 1.37059).abs() < 1e-4, "{pd}");
     assert!((ns - 1.71577).abs() < 1e-4, "{ns}");
+    // Each curve crosses the line as one curve, although the classes beyond the
+    // Neimark-Sacker points differ from row to row (quasi-periodic, chaotic, unresolved).
+    for ty in ["period_doubling", "neimark_sacker"] {
+        let across = b["curves"].as_array().unwrap().iter().any(|c| {
+            let ys: Vec<f64> = c["points"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|q| q[1].as_f64().unwrap())
+                .collect();
+            c["type"] == ty && ys.iter().any(|&y| y < 0.02) && ys.iter().any(|&y| y > 0.02)
+        });
+        assert!(
+            across,
+            "no {ty} curve crosses lambda = 0.02: {}",
+            b["curves"]
+        );
+    }
 
     // Each located point judged by the reference (exact motion between events; no code of the
     // integrator or of the classifier) a quarter of a cell to each side (closer, a cycle near
@@ -286,6 +304,93 @@ fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
     assert!(
         after.is_none_or(|c| c.1[0].hypot(c.1[1]) >= 1.0),
         "a stable period-15 cycle after the fold: {after:?}"
+    );
+}
+
+/// Grazing, the bifurcation of impact oscillators, is named where the exact system grazes: the
+/// period-7 cycle of cell (6, 1) of tests/data/r_lambda_128.toml (R 0.51015625, lambda
+/// 0.001171875), continued towards R 0.51171875, ends where one of its reversals (the relative
+/// velocity passing zero: m2's closest approach to a stop without an impact) reaches the stop.
+/// Newton stalls just beyond it at a jump of the integrator's map (the point was `undetermined`
+/// while the clearance was read off a parabola through grid samples, whose error is the step's
+/// cube). The judge, the reference (exact motion between events, its own event location and
+/// Newton): its cycle 1/64 and 1/512 of a cell before the point has a reversal whose clearance
+/// shrinks in proportion to the distance, its zero within 1e-3 of a cell of the point, and no
+/// stable period-7 cycle continues after it.
+#[test]
+fn a_grazing_end_is_named_where_the_exact_system_grazes() {
+    use rattle::cycles::refine;
+    use rattle::method::{Integrator, PointState};
+    use rattle::model::Mode;
+    use rattle::stability::{Change, Found, Kind, locate_changes};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
+    let cfg = Config::load(&path, &[]).unwrap();
+    let settings = cfg.settings();
+    let (from, to) = (0.51015625, 0.51171875);
+    let mut p = cfg.params();
+    cfg.map.x.set(&mut p, from);
+    cfg.map.y.set(&mut p, 0.001171875);
+    let start = PointState {
+        y: [
+            -0.3926962912082672,
+            0.7103724479675293,
+            -0.07760855555534363,
+            -0.4069114029407501,
+        ],
+        mode: Mode::SlipPos,
+        diag: Default::default(),
+    };
+    let cycle = refine(&Integrator::<f64>::new(&p, &settings), &start, 7);
+    assert!(cycle.is_stable() && cycle.period == 7, "{cycle:?}");
+    let found = locate_changes(
+        &settings,
+        &[Change {
+            base: p,
+            param: cfg.map.x,
+            from,
+            cycle: &cycle,
+            to,
+        }],
+    );
+    let Found::Located(b) = &found[0] else {
+        panic!("{:?}", found[0]);
+    };
+    assert_eq!(b.kind, Kind::Grazing, "{b:?}");
+    let edge = to - from;
+    let at = |v: f64| {
+        let mut q = p;
+        cfg.map.x.set(&mut q, v);
+        DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
+    };
+    // The least clearance r - |z| at a reversal of the reference's cycle (second time round).
+    let clearance = |v: f64, x: [f64; 4]| {
+        let r = at(v);
+        let c = r.cycle(x, 7).filter(|c| c.stable() && c.period == 7)?;
+        let mut log = Vec::new();
+        r.run(&mut r.start(c.point), 14, Some(&mut log)).ok()?;
+        let least = log
+            .iter()
+            .filter(|e| e.time >= 7.0 && e.kind == "reversal")
+            .map(|e| r.clearance() - (e.y_before[2] - e.y_before[0]).abs())
+            .fold(f64::INFINITY, f64::min);
+        Some((c.point, least))
+    };
+    let (d1, d2) = (edge / 64.0, edge / 512.0);
+    let far = clearance(b.value - d1, b.section).expect("a stable cycle 1/64 before");
+    let near = clearance(b.value - d2, far.0).expect("a stable cycle 1/512 before");
+    let ratio = near.1 / far.1;
+    // Where the clearance, linear in the distance, reaches zero: in cells from the point.
+    let zero = (d2 - near.1 * (d1 - d2) / (far.1 - near.1)) / edge;
+    eprintln!(
+        "clearance {:.3e} -> {:.3e} (ratio {ratio:.3}), zero {zero:+.2e} cell from the point",
+        far.1, near.1
+    );
+    assert!((0.1..0.16).contains(&ratio), "{ratio}");
+    assert!(zero.abs() < 1e-3, "{zero}");
+    let after = at(b.value + edge / 512.0).cycle(near.0, 7);
+    assert!(
+        after.is_none_or(|c| !(c.stable() && c.period == 7)),
+        "a stable period-7 cycle after the grazing"
     );
 }
 

@@ -124,13 +124,17 @@ pub struct Point {
     pub reason: &'static str,
 }
 
-/// A polyline through the points of one type between one pair of classes on neighbouring
-/// edges (edges of one grid square).
+/// A polyline through the points of one type on neighbouring edges (edges of one grid square):
+/// located points where the cycle that changes is of one class (the far side's class may change
+/// along the curve: a Neimark-Sacker curve of period-1 runs beside quasi-periodic cells, then
+/// chaotic ones), other points where the pair of classes is one.
 #[derive(Clone, Debug, Serialize)]
 pub struct Curve {
     #[serde(rename = "type")]
     pub ty: Type,
-    pub classes: [String; 2],
+    /// The changing cycle's class first, then each class met on the far side along the curve
+    /// (for points not located, the pair of classes).
+    pub classes: Vec<String>,
     pub points: Vec<[f64; 2]>,
 }
 
@@ -543,10 +547,29 @@ fn curves(points: &[Point], edges: &[(usize, usize, bool)], nx: usize) -> Vec<Cu
         }
         s
     };
-    let key = |p: &Point| {
-        let mut c = p.classes.clone();
-        c.sort();
-        (p.ty, c)
+    let key = |p: &Point| match p.from {
+        Some(f) => (p.ty, vec![p.classes[usize::from(f == p.cells[1])].clone()]),
+        None => {
+            let mut c = p.classes.to_vec();
+            c.sort();
+            (p.ty, c)
+        }
+    };
+    // The changing cycle's class, then the far classes in order along the chain.
+    let classes = |chain: &[usize]| -> Vec<String> {
+        let first = &points[chain[0]];
+        let Some(f) = first.from else {
+            return first.classes.to_vec();
+        };
+        let mut out = vec![first.classes[usize::from(f == first.cells[1])].clone()];
+        for &i in chain {
+            let p = &points[i];
+            let far = &p.classes[usize::from(p.from != Some(p.cells[1]))];
+            if !out[1..].contains(far) {
+                out.push(far.clone());
+            }
+        }
+        out
     };
     // Ordered, so that the curves are the same from run to run.
     let mut by_square: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
@@ -586,10 +609,9 @@ fn curves(points: &[Point], edges: &[(usize, usize, bool)], nx: usize) -> Vec<Cu
             chain.push(n);
             at = n;
         }
-        let p = &points[s];
         out.push(Curve {
-            ty: p.ty,
-            classes: p.classes.clone(),
+            ty: points[s].ty,
+            classes: classes(&chain),
             points: chain.iter().map(|&i| [points[i].x, points[i].y]).collect(),
         });
     }

@@ -874,15 +874,16 @@ fn stage_boundaries(
              seen (the cycle beyond converged, a multiplier outside the circle) is a period \
              doubling (through -1), a fold (+1) or a Neimark-Sacker point (a complex pair); a \
              cycle that ends without one is a fold where 1 - mu shrinks like the square root of \
-             the distance, a grazing where an impact's speed or a free flight's clearance \
-             vanishes, a stick onset or loss where a slip's speed or a stick phase vanishes, \
+             the distance, a grazing where an impact's speed or a free flight's clearance to a \
+             stop (where the relative velocity passes zero) vanishes, a stick onset or loss where a slip's speed or a stick phase vanishes, \
              else undetermined with its reason. Where the cycle is still stable at the other \
              cell's parameters, the two attractors coexist (a basin boundary: coexistence) if \
              both persist at the edge's midpoint (the cycle by Newton, the other side's motion \
              run there from its own state for the configured periods); edges without a stable \
              cycle on either side are undetermined and not located. Curves join the points of \
-             one type between one pair of classes on edges of one grid square; coexistence and \
-             undetermined edges are counted, not drawn.",
+             one type on edges of one grid square whose changing cycle is of one class (the \
+             class beyond may change along a curve); coexistence and undetermined edges are \
+             counted, not drawn.",
             grid = super::caption::grid_phrase(cfg),
             e = b.edges,
         ),

@@ -48,6 +48,8 @@ pub struct RefEvent {
     pub mode: RefMode,
     /// The relative velocity v = y2 - y4 just before the event.
     pub v_before: f64,
+    /// The state just before the event.
+    pub y_before: [f64; 4],
 }
 
 /// A guard: value, time derivative, the event it signals.
@@ -132,6 +134,11 @@ impl DryReference {
     /// The forcing period.
     pub fn period(&self) -> f64 {
         self.period
+    }
+
+    /// The clearance r.
+    pub fn clearance(&self) -> f64 {
+        self.r
     }
 
     /// Whether the motion between events is the exact (Coulomb) one.
@@ -464,7 +471,7 @@ impl DryReference {
                     }
                     Some((te, kind)) => {
                         st.y = self.flow(&st.y, st.mode, t, te - t, false);
-                        let v_before = st.y[1] - st.y[3];
+                        let (v_before, y_before) = (st.y[1] - st.y[3], st.y);
                         self.apply(st, kind, te);
                         if let Some(l) = log.as_deref_mut() {
                             l.push(RefEvent {
@@ -472,6 +479,7 @@ impl DryReference {
                                 kind,
                                 mode: st.mode,
                                 v_before,
+                                y_before,
                             });
                         }
                         t = te;

@@ -12,7 +12,7 @@
 
 use super::Kind;
 use crate::cycles::Cycle;
-use crate::method::{EV_IMPACT_NEG, EV_IMPACT_POS, Event, Integrator, StepObserver};
+use crate::method::{EV_IMPACT_NEG, EV_IMPACT_POS, EV_REVERSAL, Event, Integrator, StepObserver};
 use crate::model::{Mode, Params};
 
 /// The smallest of each vanishing candidate over one cycle (infinity where the cycle has none).
@@ -21,7 +21,7 @@ pub struct Structure {
     /// Relative speed |z'| of the slowest impact.
     pub impact_speed: f64,
     /// Least clearance r - |z| of a free flight's closest approach to a stop (a local minimum
-    /// of the clearance with no impact).
+    /// of the clearance with no impact: where the relative velocity passes zero).
     pub gap: f64,
     /// Shortest stick or lock phase, in time units.
     pub stick: f64,
@@ -45,9 +45,10 @@ impl Structure {
 pub fn structure(it: &Integrator<f64>, c: &Cycle) -> Structure {
     let mut obs = Observer {
         r: it.p.clearance,
+        eta: it.p.eta,
         t: 0.0,
         from: f64::INFINITY,
-        samples: Vec::new(),
+        last: None,
         stick_from: None,
         out: Structure {
             impact_speed: f64::INFINITY,
@@ -84,32 +85,59 @@ pub fn vanishing(near: &Structure, far: &Structure, contrast: f64) -> Option<Kin
         .map(|(_, k)| k)
 }
 
-/// A sample of the motion: time, clearance, |v| in slip (NaN otherwise).
-type Sample = (f64, f64, f64);
+/// A sample of a slip: time, the relative velocity v = y2 - y4 and its derivative.
+#[derive(Clone, Copy)]
+struct Sample {
+    t: f64,
+    v: f64,
+    vd: f64,
+}
 
 struct Observer {
     r: f64,
+    eta: f64,
     t: f64,
     /// Features count from this time on (the second pass).
     from: f64,
-    /// Samples since the last event (local minima are looked for among them).
-    samples: Vec<Sample>,
+    /// The last sample of the current piece of free flight (none after an event or in stick).
+    last: Option<Sample>,
     stick_from: Option<f64>,
     out: Structure,
 }
 
-/// The least value of the parabola through three samples (t, value), where its vertex lies
-/// between the outer two; the middle value otherwise.
-fn vertex(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> f64 {
-    let (d1, d2) = ((b.1 - a.1) / (b.0 - a.0), (c.1 - b.1) / (c.0 - b.0));
-    let curv = (d2 - d1) / (c.0 - a.0);
-    if curv <= 0.0 || !curv.is_finite() {
-        return b.1;
-    }
-    // The slope at b from the parabola, then its vertex.
-    let slope = d1 + curv * (b.0 - a.0);
-    let v = b.1 - slope * slope / (4.0 * curv);
-    v.clamp(0.0, b.1)
+/// The cubic Hermite interpolant on one sub-step (values `g0, g1`, derivatives times the
+/// sub-step `m0, m1`) in power form on s in [0, 1]: the integrator's own event guards
+/// ([`crate::method::events::bracket`]) are this cubic, so that a feature read from it
+/// vanishes exactly where the integrator's map grazes (a parabola through three samples is off
+/// by the step's cube, far more than a feature near its end).
+fn cubic(g0: f64, g1: f64, m0: f64, m1: f64) -> [f64; 4] {
+    let d = g1 - g0;
+    [g0, m0, 3.0 * d - 2.0 * m0 - m1, m0 + m1 - 2.0 * d]
+}
+
+/// The interior extrema of the cubic `a` on [0, 1]: (value, second derivative) at each.
+fn extrema(a: [f64; 4]) -> impl Iterator<Item = (f64, f64)> {
+    let (qa, qb, qc) = (3.0 * a[3], 2.0 * a[2], a[1]);
+    let roots = if qa.abs() > 1e-300 {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc < 0.0 {
+            [f64::NAN; 2]
+        } else {
+            let q = -0.5 * (qb + qb.signum() * disc.sqrt());
+            [q / qa, if q != 0.0 { qc / q } else { f64::NAN }]
+        }
+    } else if qb != 0.0 {
+        [-qc / qb, f64::NAN]
+    } else {
+        [f64::NAN; 2]
+    };
+    roots
+        .into_iter()
+        .filter(|s| (0.0..=1.0).contains(s))
+        .map(move |s| {
+            let value = a[0] + s * (a[1] + s * (a[2] + s * a[3]));
+            (value, 2.0 * a[2] + 6.0 * a[3] * s)
+        })
 }
 
 impl Observer {
@@ -117,24 +145,17 @@ impl Observer {
         self.t >= self.from
     }
 
-    /// Local minima of the clearance and of the slip speed among the last three samples.
-    fn minima(&mut self) {
-        let n = self.samples.len();
-        if n < 3 || !self.counts() {
+    /// The slip speed's closest approach to zero (a local minimum of |v|) inside the sub-step
+    /// from `a` to `b`.
+    fn minima(&mut self, a: Sample, b: Sample) {
+        let h = b.t - a.t;
+        if !self.counts() || h <= 0.0 {
             return;
         }
-        let [a, b, c] = [
-            self.samples[n - 3],
-            self.samples[n - 2],
-            self.samples[n - 1],
-        ];
-        if b.1 < a.1 && b.1 <= c.1 {
-            let g = vertex((a.0, a.1), (b.0, b.1), (c.0, c.1));
-            self.out.gap = self.out.gap.min(g);
-        }
-        if b.2 < a.2 && b.2 <= c.2 {
-            let s = vertex((a.0, a.2), (b.0, b.2), (c.0, c.2));
-            self.out.slip_speed = self.out.slip_speed.min(s);
+        for (v, curv) in extrema(cubic(a.v, b.v, h * a.vd, h * b.vd)) {
+            if v * curv > 0.0 && v * a.v > 0.0 {
+                self.out.slip_speed = self.out.slip_speed.min(v.abs());
+            }
         }
     }
 }
@@ -142,17 +163,23 @@ impl Observer {
 impl StepObserver<f64> for Observer {
     const ACTIVE: bool = true;
 
-    fn substep(&mut self, _: &Params<f64>, stages: &[[f64; 4]; 4], mode: Mode, dt: f64) {
+    fn substep(&mut self, p: &Params<f64>, stages: &[[f64; 4]; 4], mode: Mode, dt: f64) {
         let y = stages[0];
-        let slip = matches!(mode, Mode::SlipPos | Mode::SlipNeg);
-        let gap = if slip {
-            self.r - (y[2] - y[0]).abs()
+        if matches!(mode, Mode::SlipPos | Mode::SlipNeg) {
+            // The forcing's phase from the observer's own clock, which starts at phase 0.
+            let f = crate::model::field(p, &y, mode, (self.eta * self.t).cos());
+            let s = Sample {
+                t: self.t,
+                v: y[1] - y[3],
+                vd: f[1] - f[3],
+            };
+            if let Some(a) = self.last {
+                self.minima(a, s);
+            }
+            self.last = Some(s);
         } else {
-            f64::NAN
-        };
-        let speed = if slip { (y[1] - y[3]).abs() } else { f64::NAN };
-        self.samples.push((self.t, gap, speed));
-        self.minima();
+            self.last = None;
+        }
         self.t += dt;
     }
 
@@ -161,6 +188,19 @@ impl StepObserver<f64> for Observer {
         if (e.ev == EV_IMPACT_POS || e.ev == EV_IMPACT_NEG) && counts {
             let speed = (e.before[3] - e.before[1]).abs();
             self.out.impact_speed = self.out.impact_speed.min(speed);
+        }
+        // z' = -v: the clearance r - |z| has its local minima where v passes zero, at a
+        // reversal or a stick's start, never inside a slip. Where |z| peaks there (z > 0 after
+        // v rose through zero, z < 0 after it fell) is a closest approach to a stop.
+        let z = e.before[2] - e.before[0];
+        let rising = e.mode_before == Mode::SlipNeg;
+        let at_rest = matches!(e.after.mode, Mode::Stick);
+        if counts
+            && matches!(e.mode_before, Mode::SlipPos | Mode::SlipNeg)
+            && (e.ev == EV_REVERSAL || at_rest)
+            && (z > 0.0) == rising
+        {
+            self.out.gap = self.out.gap.min((self.r - z.abs()).max(0.0));
         }
         let held = |m: Mode| matches!(m, Mode::Stick | Mode::LockPos | Mode::LockNeg);
         match (held(e.mode_before), held(e.after.mode)) {
@@ -173,6 +213,6 @@ impl StepObserver<f64> for Observer {
             _ => {}
         }
         // The motion after an event is a new piece: minima do not span it.
-        self.samples.clear();
+        self.last = None;
     }
 }
