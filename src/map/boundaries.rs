@@ -203,34 +203,131 @@ pub fn summary_line(b: &Boundaries) -> String {
     )
 }
 
+/// The map's grid: the cells' centres and parameters.
+struct Grid<'a> {
+    cfg: &'a Config,
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+    nx: usize,
+    ny: usize,
+}
+
+/// An edge between cells `a < b` whose classes differ, and whether it runs along x.
+type Edge = (usize, usize, bool);
+
+/// What the continuations along one edge found: (what, the cycle's period, the cell it was
+/// continued from).
+type EdgeFound = Vec<(Found, u32, usize)>;
+
+/// Whether each side's cycle coexists across its edge: keyed by (a, b, the cycle's cell).
+type Verdicts = HashMap<(usize, usize, usize), Result<(), &'static str>>;
+
+impl<'a> Grid<'a> {
+    fn new(cfg: &'a Config) -> Self {
+        let m = &cfg.map;
+        Grid {
+            cfg,
+            xs: Config::map_axis(m.x_from, m.x_to, m.x_points),
+            ys: Config::map_axis(m.y_from, m.y_to, m.y_points),
+            nx: m.x_points as usize,
+            ny: m.y_points as usize,
+        }
+    }
+
+    fn params(&self, c: usize) -> Params<f64> {
+        let mut p = self.cfg.params();
+        self.cfg.map.x.set(&mut p, self.xs[c % self.nx]);
+        self.cfg.map.y.set(&mut p, self.ys[c / self.nx]);
+        p
+    }
+
+    /// The cell's coordinate along the edge's axis.
+    fn along(&self, c: usize, along_x: bool) -> f64 {
+        if along_x {
+            self.xs[c % self.nx]
+        } else {
+            self.ys[c / self.nx]
+        }
+    }
+
+    /// The midpoint of the edge between `a` and `b`.
+    fn midpoint(&self, a: usize, b: usize) -> (f64, f64) {
+        let nx = self.nx;
+        (
+            0.5 * (self.xs[a % nx] + self.xs[b % nx]),
+            0.5 * (self.ys[a / nx] + self.ys[b / nx]),
+        )
+    }
+
+    fn midpoint_params(&self, a: usize, b: usize) -> Params<f64> {
+        let (x, y) = self.midpoint(a, b);
+        let mut p = self.cfg.params();
+        self.cfg.map.x.set(&mut p, x);
+        self.cfg.map.y.set(&mut p, y);
+        p
+    }
+
+    /// The edges whose cells' classes differ.
+    fn edges(&self, class: &[i32]) -> Vec<Edge> {
+        let (nx, ny) = (self.nx, self.ny);
+        let mut edges = Vec::new();
+        for iy in 0..ny {
+            for ix in 0..nx {
+                let a = iy * nx + ix;
+                if ix + 1 < nx && class[a] != class[a + 1] {
+                    edges.push((a, a + 1, true));
+                }
+                if iy + 1 < ny && class[a] != class[a + nx] {
+                    edges.push((a, a + nx, false));
+                }
+            }
+        }
+        edges
+    }
+}
+
 /// Locates and types the boundaries of the map of `cfg` from its cells' layers.
 pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
     let t0 = std::time::Instant::now();
-    let m = &cfg.map;
-    let (nx, ny) = (m.x_points as usize, m.y_points as usize);
-    let xs = Config::map_axis(m.x_from, m.x_to, m.x_points);
-    let ys = Config::map_axis(m.y_from, m.y_to, m.y_points);
+    let grid = Grid::new(cfg);
     let settings = cfg.settings();
-    let params = |c: usize| -> Params<f64> {
-        let mut p = cfg.params();
-        m.x.set(&mut p, xs[c % nx]);
-        m.y.set(&mut p, ys[c / nx]);
-        p
-    };
-    // Edges whose cells' classes differ: (a, b, along x).
-    let mut edges = Vec::new();
-    for iy in 0..ny {
-        for ix in 0..nx {
-            let a = iy * nx + ix;
-            if ix + 1 < nx && cells.class[a] != cells.class[a + 1] {
-                edges.push((a, a + 1, true));
-            }
-            if iy + 1 < ny && cells.class[a] != cells.class[a + nx] {
-                edges.push((a, a + nx, false));
-            }
-        }
+    let edges = grid.edges(cells.class);
+    let (trials, cycles) = side_cycles(&grid, &settings, cells, &edges);
+    let t1 = std::time::Instant::now();
+    let (per_edge, continuations) = continuations(&grid, &settings, cells, &edges, &cycles);
+    let continuation_s = t1.elapsed().as_secs_f64();
+    let t2 = std::time::Instant::now();
+    let (coexists, claims) = coexistences(&grid, &settings, cells, &edges, &cycles, &per_edge);
+    let coexistence_s = t2.elapsed().as_secs_f64();
+    let points: Vec<Point> = edges
+        .iter()
+        .zip(&per_edge)
+        .map(|(&e, f)| edge_point(&grid, cells, e, f, &coexists))
+        .collect();
+    let curves = curves(&points, &edges, grid.nx);
+    Boundaries {
+        x_param: cfg.map.x.name(),
+        y_param: cfg.map.y.name(),
+        edges: edges.len(),
+        curves,
+        points,
+        trials,
+        continuations,
+        claims,
+        continuation_s,
+        coexistence_s,
+        seconds: t0.elapsed().as_secs_f64(),
     }
-    // The stable cycle of every periodic cell on an edge, refined from its final state.
+}
+
+/// The stable cycle of every periodic cell on an edge, refined from its final state (cells
+/// whose refined cycle is not stable at the cell's period have none); and the trials made.
+fn side_cycles(
+    grid: &Grid,
+    settings: &crate::method::Settings,
+    cells: &Cells,
+    edges: &[Edge],
+) -> (usize, HashMap<usize, Cycle>) {
     let periodic = |c: usize| {
         cells.class[c] > 0 && cells.state[4 * c..4 * c + 4].iter().all(|v| v.is_finite())
     };
@@ -244,29 +341,35 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
     let tasks: Vec<Refine> = sides
         .iter()
         .map(|&c| {
-            let mut y = [0.0; 4];
-            y.copy_from_slice(&cells.state[4 * c..4 * c + 4]);
-            let start = PointState {
-                y,
-                mode: Mode::from_u32(u32::from(cells.mode[c])),
-                diag: Default::default(),
-            };
+            let start = cell_state(cells, c).expect("a periodic side has a state");
             Refine::new(
-                Integrator::<f64>::new(&params(c), &settings),
+                Integrator::<f64>::new(&grid.params(c), settings),
                 &start,
                 cells.class[c] as u32,
             )
         })
         .collect();
     let trials = tasks.len();
-    let cycles: HashMap<usize, Cycle> = sides
+    let cycles = sides
         .iter()
-        .zip(Decider::Host.refine(&settings, tasks))
+        .zip(Decider::Host.refine(settings, tasks))
         .map(|(&c, t)| (c, t.cycle()))
         .filter(|(c, cy)| cy.is_stable() && cy.period == cells.class[*c] as u32)
         .collect();
-    // A continuation from each side with a stable cycle, unless the map's carry already found
-    // that cycle stable at the other side's parameters.
+    (trials, cycles)
+}
+
+/// A continuation from each side with a stable cycle towards the other side, unless the map's
+/// carry already found that cycle stable at the other side's parameters: what each edge's
+/// continuations found, and how many ran.
+fn continuations(
+    grid: &Grid,
+    settings: &crate::method::Settings,
+    cells: &Cells,
+    edges: &[Edge],
+    cycles: &HashMap<usize, Cycle>,
+) -> (Vec<EdgeFound>, usize) {
+    let m = &grid.cfg.map;
     let mut changes = Vec::new();
     let mut owner = Vec::new();
     for (k, &(a, b, along_x)) in edges.iter().enumerate() {
@@ -277,202 +380,183 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
             if cells.coexist[to] == cells.class[from] {
                 continue;
             }
-            let (param, v) = if along_x {
-                (m.x, (xs[from % nx], xs[to % nx]))
-            } else {
-                (m.y, (ys[from / nx], ys[to / nx]))
-            };
             changes.push(Change {
-                base: params(from),
-                param,
-                from: v.0,
+                base: grid.params(from),
+                param: if along_x { m.x } else { m.y },
+                from: grid.along(from, along_x),
                 cycle,
-                to: v.1,
+                to: grid.along(to, along_x),
             });
             owner.push((k, from));
         }
     }
-    let t1 = std::time::Instant::now();
-    let found = locate_changes(&settings, &changes);
-    let continuation_s = t1.elapsed().as_secs_f64();
-    let continuations = changes.len();
-    let mut per_edge: Vec<Vec<(&Found, u32, usize)>> = vec![Vec::new(); edges.len()];
-    for ((&(k, from), f), c) in owner.iter().zip(&found).zip(&changes) {
+    let found = locate_changes(settings, &changes);
+    let mut per_edge: Vec<EdgeFound> = vec![Vec::new(); edges.len()];
+    for ((&(k, from), f), c) in owner.iter().zip(found).zip(&changes) {
         per_edge[k].push((f, c.cycle.period, from));
     }
-    // Which side's cycle coexists across each edge (the carry's or the continuation's), and
-    // whether both attractors persist at the edge's midpoint.
-    let continued: std::collections::HashSet<(usize, usize)> = owner
-        .iter()
-        .zip(&found)
-        .filter(|(_, f)| matches!(f, Found::StableThere))
-        .map(|(&o, _)| o)
-        .collect();
+    (per_edge, changes.len())
+}
+
+/// Which side's cycle coexists across each edge (the carry's or the continuation's), and
+/// whether both attractors persist at the edge's midpoint; and the claims checked.
+fn coexistences(
+    grid: &Grid,
+    settings: &crate::method::Settings,
+    cells: &Cells,
+    edges: &[Edge],
+    cycles: &HashMap<usize, Cycle>,
+    per_edge: &[EdgeFound],
+) -> (Verdicts, usize) {
     let mut claims = Vec::new();
-    for (k, &(a, b, _)) in edges.iter().enumerate() {
+    for (&(a, b, _), found) in edges.iter().zip(per_edge) {
         for (from, to) in [(a, b), (b, a)] {
             let Some(cycle) = cycles.get(&from) else {
                 continue;
             };
-            if cells.coexist[to] == cells.class[from] || continued.contains(&(k, from)) {
+            let continued = found
+                .iter()
+                .any(|(f, _, c)| *c == from && matches!(f, Found::StableThere));
+            if cells.coexist[to] == cells.class[from] || continued {
                 claims.push((a, b, from, to, cycle));
             }
         }
     }
-    let midpoint = |a: usize, b: usize| {
-        let mut p = params(a);
-        m.x.set(&mut p, 0.5 * (xs[a % nx] + xs[b % nx]));
-        m.y.set(&mut p, 0.5 * (ys[a / nx] + ys[b / nx]));
-        p
-    };
     // As long as the map's own look: what the map would call this motion's attractor.
-    let periods = (cfg.run.transient_periods + cfg.run.sample_periods).max(cfg.run.look);
-    let t2 = std::time::Instant::now();
-    let coexists: HashMap<(usize, usize, usize), Result<(), &'static str>> = {
-        use rayon::prelude::*;
-        claims
-            .par_iter()
-            .map(|&(a, b, from, to, cycle)| {
-                let own = cell_state(cells, to);
-                let v = persists(&midpoint(a, b), &settings, cycle, own, periods);
-                ((a, b, from), v)
-            })
-            .collect()
-    };
-    let coexistence_s = t2.elapsed().as_secs_f64();
-    let name = |c: usize| Class::from_code(cells.class[c]).name();
-    let points: Vec<Point> = edges
-        .iter()
-        .zip(&per_edge)
-        .map(|(&(a, b, along_x), f)| {
-            let (mx, my) = (
-                0.5 * (xs[a % nx] + xs[b % nx]),
-                0.5 * (ys[a / nx] + ys[b / nx]),
-            );
-            let half = if along_x {
-                0.5 * (xs[b % nx] - xs[a % nx]).abs()
-            } else {
-                0.5 * (ys[b / nx] - ys[a / nx]).abs()
-            };
-            let carried = (cells.class[a] > 0 && cells.coexist[b] == cells.class[a])
-                || (cells.class[b] > 0 && cells.coexist[a] == cells.class[b]);
-            // A multiplier's crossing first, then a named end, then an unnamed one, then
-            // coexistence.
-            let rank = |k: Kind| match k {
-                Kind::PeriodDoubling | Kind::Fold | Kind::NeimarkSacker => 0,
-                Kind::NonSmooth => 2,
-                _ => 1,
-            };
-            // Between the two sides' changes of one rank, the one continued from the side of
-            // the smaller parameter value: the same point whichever way the axes run. Its
-            // uncertainty covers the other side's change of that rank, where both located one
-            // (the two continuations differ by the method's error, more than the bisection's).
-            let along = |c: usize| if along_x { xs[c % nx] } else { ys[c / nx] };
-            let candidates: Vec<(&BifurcationPoint, u32, usize)> = f
-                .iter()
-                .filter_map(|(f, n, from)| match f {
-                    Found::Located(p) => Some((p, *n, *from)),
-                    _ => None,
-                })
-                .collect();
-            let located = candidates
-                .iter()
-                .min_by(|x, y| {
-                    (rank(x.0.kind), along(x.2))
-                        .partial_cmp(&(rank(y.0.kind), along(y.2)))
-                        .unwrap_or(std::cmp::Ordering::Equal)
-                })
-                .map(|&(p, n, from)| {
-                    let other = candidates
-                        .iter()
-                        .find(|o| o.2 != from && rank(o.0.kind) == rank(p.kind));
-                    let uncertainty = other.map_or(p.uncertainty, |o| {
-                        p.uncertainty
-                            .max((o.0.value - p.value).abs() + o.0.uncertainty)
-                    });
-                    (p, n, from, uncertainty)
-                });
-            let stable_there = f.iter().any(|(f, _, _)| matches!(f, Found::StableThere));
-            let verdict = |c: usize| coexists.get(&(a, b, c)).copied();
-            let mut reason = "";
-            let (mut from, mut section) = (None, None);
-            let (ty, x, y, uncertainty, located, period) = match located {
-                Some((p, n, c, uncertainty)) => {
-                    from = Some(c);
-                    section = Some(p.section);
-                    let ty = match p.kind {
-                        Kind::PeriodDoubling => Type::PeriodDoubling,
-                        Kind::Fold => Type::Fold,
-                        Kind::NeimarkSacker => Type::NeimarkSacker,
-                        Kind::Grazing => Type::Grazing,
-                        Kind::StickOnset => Type::StickOnset,
-                        Kind::StickLoss => Type::StickLoss,
-                        Kind::NonSmooth => {
-                            reason = if p.stall <= crate::stability::JUMP_RESIDUAL {
-                                ENDS_AT_JUMP
-                            } else {
-                                ENDS_UNNAMED
-                            };
-                            Type::Undetermined
-                        }
-                    };
-                    let (x, y) = if along_x {
-                        (p.value, my)
-                    } else {
-                        (mx, p.value)
-                    };
-                    (ty, x, y, uncertainty, true, n)
-                }
-                None if cells.inferred[a] != 0 || cells.inferred[b] != 0 => {
-                    reason = INFERRED;
-                    (Type::Undetermined, mx, my, half, false, 0)
-                }
-                None if carried || stable_there => {
-                    // Coexistence only where both attractors persist at the edge's midpoint.
-                    // The side of the smaller parameter value first, whichever way the axes run.
-                    let mut sides = [a, b];
-                    sides.sort_by(|p, q| along(*p).total_cmp(&along(*q)));
-                    match sides.into_iter().find_map(verdict) {
-                        Some(Ok(())) | None => (Type::Coexistence, mx, my, half, false, 0),
-                        Some(Err(why)) => {
-                            reason = why;
-                            (Type::Undetermined, mx, my, half, false, 0)
-                        }
-                    }
-                }
-                None => {
-                    reason = NO_CYCLE;
-                    (Type::Undetermined, mx, my, half, false, 0)
-                }
-            };
-            Point {
-                x,
-                y,
-                ty,
-                classes: [name(a).to_string(), name(b).to_string()],
-                uncertainty,
-                located,
-                period,
-                cells: [a, b],
-                from,
-                section,
-                reason,
-            }
+    let run = &grid.cfg.run;
+    let periods = (run.transient_periods + run.sample_periods).max(run.look);
+    use rayon::prelude::*;
+    let verdicts = claims
+        .par_iter()
+        .map(|&(a, b, from, to, cycle)| {
+            let own = cell_state(cells, to);
+            let v = persists(&grid.midpoint_params(a, b), settings, cycle, own, periods);
+            ((a, b, from), v)
         })
         .collect();
-    let curves = curves(&points, &edges, nx);
-    Boundaries {
-        x_param: m.x.name(),
-        y_param: m.y.name(),
-        edges: edges.len(),
-        curves,
-        points,
-        trials,
-        continuations,
-        claims: claims.len(),
-        continuation_s,
-        coexistence_s,
-        seconds: t0.elapsed().as_secs_f64(),
+    (verdicts, claims.len())
+}
+
+/// The type of a located change and, where `undetermined`, why.
+fn type_of(p: &BifurcationPoint) -> (Type, &'static str) {
+    match p.kind {
+        Kind::PeriodDoubling => (Type::PeriodDoubling, ""),
+        Kind::Fold => (Type::Fold, ""),
+        Kind::NeimarkSacker => (Type::NeimarkSacker, ""),
+        Kind::Grazing => (Type::Grazing, ""),
+        Kind::StickOnset => (Type::StickOnset, ""),
+        Kind::StickLoss => (Type::StickLoss, ""),
+        Kind::NonSmooth if p.stall <= crate::stability::JUMP_RESIDUAL => {
+            (Type::Undetermined, ENDS_AT_JUMP)
+        }
+        Kind::NonSmooth => (Type::Undetermined, ENDS_UNNAMED),
+    }
+}
+
+/// The change an edge holds: a multiplier's crossing first, then a named end, then an unnamed
+/// one; between the two sides' changes of one rank, the one continued from the side of the
+/// smaller parameter value (the same point whichever way the axes run). Its uncertainty covers
+/// the other side's change of that rank, where both located one (the two continuations differ
+/// by the method's error, more than the bisection's). (point, period, cell, uncertainty).
+fn chosen<'f>(
+    grid: &Grid,
+    along_x: bool,
+    found: &'f EdgeFound,
+) -> Option<(&'f BifurcationPoint, u32, usize, f64)> {
+    let rank = |k: Kind| match k {
+        Kind::PeriodDoubling | Kind::Fold | Kind::NeimarkSacker => 0,
+        Kind::NonSmooth => 2,
+        _ => 1,
+    };
+    let candidates: Vec<(&BifurcationPoint, u32, usize)> = found
+        .iter()
+        .filter_map(|(f, n, from)| match f {
+            Found::Located(p) => Some((p, *n, *from)),
+            _ => None,
+        })
+        .collect();
+    let key = |x: &(&BifurcationPoint, u32, usize)| (rank(x.0.kind), grid.along(x.2, along_x));
+    let &(p, n, from) = candidates.iter().min_by(|x, y| {
+        key(x)
+            .partial_cmp(&key(y))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    })?;
+    let other = candidates
+        .iter()
+        .find(|o| o.2 != from && rank(o.0.kind) == rank(p.kind));
+    let uncertainty = other.map_or(p.uncertainty, |o| {
+        p.uncertainty
+            .max((o.0.value - p.value).abs() + o.0.uncertainty)
+    });
+    Some((p, n, from, uncertainty))
+}
+
+/// The point of one edge from what its continuations found and the coexistence verdicts.
+fn edge_point(
+    grid: &Grid,
+    cells: &Cells,
+    (a, b, along_x): Edge,
+    found: &EdgeFound,
+    coexists: &Verdicts,
+) -> Point {
+    let (mx, my) = grid.midpoint(a, b);
+    let half = 0.5 * (grid.along(b, along_x) - grid.along(a, along_x)).abs();
+    let name = |c: usize| Class::from_code(cells.class[c]).name().to_string();
+    let unlocated = |ty: Type, reason: &'static str| Point {
+        x: mx,
+        y: my,
+        ty,
+        classes: [name(a), name(b)],
+        uncertainty: half,
+        located: false,
+        period: 0,
+        cells: [a, b],
+        from: None,
+        section: None,
+        reason,
+    };
+    if let Some((p, n, c, uncertainty)) = chosen(grid, along_x, found) {
+        let (ty, reason) = type_of(p);
+        let (x, y) = if along_x {
+            (p.value, my)
+        } else {
+            (mx, p.value)
+        };
+        return Point {
+            x,
+            y,
+            ty,
+            classes: [name(a), name(b)],
+            uncertainty,
+            located: true,
+            period: n,
+            cells: [a, b],
+            from: Some(c),
+            section: Some(p.section),
+            reason,
+        };
+    }
+    if cells.inferred[a] != 0 || cells.inferred[b] != 0 {
+        return unlocated(Type::Undetermined, INFERRED);
+    }
+    let carried = (cells.class[a] > 0 && cells.coexist[b] == cells.class[a])
+        || (cells.class[b] > 0 && cells.coexist[a] == cells.class[b]);
+    let stable_there = found
+        .iter()
+        .any(|(f, _, _)| matches!(f, Found::StableThere));
+    if !(carried || stable_there) {
+        return unlocated(Type::Undetermined, NO_CYCLE);
+    }
+    // Coexistence only where both attractors persist at the edge's midpoint. The side of the
+    // smaller parameter value first, whichever way the axes run.
+    let mut sides = [a, b];
+    sides.sort_by(|p, q| grid.along(*p, along_x).total_cmp(&grid.along(*q, along_x)));
+    match sides
+        .into_iter()
+        .find_map(|c| coexists.get(&(a, b, c)).copied())
+    {
+        Some(Ok(())) | None => unlocated(Type::Coexistence, ""),
+        Some(Err(why)) => unlocated(Type::Undetermined, why),
     }
 }
 

@@ -863,34 +863,39 @@ fn stage_boundaries(
             )
         })
         .collect();
-    let located = b.points.iter().filter(|p| p.located).count();
     let j = BoundariesJson {
-        caption: format!(
-            "Boundaries of the class map of {grid}: each of the {e} edges between neighbouring \
-             cells of different classes, typed. Where a side landed on a stable cycle, Newton's \
-             method continues that cycle from its own cell towards the other cell's parameters \
-             (a step that fails is shortened, never taken for the cycle's end) and locates where \
-             it stops being stable to 2^-20 of the edge ({located} points located). A crossing \
-             seen (the cycle beyond converged, a multiplier outside the circle) is a period \
-             doubling (through -1), a fold (+1) or a Neimark-Sacker point (a complex pair); a \
-             cycle that ends without one is a fold where 1 - mu shrinks like the square root of \
-             the distance, a grazing where an impact's speed or a free flight's clearance to a \
-             stop (where the relative velocity passes zero) vanishes, a stick onset or loss where a slip's speed or a stick phase vanishes, \
-             else undetermined with its reason. Where the cycle is still stable at the other \
-             cell's parameters, the two attractors coexist (a basin boundary: coexistence) if \
-             both persist at the edge's midpoint (the cycle by Newton, the other side's motion \
-             run there from its own state for the configured periods); edges without a stable \
-             cycle on either side are undetermined and not located. Curves join the points of \
-             one type on edges of one grid square whose changing cycle is of one class (the \
-             class beyond may change along a curve); coexistence and undetermined edges are \
-             counted, not drawn.",
-            grid = super::caption::grid_phrase(cfg),
-            e = b.edges,
-        ),
+        caption: boundaries_caption(cfg, b),
         boundaries: b,
         files,
         version: env!("CARGO_PKG_VERSION"),
     };
     st.write(&json_path, &serde_json::to_vec_pretty(&j)?)?;
     Ok(())
+}
+
+/// The caption of the boundaries' JSON: what was done to the map `cfg`'s edges.
+fn boundaries_caption(cfg: &Config, b: &super::boundaries::Boundaries) -> String {
+    let located = b.points.iter().filter(|p| p.located).count();
+    format!(
+        "Boundaries of the class map of {grid}: each of the {e} edges between neighbouring \
+         cells of different classes, typed. Where a side landed on a stable cycle, Newton's \
+         method continues that cycle from its own cell towards the other cell's parameters \
+         (a step that fails is shortened, never taken for the cycle's end) and locates where \
+         it stops being stable to 2^-20 of the edge ({located} points located). A crossing \
+         seen (the cycle beyond converged, a multiplier outside the circle) is a period \
+         doubling (through -1), a fold (+1) or a Neimark-Sacker point (a complex pair); a \
+         cycle that ends without one is a fold where 1 - mu shrinks like the square root of \
+         the distance, a grazing where an impact's speed or a free flight's clearance to a \
+         stop (where the relative velocity passes zero) vanishes, a stick onset or loss where a slip's speed or a stick phase vanishes, \
+         else undetermined with its reason. Where the cycle is still stable at the other \
+         cell's parameters, the two attractors coexist (a basin boundary: coexistence) if \
+         both persist at the edge's midpoint (the cycle by Newton, the other side's motion \
+         run there from its own state for the configured periods); edges without a stable \
+         cycle on either side are undetermined and not located. Curves join the points of \
+         one type on edges of one grid square whose changing cycle is of one class (the \
+         class beyond may change along a curve); coexistence and undetermined edges are \
+         counted, not drawn.",
+        grid = super::caption::grid_phrase(cfg),
+        e = b.edges,
+    )
 }
