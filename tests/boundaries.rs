@@ -394,6 +394,75 @@ fn a_grazing_end_is_named_where_the_exact_system_grazes() {
     );
 }
 
+/// The chaotic sea's edge against impact-free motion (eta about 1.78 on configs/eta_lambda.toml)
+/// is named for what it is (it said "no stable cycle on either side"): the impact-free motion
+/// exists on both sides (it does not graze between the cells), so the chaotic side's attractor
+/// ends in a crisis between them, or is a transient there; not a coexistence, since near the
+/// crisis chaotic transients outlast the look. The judge, the reference (exact motion between
+/// events) at the chaotic cell's parameters: from the no_impact cell's state, no impact in the
+/// last 1,000 of 2,000 periods.
+#[test]
+fn the_edge_between_chaos_and_impact_free_motion_is_named() {
+    let d = scratch("impact_free_edge");
+    let shipped = std::fs::read_to_string(common::config("eta_lambda.toml")).unwrap();
+    let model: String = shipped.split("[map]").next().unwrap().to_string();
+    let cfg_path = d.join("edge.toml");
+    std::fs::write(
+        &cfg_path,
+        format!(
+            "{model}[map]\nx = \"eta\"\nx_from = 1.76\nx_to = 1.80\nx_points = 8\n\
+             y = \"lambda\"\ny_from = 0.06\ny_to = 0.08\ny_points = 2\n"
+        ),
+    )
+    .unwrap();
+    ok(rattle()
+        .args([
+            "map",
+            "--backend",
+            "cpu",
+            "--precision",
+            "f64",
+            "--boundaries",
+        ])
+        .arg("--config")
+        .arg(&cfg_path)
+        .arg("--out")
+        .arg(d.join("e")));
+    let b = json(&d.join("e-boundaries.json"));
+    let cfg = Config::load(&cfg_path, &[]).unwrap();
+    let state: Vec<f64> = npy(&d.join("e-state.npy"));
+    let class: Vec<i32> = npy(&d.join("e-class.npy"));
+    let xs = Config::map_axis(cfg.map.x_from, cfg.map.x_to, cfg.map.x_points);
+    let ys = Config::map_axis(cfg.map.y_from, cfg.map.y_to, cfg.map.y_points);
+    let mut named = 0;
+    for p in b["points"].as_array().unwrap() {
+        let cells: Vec<usize> = (0..2)
+            .map(|k| p["cells"][k].as_u64().unwrap() as usize)
+            .collect();
+        let (Some(free), Some(other)) = (
+            cells.iter().find(|&&c| class[c] == -1),
+            cells.iter().find(|&&c| class[c] == -4),
+        ) else {
+            continue;
+        };
+        eprintln!("{} {}: {} {}", p["x"], p["y"], p["type"], p["reason"]);
+        assert_eq!(p["type"], "undetermined", "{p}");
+        assert!(p["reason"].as_str().unwrap().contains("crisis"), "{p}");
+        named += 1;
+        let mut params = cfg.params();
+        cfg.map.x.set(&mut params, xs[other % 8]);
+        cfg.map.y.set(&mut params, ys[other / 8]);
+        let r = DryReference::new(&params, 1024, cfg.settings().zeno_speed).unwrap();
+        let mut st = r.start(std::array::from_fn(|i| state[4 * free + i]));
+        r.run(&mut st, 1000, None).unwrap();
+        let mut log = Vec::new();
+        r.run(&mut st, 1000, Some(&mut log)).unwrap();
+        let impacts = log.iter().filter(|e| e.kind.starts_with("impact")).count();
+        assert_eq!(impacts, 0, "the impact-free motion impacts beside {p}");
+    }
+    assert!(named >= 1, "no edge between chaos and impact-free motion");
+}
+
 /// An n x n R x lambda map at eta 1.26 with short runs (N = 64, 20 + 16 periods), written
 /// into `d`: cheap where what matters is the boundaries' bookkeeping.
 fn short_map(d: &Path, n: u32) -> std::path::PathBuf {

@@ -41,6 +41,19 @@ const INFERRED: &str = "a side is a cell inferred by --refine, not computed: it 
      to continue a cycle from or to check a coexistence with";
 /// Why an edge is `undetermined` and not located.
 const NO_CYCLE: &str = "no stable cycle on either side to continue";
+/// Why an edge between impact-free motion and an impacting attractor is `undetermined` where
+/// the impact-free motion does not graze between the cells: the impacting side's motion at the
+/// edge's midpoint, run from its own state for the map's periods, still impacts (the first) or
+/// ends impact-free (the second). Near such a crisis chaotic transients outlast any fixed look
+/// (the reference finds some that end impact-free after thousands of periods), so neither is
+/// called a coexistence.
+const CRISIS_IMPACTS: &str = "the impact-free motion exists on both sides (no grazing between \
+     the cells) and the impacting side's motion still impacts at the edge's midpoint after the \
+     map's periods: its attractor ends between the cells in a crisis, or it is a transient \
+     longer than the look; not located";
+const CRISIS_ENDS: &str = "the impact-free motion exists on both sides (no grazing between the \
+     cells) and the impacting side's motion ends impact-free at the edge's midpoint within the \
+     map's periods: its attractor ends between the cells in a crisis; not located";
 
 /// The type of a boundary point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -78,6 +91,19 @@ impl Type {
             Type::StickLoss => "stick_loss",
             Type::Coexistence => "coexistence",
             Type::Undetermined => "undetermined",
+        }
+    }
+
+    /// The curve's second mark: the types whose hue is close to another's or to a class's
+    /// beneath (grazing's brown to fold's yellow and period 2's orange, stick loss's green to
+    /// quasi-periodic's, stick onset's purple to the long periods') carry one.
+    pub fn marker(self) -> crate::render::Marker {
+        use crate::render::Marker;
+        match self {
+            Type::Grazing => Marker::Square,
+            Type::StickLoss => Marker::Triangle,
+            Type::StickOnset => Marker::Cross,
+            _ => Marker::None,
         }
     }
 
@@ -295,14 +321,26 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
     let (trials, cycles) = side_cycles(&grid, &settings, cells, &edges);
     let t1 = std::time::Instant::now();
     let (per_edge, continuations) = continuations(&grid, &settings, cells, &edges, &cycles);
+    let (per_edge, free) = with_impact_free_grazings(&grid, &settings, cells, &edges, per_edge);
     let continuation_s = t1.elapsed().as_secs_f64();
     let t2 = std::time::Instant::now();
     let (coexists, claims) = coexistences(&grid, &settings, cells, &edges, &cycles, &per_edge);
+    let free: HashMap<usize, &str> = {
+        use rayon::prelude::*;
+        let run = &cfg.run;
+        let periods = (run.transient_periods + run.sample_periods).max(run.look);
+        free.par_iter()
+            .filter_map(|(&k, &c)| {
+                impact_free_verdict(&grid, &settings, cells, edges[k], c, periods).map(|v| (k, v))
+            })
+            .collect()
+    };
     let coexistence_s = t2.elapsed().as_secs_f64();
     let points: Vec<Point> = edges
         .iter()
         .zip(&per_edge)
-        .map(|(&e, f)| edge_point(&grid, cells, e, f, &coexists))
+        .enumerate()
+        .map(|(k, (&e, f))| edge_point(&grid, cells, e, f, &coexists, free.get(&k)))
         .collect();
     let curves = curves(&points, &edges, grid.nx);
     Boundaries {
@@ -313,7 +351,7 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
         points,
         trials,
         continuations,
-        claims,
+        claims: claims + free.len(),
         continuation_s,
         coexistence_s,
         seconds: t0.elapsed().as_secs_f64(),
@@ -396,6 +434,104 @@ fn continuations(
         per_edge[k].push((f, c.cycle.period, from));
     }
     (per_edge, changes.len())
+}
+
+/// Where a `no_impact` cell neighbours one that impacts, and nothing else was located on the
+/// edge: whether the impact-free motion grazes a stop between them ([`stability::graze`]:
+/// continued from the `no_impact` side with the stops removed, the value where one period with
+/// the stops first holds an impact, bisected). The chaotic sea's edge against impact-free
+/// motion is such a grazing where the impact-free motion ends between the cells; where it does
+/// not (the cell's index in the second map, by edge), [`impact_free_verdict`] tells.
+fn with_impact_free_grazings(
+    grid: &Grid,
+    settings: &crate::method::Settings,
+    cells: &Cells,
+    edges: &[Edge],
+    mut per_edge: Vec<EdgeFound>,
+) -> (Vec<EdgeFound>, HashMap<usize, usize>) {
+    use rayon::prelude::*;
+    let free = Class::NoImpact.code();
+    let impacts = |c: usize| cells.class[c] != free && cells.class[c] != Class::Failed.code();
+    let tasks: Vec<(usize, usize, usize, bool)> = edges
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| {
+            !per_edge[*k]
+                .iter()
+                .any(|f| matches!(f.0, Found::Located(_)))
+        })
+        .filter_map(|(k, &(a, b, along_x))| {
+            match (cells.class[a] == free, cells.class[b] == free) {
+                (true, false) if impacts(b) => Some((k, a, b, along_x)),
+                (false, true) if impacts(a) => Some((k, b, a, along_x)),
+                _ => None,
+            }
+        })
+        .collect();
+    let m = &grid.cfg.map;
+    let found: Vec<(usize, usize, Option<BifurcationPoint>)> = tasks
+        .par_iter()
+        .map(|&(k, good, bad, along_x)| {
+            let st = cell_state(cells, good);
+            let p = st.and_then(|st| {
+                crate::stability::graze(
+                    &grid.params(good),
+                    if along_x { m.x } else { m.y },
+                    settings,
+                    grid.along(good, along_x),
+                    st,
+                    grid.along(bad, along_x),
+                )
+            });
+            (k, good, p)
+        })
+        .collect();
+    let mut free = HashMap::new();
+    for (k, good, p) in found {
+        match p {
+            Some(p) => per_edge[k].push((Found::Located(p), 1, good)),
+            None => {
+                free.insert(k, good);
+            }
+        }
+    }
+    (per_edge, free)
+}
+
+/// Where the impact-free motion of the `no_impact` cell `free` exists at its impacting
+/// neighbour's parameters too (no grazing between them), whether the impacting side's motion
+/// persists at the edge's midpoint: run there from its own state for `periods` periods, it
+/// still impacts in its last one, or ends impact-free; the reason of the `undetermined` edge.
+fn impact_free_verdict(
+    grid: &Grid,
+    settings: &crate::method::Settings,
+    cells: &Cells,
+    (a, b, along_x): Edge,
+    free: usize,
+    periods: u32,
+) -> Option<&'static str> {
+    let other = if free == a { b } else { a };
+    let m = &grid.cfg.map;
+    let param = if along_x { m.x } else { m.y };
+    let st = cell_state(cells, free)?;
+    let value = grid.along(other, along_x);
+    crate::stability::impact_free_at(&grid.params(free), param, settings, value, &st)?;
+    let mut st = cell_state(cells, other)?;
+    let it = Integrator::<f64>::new(&grid.midpoint_params(a, b), settings);
+    for _ in 0..periods {
+        crate::progress::poll();
+        it.period(&mut st);
+        if st.diag.nonfinite {
+            return None;
+        }
+    }
+    let before = st.diag.impacts;
+    it.period(&mut st);
+    Some(if st.diag.impacts > before {
+        CRISIS_IMPACTS
+    } else {
+        CRISIS_ENDS
+    })
 }
 
 /// Which side's cycle coexists across each edge (the carry's or the continuation's), and
@@ -498,6 +634,7 @@ fn edge_point(
     (a, b, along_x): Edge,
     found: &EdgeFound,
     coexists: &Verdicts,
+    impact_free: Option<&&'static str>,
 ) -> Point {
     let (mx, my) = grid.midpoint(a, b);
     let half = 0.5 * (grid.along(b, along_x) - grid.along(a, along_x)).abs();
@@ -545,7 +682,8 @@ fn edge_point(
         .iter()
         .any(|(f, _, _)| matches!(f, Found::StableThere));
     if !(carried || stable_there) {
-        return unlocated(Type::Undetermined, NO_CYCLE);
+        // Impact-free motion on both sides: a crisis of the other side's attractor.
+        return unlocated(Type::Undetermined, impact_free.map_or(NO_CYCLE, |why| why));
     }
     // Coexistence only where both attractors persist at the edge's midpoint. The side of the
     // smaller parameter value first, whichever way the axes run.

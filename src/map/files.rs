@@ -791,17 +791,20 @@ fn stage_boundaries(
     let (cat_refs, fam_refs) = legend_refs(&cats, &fams);
     // Coexistence and undetermined edges are counted, not drawn: they are pixel edges.
     let drawn = |t: Type| !matches!(t, Type::Coexistence | Type::Undetermined);
-    let curves: Vec<(&[[f64; 2]], [u8; 3])> = b
+    let curves: Vec<crate::render::Curve> = b
         .curves
         .iter()
         .filter(|c| drawn(c.ty))
-        .map(|c| (&c.points[..], c.ty.rgb()))
+        .map(|c| (&c.points[..], c.ty.rgb(), c.ty.marker()))
         .collect();
     let count = |t: Type| b.points.iter().filter(|p| p.ty == t).count();
-    let legend: Vec<(String, [u8; 3])> = Type::ALL
+    let legend: Vec<(String, [u8; 3], crate::render::Marker)> = Type::ALL
         .iter()
         .filter(|&&t| drawn(t) && count(t) > 0)
-        .map(|&t| (format!("{}: {} points", t.name(), count(t)), t.rgb()))
+        .map(|&t| {
+            let label = format!("{}: {} points", t.name(), count(t));
+            (label, t.rgb(), t.marker())
+        })
         .collect();
     let note = format!(
         "{} edges between classes:\ncoexistence {}, undetermined {}",

@@ -25,7 +25,53 @@ const RD_BU: [RGBColor; 5] = [
 /// cell under each pixel centre. Returns the plotting area's vertical pixel
 /// range, so side bars can be aligned with it.
 /// A polyline in parameter coordinates and its colour, drawn over a map.
-pub type Curve<'a> = (&'a [[f64; 2]], [u8; 3]);
+pub type Curve<'a> = (&'a [[f64; 2]], [u8; 3], Marker);
+
+/// A curve's second mark beside its colour, so that curves whose hues are close (to each other
+/// or to the classes beneath) are told apart: drawn at every point of the curve and in its
+/// legend row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Marker {
+    None,
+    Square,
+    Triangle,
+    Cross,
+}
+
+/// Draws `marker` of half-size `r` pixels centred at pixel `(x, y)` of `area`.
+fn mark<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    marker: Marker,
+    (x, y): (i32, i32),
+    r: i32,
+    c: RGBColor,
+) -> Result<(), RenderError> {
+    let style = c.stroke_width(2);
+    match marker {
+        Marker::None => Ok(()),
+        Marker::Square => area
+            .draw(&Rectangle::new([(x - r, y - r), (x + r, y + r)], style))
+            .map_err(draw_err),
+        Marker::Triangle => area
+            .draw(&Polygon::new(
+                vec![(x, y - r), (x + r, y + r), (x - r, y + r)],
+                c.filled(),
+            ))
+            .map_err(draw_err),
+        Marker::Cross => {
+            area.draw(&PathElement::new(
+                vec![(x - r, y - r), (x + r, y + r)],
+                style,
+            ))
+            .map_err(draw_err)?;
+            area.draw(&PathElement::new(
+                vec![(x - r, y + r), (x + r, y - r)],
+                style,
+            ))
+            .map_err(draw_err)
+        }
+    }
+}
 
 fn draw_grid_map(
     area: &Area<'_>,
@@ -52,8 +98,25 @@ fn draw_grid_map(
         |v: &f64| fmt_tick(*v, y1 - y0),
     );
     draw_axes(&mut chart, l, labels, (&fx, &fy), false)?;
-    for (pts, c) in curves {
+    for (pts, c, marker) in curves {
         let style = rgb(*c).stroke_width(2);
+        if *marker != Marker::None {
+            let area = chart.plotting_area();
+            for p in pts.iter() {
+                let at = area.map_coordinate(&(p[0], p[1]));
+                let shift = area.get_base_pixel();
+                mark(
+                    &area.strip_coord_spec(),
+                    *marker,
+                    (at.0 - shift.0, at.1 - shift.1),
+                    3,
+                    rgb(*c),
+                )?;
+            }
+            if pts.len() == 1 {
+                continue;
+            }
+        }
         if pts.len() == 1 {
             chart
                 .draw_series(std::iter::once(Circle::new(
@@ -94,8 +157,8 @@ pub struct CategoryMap<'a> {
     pub note: Option<&'a str>,
     /// Polylines drawn over the cells in parameter coordinates, with their colour.
     pub curves: &'a [Curve<'a>],
-    /// The curves' legend rows under the note: (label, colour).
-    pub curve_legend: &'a [(String, [u8; 3])],
+    /// The curves' legend rows under the note: (label, colour, marker).
+    pub curve_legend: &'a [(String, [u8; 3], Marker)],
     pub width: u32,
     pub height: u32,
 }
@@ -314,10 +377,15 @@ impl Legend<'_> {
     ) -> Result<(), RenderError> {
         let total = self.map.cells.len();
         let row_h = font_px * 1.45;
+        // The note's and the curves' rows below the classes, in rows of `row_h`.
+        let note_lines = self.map.note.map_or(0, |n| n.lines().count());
+        let curves = self.map.curve_legend.len();
+        let below = |n: usize, per: f64| if n > 0 { 0.3 + per * n as f64 } else { 0.0 };
+        let extra = below(note_lines, 0.8) + below(curves, 0.9);
         let avail = f64::from(yr.end - yr.start) - row_h;
-        let collapsed = self.collapse(avail, font_px, row_h);
+        let collapsed = self.collapse(avail - extra * row_h, font_px, row_h);
         // Still too long (only with very short images): smaller type rather than lost rows.
-        let n_rows = self.rows(&collapsed, font_px).max(1) as f64;
+        let n_rows = self.rows(&collapsed, font_px).max(1) as f64 + extra;
         let scale = (avail / (n_rows * row_h)).min(1.0);
         let (font_px, row_h) = (font_px * scale, row_h * scale);
         let entries = self.entries(&collapsed);
@@ -379,7 +447,7 @@ impl Legend<'_> {
         if !self.map.curve_legend.is_empty() {
             y += 0.3 * row_h;
         }
-        for (label, c) in self.map.curve_legend {
+        for (label, c, marker) in self.map.curve_legend {
             let mid = (y + 0.5 * f64::from(s)) as i32;
             right
                 .draw(&PathElement::new(
@@ -387,6 +455,7 @@ impl Legend<'_> {
                     rgb(*c).stroke_width(3),
                 ))
                 .map_err(draw_err)?;
+            mark(right, *marker, (4 + s / 2, mid), 3, rgb(*c))?;
             text(label.clone(), 4 + s + 3, y + 0.1 * font_px, &small)?;
             y += 0.9 * row_h;
         }

@@ -19,7 +19,9 @@ pub use density::{
     DensityPlot, DensityStats, MARK_KINDS, Mark, density_panel, density_png, panels_png,
 };
 pub use lines::{LinePlot, Scale, Series, line_plot_png, line_plot_svg};
-pub use maps::{CategoryMap, ScalarMap, category_map_png, grouped, percent, scalar_map_png};
+pub use maps::{
+    CategoryMap, Curve, Marker, ScalarMap, category_map_png, grouped, percent, scalar_map_png,
+};
 pub use orbit::{PointFigure, point_figure_png, point_figure_svg};
 pub use palette::{ATTRACTOR_COLORS, color, period_color};
 pub use sensitivity::{

@@ -250,7 +250,7 @@ fn grazing_points(
 
 /// The motion from `st` at parameter value `v`: settled without stops, then one period with
 /// them; `Some(settled state)` if that period holds no impact.
-fn impact_free_at(
+pub fn impact_free_at(
     base: &Params<f64>,
     param: Param,
     settings: &Settings,
@@ -274,7 +274,9 @@ fn impact_free_at(
 
 /// [`grazing_points`] for one pair: `None` where the motion is still impact-free at `bad` (it
 /// coexists there with the neighbour's impacting attractor) or not impact-free at `good`.
-fn graze(
+/// Also a map's edge between a `no_impact` cell and one that impacts
+/// ([`crate::map::boundaries`]).
+pub fn graze(
     base: &Params<f64>,
     param: Param,
     settings: &Settings,
