@@ -150,16 +150,16 @@ pub struct Point {
     pub reason: &'static str,
 }
 
-/// A polyline through the points of one type on neighbouring edges (edges of one grid square):
-/// located points where the cycle that changes is of one class (the far side's class may change
-/// along the curve: a Neimark-Sacker curve of period-1 runs beside quasi-periodic cells, then
-/// chaotic ones), other points where the pair of classes is one.
+/// A polyline through the points of one type on neighbouring edges (edges of one grid square)
+/// where the pair of classes is one or, for located points, the cycle that changes is of one
+/// class (the far side's class may change along the curve: a Neimark-Sacker curve of period-1
+/// runs beside quasi-periodic cells, then chaotic ones).
 #[derive(Clone, Debug, Serialize)]
 pub struct Curve {
     #[serde(rename = "type")]
     pub ty: Type,
-    /// The changing cycle's class first, then each class met on the far side along the curve
-    /// (for points not located, the pair of classes).
+    /// The class of the first point's changing cycle (its first cell's class where not
+    /// located), then every other class met on either side along the curve.
     pub classes: Vec<String>,
     pub points: Vec<[f64; 2]>,
 }
@@ -755,6 +755,11 @@ fn persists(
     Ok(())
 }
 
+/// The class of the cycle whose change `p` located (`None` where nothing was located).
+fn changing(p: &Point) -> Option<&String> {
+    p.from.map(|f| &p.classes[usize::from(f == p.cells[1])])
+}
+
 /// Joins the points into polylines: two points are neighbours where their edges belong to
 /// one grid square (the four cells around a grid vertex) and they have the same type and the
 /// same pair of classes; each chain of neighbours is one curve.
@@ -769,26 +774,25 @@ fn curves(points: &[Point], edges: &[(usize, usize, bool)], nx: usize) -> Vec<Cu
         }
         s
     };
-    let key = |p: &Point| match p.from {
-        Some(f) => (p.ty, vec![p.classes[usize::from(f == p.cells[1])].clone()]),
-        None => {
-            let mut c = p.classes.to_vec();
-            c.sort();
-            (p.ty, c)
-        }
+    // Two points of one type join where the pair of classes is one, or where both are located
+    // and the cycle that changes is of one class (the class beyond may change along a curve).
+    let pair = |p: &Point| {
+        let mut c = p.classes.clone();
+        c.sort();
+        c
     };
-    // The changing cycle's class, then the far classes in order along the chain.
+    let joined = |p: &Point, q: &Point| {
+        p.ty == q.ty
+            && (pair(p) == pair(q) || (changing(p).is_some() && changing(p) == changing(q)))
+    };
+    // The first point's changing class (its first class where not located), then every other
+    // class met along the chain.
     let classes = |chain: &[usize]| -> Vec<String> {
         let first = &points[chain[0]];
-        let Some(f) = first.from else {
-            return first.classes.to_vec();
-        };
-        let mut out = vec![first.classes[usize::from(f == first.cells[1])].clone()];
-        for &i in chain {
-            let p = &points[i];
-            let far = &p.classes[usize::from(p.from != Some(p.cells[1]))];
-            if !out[1..].contains(far) {
-                out.push(far.clone());
+        let mut out: Vec<String> = changing(first).into_iter().cloned().collect();
+        for c in chain.iter().flat_map(|&i| points[i].classes.iter()) {
+            if !out.contains(c) {
+                out.push(c.clone());
             }
         }
         out
@@ -804,7 +808,7 @@ fn curves(points: &[Point], edges: &[(usize, usize, bool)], nx: usize) -> Vec<Cu
     for members in by_square.values() {
         for (k, &i) in members.iter().enumerate() {
             for &j in &members[k + 1..] {
-                if key(&points[i]) == key(&points[j]) && !next[i].contains(&j) {
+                if joined(&points[i], &points[j]) && !next[i].contains(&j) {
                     next[i].push(j);
                     next[j].push(i);
                 }
