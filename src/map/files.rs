@@ -895,9 +895,10 @@ fn boundaries_caption(cfg: &Config, b: &super::boundaries::Boundaries) -> String
          both persist at the edge's midpoint (the cycle by Newton, the other side's motion \
          run there from its own state for the configured periods); edges without a stable \
          cycle on either side are undetermined and not located. Curves join the points of \
-         one type on edges of one grid square whose changing cycle is of one class (the \
-         class beyond may change along a curve); coexistence and undetermined edges are \
-         counted, not drawn.",
+         one type on edges of one grid square with one pair of classes, or whose changing \
+         cycle is of one class (the class beyond may change along a curve); coexistence and \
+         undetermined edges are counted, not drawn; the chaotic sea's edge against \
+         impact-free motion is undetermined with the crisis named.",
         grid = super::caption::grid_phrase(cfg),
         e = b.edges,
     )
