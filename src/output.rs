@@ -253,8 +253,20 @@ pub fn interrupt_guard() -> std::sync::MutexGuard<'static, ()> {
     for p in pending.drain(..) {
         let _ = std::fs::remove_file(p);
     }
+    for d in SCRATCH.lock().unwrap_or_else(|e| e.into_inner()).drain(..) {
+        let _ = std::fs::remove_dir_all(d);
+    }
     ENDING.store(true, Ordering::SeqCst);
     held
+}
+
+/// Directories of the process's own (a server's scratch directory) that an interrupt removes
+/// with what they hold ([`interrupt_guard`]).
+static SCRATCH: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Has an interrupt remove the directory `dir` and its contents before the process ends.
+pub fn remove_on_interrupt(dir: PathBuf) {
+    SCRATCH.lock().unwrap_or_else(|e| e.into_inner()).push(dir);
 }
 
 /// Exit status of a process ended by an interrupt (128 + SIGINT).

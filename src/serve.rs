@@ -296,23 +296,18 @@ impl App {
     }
 }
 
-/// Removes files written for a reply, and their directory once empty (nothing of the
-/// server's stays on disk between requests).
+/// Removes files written for a reply (nothing of the server's stays in its directory between
+/// requests). The directory itself stays until the server ends: removed and made again, its
+/// name, seen in the temporary directory's listing, could be taken by another user meanwhile.
 fn remove(files: &[PathBuf]) {
     for f in files {
         let _ = std::fs::remove_file(f);
     }
-    if let Some(dir) = files.first().and_then(|f| f.parent()) {
-        let _ = std::fs::remove_dir(dir);
-    }
 }
 
-/// The server's own directory for the files of one reply (created when needed).
+/// The server's own directory for the files of one reply: private (mode 0700, a random name,
+/// made by the server at its start), so that no other user can plant a file or a link there.
 fn scratch_dir(dir: &std::path::Path) -> rattle::Result<&std::path::Path> {
-    std::fs::create_dir_all(dir).map_err(|source| rattle::output::OutputError::Io {
-        path: dir.display().to_string(),
-        source,
-    })?;
     Ok(dir)
 }
 
@@ -500,7 +495,16 @@ async fn export(State(app): State<Arc<App>>, UrlPath(what): UrlPath<String>) -> 
 /// command: nothing of the server's is half-written on disk).
 pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
     let engine = Engine::open(explorer.cfg.method.backend)?;
-    let scratch = std::env::temp_dir().join(format!("rattle-explore-{}", std::process::id()));
+    // A fresh directory of a random name, mode 0700, removed when the server ends (returns or
+    // is interrupted). A predictable name (the process id) could be made first by another
+    // local user, with links in it that the server's writes would follow.
+    let private = tempfile::Builder::new()
+        .prefix("rattle-explore-")
+        .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o700))
+        .tempdir()
+        .context("cannot make the server's scratch directory")?;
+    let scratch = private.path().to_path_buf();
+    rattle::output::remove_on_interrupt(scratch.clone());
     // An interrupt unwinds the computation it stops: not a crash, nothing to print.
     let previous = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {

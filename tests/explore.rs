@@ -7,6 +7,8 @@ use rattle::config::Command;
 use rattle::explore::{Explorer, View, coarse, map_view};
 use rattle::request::{Request, Source};
 
+mod common;
+
 /// Configurations compared by their JSON (every key).
 fn same(a: &rattle::config::Config, b: &rattle::config::Config) -> bool {
     serde_json::to_value(a).unwrap() == serde_json::to_value(b).unwrap()
@@ -111,4 +113,67 @@ fn the_pages_map_is_the_maps_class_layer_with_every_cell_in_its_legend() {
     // The coarse picture of the default grid has at most 16 cells a side, and no long look.
     let c = coarse(&explorer(&[]).cfg);
     assert_eq!((c.map.x_points, c.map.y_points, c.run.look), (16, 16, 0));
+}
+
+/// The server's scratch directory is its own (round 7 H1): made at the start inside TMPDIR
+/// with a name no other user can guess (not the process id) and mode 0700, so that no one can
+/// make it first and plant links that a click or an export would write through; removed when
+/// an interrupt ends the server. (It was `$TMPDIR/rattle-explore-PID`, made on first use with
+/// the default mode, any existing one taken over.)
+#[cfg(unix)]
+#[test]
+fn the_servers_scratch_directory_is_private() {
+    use std::io::BufRead;
+    use std::os::unix::fs::PermissionsExt;
+    let tmp = common::scratch("explore-private");
+    let cfg = tmp.join("map.toml");
+    std::fs::write(
+        &cfg,
+        "[model]\neta = 1.26\n[method]\nsteps_per_period = 64\n[run]\ntransient_periods = 4\n\
+         sample_periods = 8\n[map]\nx = \"R\"\nx_from = 0.5\nx_to = 0.7\nx_points = 8\n\
+         y = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 8\n",
+    )
+    .unwrap();
+    let mut p = common::rattle()
+        .args(["explore", "--backend", "cpu", "--port", "0", "--config"])
+        .arg(&cfg)
+        .env("TMPDIR", &*tmp)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(p.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert!(line.contains("http://127.0.0.1:"), "{line:?}");
+    let dirs: Vec<std::path::PathBuf> = std::fs::read_dir(&*tmp)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|d| d.is_dir())
+        .collect();
+    let interrupt = |p: &mut std::process::Child| {
+        let _ = std::process::Command::new("kill")
+            .args(["-INT", &p.id().to_string()])
+            .status();
+        p.wait().unwrap()
+    };
+    let ours = match dirs.as_slice() {
+        [d] => d.clone(),
+        _ => {
+            interrupt(&mut p);
+            panic!("one directory of the server's expected in TMPDIR: {dirs:?}");
+        }
+    };
+    let name = ours.file_name().unwrap().to_string_lossy().into_owned();
+    let mode = std::fs::metadata(&ours).unwrap().permissions().mode() & 0o777;
+    let status = interrupt(&mut p);
+    assert!(name.starts_with("rattle-explore-"), "{name}");
+    assert!(
+        !name.contains(&p.id().to_string()),
+        "a predictable name: {name}"
+    );
+    assert_eq!(mode, 0o700, "{name}: mode {mode:o}");
+    assert_eq!(status.code(), Some(130));
+    assert!(!ours.exists(), "{name} left after the interrupt");
 }

@@ -62,6 +62,9 @@ def server(tmp_path_factory):
     d = tmp_path_factory.mktemp("explore")
     cfg = d / "map.toml"
     cfg.write_text(CONFIG)
+    # The server's own scratch directory (random name, mode 0700) goes with it.
+    scratch = lambda: set(Path(tempfile.gettempdir()).glob("rattle-explore-*"))
+    before = scratch()
     p = subprocess.Popen([str(BIN), "explore", "--config", str(cfg), "--port", "0"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     line = p.stdout.readline()
@@ -71,7 +74,7 @@ def server(tmp_path_factory):
     # Ctrl-C stops it as every command: the interrupt's exit code, nothing of its own left.
     p.send_signal(signal.SIGINT)
     assert p.wait(timeout=30) == 130
-    assert not (Path(tempfile.gettempdir()) / f"rattle-explore-{p.pid}").exists()
+    assert scratch() <= before
 
 
 @pytest.fixture(scope="module")
