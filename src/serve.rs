@@ -491,6 +491,78 @@ async fn export(State(app): State<Arc<App>>, UrlPath(what): UrlPath<String>) -> 
     }
 }
 
+/// Who may talk to the server: a request whose Host names the address it listens on (by its
+/// number, or `localhost` on the loopback; any Host where it listens on every address), whose
+/// Origin, where a browser sends one, is the page's own, and whose POST body is declared JSON.
+/// A page of another origin can then neither drive it (a `text/plain` POST needs no
+/// permission of the server's, a JSON one does) nor read its replies through a name that
+/// resolves to the loopback (DNS rebinding).
+#[derive(Clone)]
+struct Gate {
+    /// The Host values accepted; empty: any.
+    hosts: Arc<Vec<String>>,
+}
+
+impl Gate {
+    fn new(at: std::net::SocketAddr) -> Self {
+        let ip = at.ip();
+        let mut hosts = Vec::new();
+        if !ip.is_unspecified() {
+            hosts.push(at.to_string());
+            if ip.is_loopback() {
+                hosts.push(format!("localhost:{}", at.port()));
+            }
+        }
+        Gate {
+            hosts: Arc::new(hosts),
+        }
+    }
+
+    /// Why `headers` of a request with `method` are refused, if they are.
+    fn refusal(
+        &self,
+        method: &axum::http::Method,
+        headers: &axum::http::HeaderMap,
+    ) -> Option<Response> {
+        let text = |h| headers.get(h).map(|v| v.to_str().unwrap_or("?"));
+        let host = text(header::HOST).unwrap_or("");
+        if !self.hosts.is_empty() && !self.hosts.iter().any(|h| h == host) {
+            let why = format!(
+                "Host {host:?} is not this server's ({})",
+                self.hosts.join(", ")
+            );
+            return Some(error(StatusCode::FORBIDDEN, why));
+        }
+        if let Some(origin) = text(header::ORIGIN) {
+            if origin != format!("http://{host}") {
+                let why = format!("a request from another origin ({origin}) is refused");
+                return Some(error(StatusCode::FORBIDDEN, why));
+            }
+        }
+        let json = text(header::CONTENT_TYPE).is_some_and(|t| {
+            t.split(';')
+                .next()
+                .is_some_and(|m| m.trim() == "application/json")
+        });
+        if method == axum::http::Method::POST && !json {
+            let why = "a POST body must be JSON, sent with Content-Type: application/json";
+            return Some(error(StatusCode::UNSUPPORTED_MEDIA_TYPE, why));
+        }
+        None
+    }
+}
+
+async fn gate(
+    State(g): State<Gate>,
+    req: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> Response {
+    match g.refusal(req.method(), req.headers()) {
+        Some(r) => r,
+        None => next.run(req).await,
+    }
+}
+
 /// Serves `explorer` at `addr` until the process is interrupted (Ctrl-C ends it, as every
 /// command: nothing of the server's is half-written on disk).
 pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
@@ -546,6 +618,7 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
             .await
             .with_context(|| format!("cannot listen on {}:{}", addr.0, addr.1))?;
         let at = listener.local_addr()?;
+        let router = router.layer(axum::middleware::from_fn_with_state(Gate::new(at), gate));
         println!("rattle explore: http://{at}/ (Ctrl-C stops it)");
         use std::io::Write;
         std::io::stdout().flush()?;

@@ -120,12 +120,10 @@ fn the_pages_map_is_the_maps_class_layer_with_every_cell_in_its_legend() {
 /// make it first and plant links that a click or an export would write through; removed when
 /// an interrupt ends the server. (It was `$TMPDIR/rattle-explore-PID`, made on first use with
 /// the default mode, any existing one taken over.)
+/// A small map's server started with TMPDIR `tmp` on any free port: the process and its port.
 #[cfg(unix)]
-#[test]
-fn the_servers_scratch_directory_is_private() {
+fn start_server(tmp: &std::path::Path) -> (std::process::Child, u16) {
     use std::io::BufRead;
-    use std::os::unix::fs::PermissionsExt;
-    let tmp = common::scratch("explore-private");
     let cfg = tmp.join("map.toml");
     std::fs::write(
         &cfg,
@@ -137,7 +135,7 @@ fn the_servers_scratch_directory_is_private() {
     let mut p = common::rattle()
         .args(["explore", "--backend", "cpu", "--port", "0", "--config"])
         .arg(&cfg)
-        .env("TMPDIR", &*tmp)
+        .env("TMPDIR", tmp)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::null())
         .spawn()
@@ -146,18 +144,45 @@ fn the_servers_scratch_directory_is_private() {
     std::io::BufReader::new(p.stdout.take().unwrap())
         .read_line(&mut line)
         .unwrap();
-    assert!(line.contains("http://127.0.0.1:"), "{line:?}");
+    let port = line
+        .split("http://127.0.0.1:")
+        .nth(1)
+        .and_then(|r| r.split('/').next())
+        .and_then(|n| n.parse().ok());
+    match port {
+        Some(port) => (p, port),
+        None => {
+            interrupt(&mut p);
+            panic!("no address printed: {line:?}");
+        }
+    }
+}
+
+/// SIGINT, as Ctrl-C: the server's exit status.
+#[cfg(unix)]
+fn interrupt(p: &mut std::process::Child) -> std::process::ExitStatus {
+    let _ = std::process::Command::new("kill")
+        .args(["-INT", &p.id().to_string()])
+        .status();
+    p.wait().unwrap()
+}
+
+/// The server's scratch directory is its own (round 7 H1): made at the start inside TMPDIR
+/// with a name no other user can guess (not the process id) and mode 0700, so that no one can
+/// make it first and plant links that a click or an export would write through; removed when
+/// an interrupt ends the server. (It was `$TMPDIR/rattle-explore-PID`, made on first use with
+/// the default mode, any existing one taken over.)
+#[cfg(unix)]
+#[test]
+fn the_servers_scratch_directory_is_private() {
+    use std::os::unix::fs::PermissionsExt;
+    let tmp = common::scratch("explore-private");
+    let (mut p, _) = start_server(&tmp);
     let dirs: Vec<std::path::PathBuf> = std::fs::read_dir(&*tmp)
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|d| d.is_dir())
         .collect();
-    let interrupt = |p: &mut std::process::Child| {
-        let _ = std::process::Command::new("kill")
-            .args(["-INT", &p.id().to_string()])
-            .status();
-        p.wait().unwrap()
-    };
     let ours = match dirs.as_slice() {
         [d] => d.clone(),
         _ => {
@@ -176,4 +201,66 @@ fn the_servers_scratch_directory_is_private() {
     assert_eq!(mode, 0o700, "{name}: mode {mode:o}");
     assert_eq!(status.code(), Some(130));
     assert!(!ours.exists(), "{name} left after the interrupt");
+}
+
+/// Only the server's own page talks to it (round 7 M1): a Host other than the address it
+/// listens on (DNS rebinding: a foreign name resolved to the loopback) and an Origin other than
+/// its own are refused with 403, a POST whose body is not declared JSON (a `text/plain` POST
+/// any page may send without asking) with 415, each with the JSON error shape; the page's own
+/// requests are answered. (All four were answered before.)
+#[cfg(unix)]
+#[test]
+fn only_the_servers_own_page_talks_to_it() {
+    use std::io::{Read, Write};
+    let tmp = common::scratch("explore-gate");
+    let (mut p, port) = start_server(&tmp);
+    let ask = |head: &str, body: &str| -> (u16, String) {
+        let mut c = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+        let req = format!(
+            "{head}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+            body.len()
+        );
+        c.write_all(req.as_bytes()).unwrap();
+        let mut out = String::new();
+        c.read_to_string(&mut out).unwrap();
+        let code = out
+            .split_whitespace()
+            .nth(1)
+            .and_then(|c| c.parse().ok())
+            .unwrap_or(0);
+        (code, out)
+    };
+    let host = format!("Host: 127.0.0.1:{port}");
+    let answers = [
+        ask(&format!("GET /api/base HTTP/1.1\r\n{host}"), ""),
+        ask(
+            &format!("GET /api/base HTTP/1.1\r\nHost: localhost:{port}"),
+            "",
+        ),
+        ask(
+            &format!("GET /api/base HTTP/1.1\r\nHost: rebound.example:{port}"),
+            "",
+        ),
+        ask(
+            &format!("GET /api/base HTTP/1.1\r\n{host}\r\nOrigin: http://elsewhere.example"),
+            "",
+        ),
+        ask(
+            &format!("POST /api/map HTTP/1.1\r\n{host}\r\nContent-Type: text/plain"),
+            "{}",
+        ),
+        ask(
+            &format!(
+                "POST /api/map HTTP/1.1\r\n{host}\r\nOrigin: http://127.0.0.1:{port}\r\n\
+                 Content-Type: application/json"
+            ),
+            "{\"view\": 1}",
+        ),
+    ];
+    interrupt(&mut p);
+    let codes: Vec<u16> = answers.iter().map(|a| a.0).collect();
+    assert_eq!(codes, [200, 200, 403, 403, 415, 400], "{answers:#?}");
+    for (_, text) in &answers[2..5] {
+        assert!(text.contains("\"error\""), "{text}");
+    }
 }
