@@ -533,11 +533,11 @@ impl Gate {
             );
             return Some(error(StatusCode::FORBIDDEN, why));
         }
-        if let Some(origin) = text(header::ORIGIN) {
-            if origin != format!("http://{host}") {
-                let why = format!("a request from another origin ({origin}) is refused");
-                return Some(error(StatusCode::FORBIDDEN, why));
-            }
+        if let Some(origin) = text(header::ORIGIN)
+            && origin != format!("http://{host}")
+        {
+            let why = format!("a request from another origin ({origin}) is refused");
+            return Some(error(StatusCode::FORBIDDEN, why));
         }
         let json = text(header::CONTENT_TYPE).is_some_and(|t| {
             t.split(';')
