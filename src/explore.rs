@@ -62,11 +62,20 @@ impl Explorer {
         Ok((Explorer { base, cfg }, loaded))
     }
 
-    /// The request of `view`: the base's, with the view's ranges set last.
+    /// The request of `view`: the base's, with the view's ranges (and `more`) set last, in
+    /// place of the base's overrides of the same keys (`rattle explore --set map.x_from=..`
+    /// gives the first view's range, which a zoom then replaces).
     fn request(&self, view: &View, more: &[String]) -> Request {
+        use crate::request::full_key;
         let mut r = self.base.clone();
-        r.sets.extend(view.sets());
-        r.sets.extend(more.iter().cloned());
+        let last: Vec<String> = view
+            .sets()
+            .into_iter()
+            .chain(more.iter().cloned())
+            .collect();
+        let replaced: Vec<String> = last.iter().map(|s| full_key(s)).collect();
+        r.sets.retain(|s| !replaced.contains(&full_key(s)));
+        r.sets.extend(last);
         r
     }
 

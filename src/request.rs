@@ -63,7 +63,8 @@ pub fn flag_args(o: &Overrides) -> Vec<(&'static str, String)> {
 }
 
 /// The full key of an override (`model.` added to a bare model key).
-fn full_key(set: &str) -> String {
+/// The key an override `key=value` sets, in full (`eta` is `model.eta`).
+pub fn full_key(set: &str) -> String {
     let key = set.split('=').next().unwrap_or("").trim();
     if key.contains('.') {
         key.to_string()

@@ -120,6 +120,29 @@ fn the_pages_map_is_the_maps_class_layer_with_every_cell_in_its_legend() {
 /// make it first and plant links that a click or an export would write through; removed when
 /// an interrupt ends the server. (It was `$TMPDIR/rattle-explore-PID`, made on first use with
 /// the default mode, any existing one taken over.)
+/// `rattle explore --set map.x_from=..` (and the other ranges) gives the first view; a view
+/// or a click replaces those ranges instead of being refused (round 7 M3: every view and click
+/// was refused, "both set `map.x_from`"), and the exported command line carries the view's
+/// ranges once.
+#[test]
+fn a_base_with_ranges_set_takes_the_views_ranges() {
+    let e = explorer(&["map.x_from=0.55", "map.y_to=0.05"]);
+    assert_eq!((e.cfg.map.x_from, e.cfg.map.y_to), (0.55, 0.05));
+    let v = View {
+        x_from: 0.6,
+        x_to: 0.65,
+        y_from: 0.01,
+        y_to: 0.02,
+    };
+    let cfg = e.map_config(&v).unwrap();
+    assert_eq!(View::of(&cfg), v);
+    let p = e.point_config(&v, (0.61, 0.015)).unwrap();
+    assert_eq!((p.model.restitution, p.model.lambda), (0.61, 0.015));
+    let line = e.command_line(&v, "view");
+    assert_eq!(line.matches("map.x_from=").count(), 1, "{line}");
+    assert!(line.contains("map.x_from=0.6 "), "{line}");
+}
+
 /// A small map's server started with TMPDIR `tmp` on any free port: the process and its port.
 #[cfg(unix)]
 fn start_server(tmp: &std::path::Path) -> (std::process::Child, u16) {
