@@ -48,18 +48,41 @@ pub const COARSE_POINTS: u32 = 16;
 /// The explorer's base: the configuration and overrides it was started with.
 #[derive(Clone, Debug)]
 pub struct Explorer {
+    /// The base request, its configuration file's text as read at the start: every view and
+    /// click is of that configuration, whatever becomes of the file meanwhile.
     pub base: Request,
+    /// The configuration file named at the start, for the command lines exported.
+    pub config_path: Option<std::path::PathBuf>,
     /// The base configuration, checked as `rattle map` checks it.
     pub cfg: Config,
 }
 
 impl Explorer {
     /// The explorer of `base`, checked as `rattle map` checks it; with its notes and warnings.
-    pub fn new(base: Request) -> crate::Result<(Explorer, Loaded)> {
+    /// A configuration file is read here, once.
+    pub fn new(mut base: Request) -> crate::Result<(Explorer, Loaded)> {
+        let config_path = match &base.source {
+            Source::File(p) => Some(p.clone()),
+            Source::Text(_) => None,
+        };
+        if let Some(p) = &config_path {
+            let text = crate::output::read_input(p).map_err(|source| {
+                crate::config::ConfigError::Read {
+                    path: p.display().to_string(),
+                    source,
+                }
+            })?;
+            base.source = Source::Text(text);
+        }
         let loaded = base.load(Command::Map)?;
         MapOptions::default().check(&loaded.cfg)?;
         let cfg = loaded.cfg.clone();
-        Ok((Explorer { base, cfg }, loaded))
+        let e = Explorer {
+            base,
+            config_path,
+            cfg,
+        };
+        Ok((e, loaded))
     }
 
     /// The request of `view`: the base's, with the view's ranges (and `more`) set last, in
@@ -101,9 +124,8 @@ impl Explorer {
     pub fn command_line(&self, view: &View, out: &str) -> String {
         let r = self.request(view, &[]);
         let mut args = vec!["rattle".to_string(), "map".into()];
-        match &r.source {
-            Source::File(p) => args.extend(["--config".into(), p.display().to_string()]),
-            Source::Text(_) => {}
+        if let Some(p) = &self.config_path {
+            args.extend(["--config".into(), p.display().to_string()]);
         }
         for (flag, value) in crate::request::flag_args(&r.flags) {
             args.extend([flag.to_string(), value]);

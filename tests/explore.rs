@@ -143,6 +143,32 @@ fn a_base_with_ranges_set_takes_the_views_ranges() {
     assert!(line.contains("map.x_from=0.6 "), "{line}");
 }
 
+/// The configuration file is read once, at the start (round 7 M4: every request read it
+/// again, so an edit while serving changed the maps, even their axis, and a deleted file failed
+/// every request): after the file is rewritten with another axis and then deleted, a view is
+/// still of the configuration read at the start, and the exported command still names the file.
+#[test]
+fn the_configuration_is_read_once() {
+    let d = common::scratch("explore-once");
+    let path = d.join("map.toml");
+    let shipped = std::fs::read_to_string(common::config("r_lambda.toml")).unwrap();
+    std::fs::write(&path, &shipped).unwrap();
+    let r = Request::new(Source::File(path.clone()), Vec::new());
+    let e = Explorer::new(r).unwrap().0;
+    std::fs::write(&path, shipped.replace("x = \"R\"", "x = \"delta\"")).unwrap();
+    let v = View::of(&e.cfg);
+    assert_eq!(e.map_config(&v).unwrap().map.x.name(), "R");
+    std::fs::remove_file(&path).unwrap();
+    let cfg = e.map_config(&v).unwrap();
+    assert!(same(&cfg, &e.cfg));
+    assert!(e.point_config(&v, (0.6, 0.05)).is_ok());
+    let line = e.command_line(&v, "view");
+    assert!(
+        line.contains(&format!("--config {}", path.display())),
+        "{line}"
+    );
+}
+
 /// A small map's server started with TMPDIR `tmp` on any free port: the process and its port.
 #[cfg(unix)]
 fn start_server(tmp: &std::path::Path) -> (std::process::Child, u16) {
