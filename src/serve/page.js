@@ -92,7 +92,9 @@ function colours(m, layer) {
   }
   const values = (m.layers.find((l) => l[0] === layer) || [null, []])[1];
   const finite = values.filter((v) => v !== null && Number.isFinite(v));
-  let lo = Math.min(...finite), hi = Math.max(...finite);
+  // A loop, not Math.min(...finite): spreading over 125k values and more overflows the stack.
+  let lo = Infinity, hi = -Infinity;
+  for (const v of finite) { if (v < lo) lo = v; if (v > hi) hi = v; }
   let stops = SEQ, f = (v) => (v - lo) / (hi - lo || 1);
   if (layer === "lyapunov") {
     const a = Math.max(Math.abs(lo), Math.abs(hi)) || 1;
