@@ -10,8 +10,10 @@ use crate::map::MapOptions;
 use crate::request::{Command, Loaded, Request, Source};
 use serde::{Deserialize, Serialize};
 
-/// A view of the map: the ranges of its two axes (the grid stays the configured one).
+/// A view of the map: the ranges of its two axes (the grid stays the configured one). A key
+/// it does not have is refused, not ignored (`x_points` would say the grid changes).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct View {
     pub x_from: f64,
     pub x_to: f64,

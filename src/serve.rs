@@ -619,6 +619,13 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
             .with_context(|| format!("cannot listen on {}:{}", addr.0, addr.1))?;
         let at = listener.local_addr()?;
         let router = router.layer(axum::middleware::from_fn_with_state(Gate::new(at), gate));
+        if !at.ip().is_loopback() {
+            eprintln!(
+                "warning: rattle explore listens on {}: anyone who can reach that address can \
+                 start computations on this machine",
+                at.ip()
+            );
+        }
         println!("rattle explore: http://{at}/ (Ctrl-C stops it)");
         use std::io::Write;
         std::io::stdout().flush()?;

@@ -313,3 +313,44 @@ fn only_the_servers_own_page_talks_to_it() {
         assert!(text.contains("\"error\""), "{text}");
     }
 }
+
+/// Listening beyond the loopback says so on stderr (round 7 L7: `--host 0.0.0.0` started
+/// without a word): anyone who reaches the address can start computations.
+#[cfg(unix)]
+#[test]
+fn listening_beyond_the_loopback_warns() {
+    use std::io::{BufRead, Read};
+    let tmp = common::scratch("explore-host");
+    let cfg = tmp.join("map.toml");
+    std::fs::copy(common::config("r_lambda.toml"), &cfg).unwrap();
+    let mut p = common::rattle()
+        .args([
+            "explore",
+            "--backend",
+            "cpu",
+            "--host",
+            "0.0.0.0",
+            "--port",
+            "0",
+        ])
+        .arg("--config")
+        .arg(&cfg)
+        .env("TMPDIR", &*tmp)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(p.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let status = interrupt(&mut p);
+    let mut err = String::new();
+    p.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    assert!(line.contains("http://0.0.0.0:"), "{line:?}");
+    assert_eq!(status.code(), Some(130));
+    assert!(
+        err.contains("warning: rattle explore listens on 0.0.0.0"),
+        "{err:?}"
+    );
+}
