@@ -559,7 +559,15 @@ async fn gate(
 ) -> Response {
     match g.refusal(req.method(), req.headers()) {
         Some(r) => r,
-        None => next.run(req).await,
+        None => {
+            let r = next.run(req).await;
+            // axum's own refusal of a body over its limit is plain text: the JSON shape here.
+            if r.status() == StatusCode::PAYLOAD_TOO_LARGE {
+                let why = "the request body is over the limit of 2 MB";
+                return error(StatusCode::PAYLOAD_TOO_LARGE, why);
+            }
+            r
+        }
     }
 }
 

@@ -275,6 +275,9 @@ def test_bad_requests_get_the_command_lines_message_and_the_server_stays_up(serv
     st, j = post(url + "api/map", {"view": view})
     assert st == 400 and j["error"] == said, (j, said)
     assert not (server["dir"] / "bad.json").exists()
+    # A body over the limit gets the JSON error shape too (round 7 L4: plain text).
+    st, j = post(url + "api/map", b'{"view": "' + b"x" * (3 << 20) + b'"}')
+    assert st == 413 and "2 MB" in j["error"], j
     # An unknown key inside the view too (round 7 L4: it was accepted).
     for body in [b"{", b"[]", b'{"view": 3}', json.dumps({"view": view, "extra": 1}).encode(),
                  json.dumps({"view": {**view, "x_points": 3}}).encode()]:
