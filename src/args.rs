@@ -124,7 +124,8 @@ pub struct ExploreArgs {
     #[command(flatten)]
     pub common: Common,
     /// Port to listen on (0: any free one; the URL printed names it).
-    #[arg(long, default_value_t = 8750)]
+    #[arg(long, default_value_t = 8750, allow_negative_numbers = true,
+          value_parser = clap::value_parser!(u16).range(0..=65535))]
     pub port: u16,
     /// Address to bind: the loopback unless told otherwise (anyone who reaches another
     /// address can start computations on this machine).

@@ -354,3 +354,17 @@ fn listening_beyond_the_loopback_warns() {
         "{err:?}"
     );
 }
+
+/// A negative port is read as the port's value and refused by it, exit code 2 (round 7 L8: it
+/// was "unexpected argument '-1'"), as every option's negative value.
+#[test]
+fn a_negative_port_is_refused_by_its_option() {
+    let out = common::rattle()
+        .args(["explore", "--port", "-1", "--config"])
+        .arg(common::config("r_lambda.toml"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--port") && err.contains("0..=65535"), "{err}");
+}
