@@ -33,13 +33,14 @@ impl View {
     }
 
     /// The view as `--set` overrides (Rust's shortest representation of each value reads back
-    /// to the same f64).
+    /// to the same f64; in `Debug`'s form, a TOML float always: `Display` writes 1e19 as a
+    /// 20-digit integer, which TOML cannot hold).
     pub fn sets(&self) -> Vec<String> {
         vec![
-            format!("map.x_from={}", self.x_from),
-            format!("map.x_to={}", self.x_to),
-            format!("map.y_from={}", self.y_from),
-            format!("map.y_to={}", self.y_to),
+            format!("map.x_from={:?}", self.x_from),
+            format!("map.x_to={:?}", self.x_to),
+            format!("map.y_from={:?}", self.y_from),
+            format!("map.y_to={:?}", self.y_to),
         ]
     }
 }
@@ -116,8 +117,8 @@ impl Explorer {
     pub fn point_config(&self, view: &View, (x, y): (f64, f64)) -> crate::Result<Config> {
         let (px, py) = (self.cfg.map.x, self.cfg.map.y);
         let sets = [
-            format!("model.{}={x}", px.name()),
-            format!("model.{}={y}", py.name()),
+            format!("model.{}={x:?}", px.name()),
+            format!("model.{}={y:?}", py.name()),
         ];
         Ok(self.request(view, &sets).load(Command::Point)?.cfg)
     }

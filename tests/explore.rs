@@ -368,3 +368,19 @@ fn a_negative_port_is_refused_by_its_option() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("--port") && err.contains("0..=65535"), "{err}");
 }
+
+/// Coordinates of 1e19 and more (valid for lambda) make a view and a point as any other (round
+/// 7 L3: written back as 20-digit integers, TOML refused them: "invalid type: string").
+#[test]
+fn very_large_coordinates_are_values() {
+    let e = explorer(&[]);
+    let v = View {
+        x_from: 0.5,
+        x_to: 0.7,
+        y_from: 0.0,
+        y_to: 1e19,
+    };
+    assert_eq!(e.map_config(&v).unwrap().map.y_to, 1e19);
+    let p = e.point_config(&v, (0.6, 2.5e19)).unwrap();
+    assert_eq!(p.model.lambda, 2.5e19);
+}
