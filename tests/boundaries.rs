@@ -619,3 +619,43 @@ fn boundaries_of_a_written_map() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("p-class.npy"));
     assert!(!d.join("p-boundaries.json").exists());
 }
+
+/// `rattle boundaries PREFIX` checks the config inside the map's JSON as `rattle map` checks
+/// its own, and against the layers' shape, before computing anything (round 7 M5: the config is
+/// not covered by the layers' sums; an out-of-range range and a grid relabelled from 8 x 4 to
+/// 4 x 8 were accepted and blessed with fresh sums). Refused, nothing written.
+#[test]
+fn boundaries_check_the_maps_config() {
+    let d = scratch("boundaries-check");
+    let cfg = d.join("m.toml");
+    let text = std::fs::read_to_string(short_map(&d, 8)).unwrap();
+    std::fs::write(&cfg, text.replace("y_points = 8", "y_points = 4")).unwrap();
+    ok(rattle()
+        .args(["map", "--backend", "cpu", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(d.join("p")));
+    let original = std::fs::read_to_string(d.join("p.json")).unwrap();
+    let edit = |f: &dyn Fn(&mut serde_json::Value)| {
+        let mut v: serde_json::Value = serde_json::from_str(&original).unwrap();
+        f(&mut v);
+        std::fs::write(d.join("p.json"), serde_json::to_vec_pretty(&v).unwrap()).unwrap();
+        let out = rattle()
+            .arg("boundaries")
+            .arg(d.join("p"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(!d.join("p-boundaries.json").exists(), "{err}");
+        (out.status.code(), err)
+    };
+    let (code, err) = edit(&|v| v["config"]["map"]["x_from"] = 2.0.into());
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("map.x_from"), "{err}");
+    let (code, err) = edit(&|v| {
+        v["config"]["map"]["x_points"] = 4.into();
+        v["config"]["map"]["y_points"] = 8.into();
+    });
+    assert_ne!(code, Some(0), "{err}");
+    assert!(err.contains("does not hold the map's cells"), "{err}");
+}

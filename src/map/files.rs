@@ -700,6 +700,10 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
         serde_json::from_slice(&text).map_err(|e| not_a_map(e.to_string()))?;
     let cfg: Config = serde_json::from_value(v["config"].clone())
         .map_err(|_| not_a_map("not the JSON of a map (no map config)".into()))?;
+    // The config is not covered by the layers' sums: checked as `rattle map` checks its own
+    // (keys, ranges, the run's bounds) before anything is computed from it.
+    cfg.check_command(crate::config::Command::Map)?;
+    super::MapOptions::default().check(&cfg)?;
     let layer = |name: &str| -> crate::Result<Vec<u8>> {
         let path = with_ext(&crate::output::with_suffix(prefix, name), "npy");
         if !own.contains(&path) {
@@ -710,18 +714,29 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
         }
         std::fs::read(&path).map_err(|e| not_a_map(e.to_string()))
     };
-    fn values<T: npyz::Deserialize>(bytes: &[u8], n: usize) -> Option<Vec<T>> {
-        let v: Vec<T> = npyz::NpyFile::new(bytes).ok()?.into_vec().ok()?;
+    // A layer holds the config's grid: its shape (y, x[, 4]), not only as many values (a grid
+    // relabelled from x by y to y by x has as many).
+    let (nx, ny) = (cfg.map.x_points as u64, cfg.map.y_points as u64);
+    fn values<T: npyz::Deserialize>(bytes: &[u8], n: usize, grid: (u64, u64)) -> Option<Vec<T>> {
+        let f = npyz::NpyFile::new(bytes).ok()?;
+        let shape = f.shape().to_vec();
+        if shape.len() < 2 || shape[0] != grid.1 || shape[1] != grid.0 {
+            return None;
+        }
+        let v: Vec<T> = f.into_vec().ok()?;
         (v.len() == n).then_some(v)
     }
     let n = cfg.map.x_points as usize * cfg.map.y_points as usize;
     let bad = |name: &str| not_a_map(format!("its layer {name} does not hold the map's cells"));
-    let class: Vec<i32> = values(&layer("class")?, n).ok_or_else(|| bad("class"))?;
-    let coexist: Vec<i32> = values(&layer("coexist")?, n).ok_or_else(|| bad("coexist"))?;
-    let state: Vec<f64> = values(&layer("state")?, 4 * n).ok_or_else(|| bad("state"))?;
-    let mode: Vec<u8> = values(&layer("mode")?, n).ok_or_else(|| bad("mode"))?;
-    let inferred: Vec<u8> = values(&layer("inferred")?, n).ok_or_else(|| bad("inferred"))?;
-    let attractors: Vec<u8> = values(&layer("attractors")?, n).ok_or_else(|| bad("attractors"))?;
+    let class: Vec<i32> = values(&layer("class")?, n, (nx, ny)).ok_or_else(|| bad("class"))?;
+    let coexist: Vec<i32> =
+        values(&layer("coexist")?, n, (nx, ny)).ok_or_else(|| bad("coexist"))?;
+    let state: Vec<f64> = values(&layer("state")?, 4 * n, (nx, ny)).ok_or_else(|| bad("state"))?;
+    let mode: Vec<u8> = values(&layer("mode")?, n, (nx, ny)).ok_or_else(|| bad("mode"))?;
+    let inferred: Vec<u8> =
+        values(&layer("inferred")?, n, (nx, ny)).ok_or_else(|| bad("inferred"))?;
+    let attractors: Vec<u8> =
+        values(&layer("attractors")?, n, (nx, ny)).ok_or_else(|| bad("attractors"))?;
     let b = super::boundaries::locate(
         &cfg,
         &super::boundaries::Cells {
