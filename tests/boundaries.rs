@@ -659,3 +659,58 @@ fn boundaries_check_the_maps_config() {
     assert_ne!(code, Some(0), "{err}");
     assert!(err.contains("does not hold the map's cells"), "{err}");
 }
+
+/// `rattle boundaries PREFIX` on what is not a map's set says so (round 7 L10): a FIFO in the
+/// JSON's place is refused as not a regular file (it blocked forever), a bifurcation's set as
+/// not a map (it said a layer is missing).
+#[cfg(unix)]
+#[test]
+fn boundaries_refuse_what_is_not_a_map() {
+    let d = scratch("boundaries-not-a-map");
+    let fifo = d.join("f.json");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let mut child = rattle()
+        .arg("boundaries")
+        .arg(d.join("f"))
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if t0.elapsed().as_secs() > 30 {
+            let _ = child.kill();
+            panic!("rattle boundaries blocks on a FIFO");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_ne!(out.status.code(), Some(0));
+    assert!(err.contains("not a regular file"), "{err}");
+    let cfg = d.join("s.toml");
+    std::fs::write(
+        &cfg,
+        "[sweep]\nparam = \"eta\"\nfrom = 1.2\nto = 1.3\npoints = 4\n\
+         [run]\ntransient_periods = 10\nsample_periods = 10\n",
+    )
+    .unwrap();
+    ok(rattle()
+        .args(["bifurcation", "--backend", "cpu", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(d.join("b")));
+    let out = rattle()
+        .arg("boundaries")
+        .arg(d.join("b"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_ne!(out.status.code(), Some(0));
+    assert!(err.contains("not the JSON of a map"), "{err}");
+}

@@ -694,10 +694,21 @@ struct BoundariesJson<'a> {
 pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
     let json = with_ext(prefix, "json");
     let not_a_map = |why: String| crate::Error::Merge(format!("{}: {why}", json.display()));
+    // A FIFO or a device would block the read or never end it: regular files only.
+    let meta = std::fs::metadata(&json).map_err(|e| not_a_map(e.to_string()))?;
+    if !meta.is_file() {
+        return Err(not_a_map("not a regular file".into()));
+    }
     let own = crate::output::set_files(&json);
     let text = std::fs::read(&json).map_err(|e| not_a_map(e.to_string()))?;
     let mut v: serde_json::Value =
         serde_json::from_slice(&text).map_err(|e| not_a_map(e.to_string()))?;
+    // Another command's set (a bifurcation's has a config too) is not a map's.
+    if v.get("layers").is_none() || v.get("axes").is_none() {
+        return Err(not_a_map(
+            "not the JSON of a map (no layers, no axes)".into(),
+        ));
+    }
     let cfg: Config = serde_json::from_value(v["config"].clone())
         .map_err(|_| not_a_map("not the JSON of a map (no map config)".into()))?;
     // The config is not covered by the layers' sums: checked as `rattle map` checks its own
