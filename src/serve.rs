@@ -46,6 +46,8 @@ struct App {
     /// The last clicked point's figure (PNG).
     point_png: Mutex<Option<Vec<u8>>>,
     /// Where the exports are written before they are handed out (the server's own).
+    /// The server's own directory for the files of one reply: private (mode 0700, a random
+    /// name, made at the start), so that no other user can plant a file or a link there.
     scratch: PathBuf,
 }
 
@@ -195,7 +197,7 @@ impl App {
             let png = match o.check(&cfg) {
                 Ok(()) => {
                     let p = compute(&cfg, &o, &rattle::progress::Silent)?;
-                    let files = write_outputs(&scratch_dir(&self.scratch)?.join("point"), &p)?;
+                    let files = write_outputs(&self.scratch.join("point"), &p)?;
                     let at = files
                         .iter()
                         .find(|f| f.extension().is_some_and(|e| e == "png"));
@@ -279,8 +281,7 @@ impl App {
             },
         };
         let _one = self.running.lock().unwrap_or_else(|p| p.into_inner());
-        let dir = scratch_dir(&self.scratch).map_err(internal)?;
-        let prefix = dir.join("view");
+        let prefix = self.scratch.join("view");
         let files =
             rattle::map::write_outputs(&prefix, &m.cfg, &m.fields, &m.report, bounds.as_deref())
                 .map_err(internal)?;
@@ -303,12 +304,6 @@ fn remove(files: &[PathBuf]) {
     for f in files {
         let _ = std::fs::remove_file(f);
     }
-}
-
-/// The server's own directory for the files of one reply: private (mode 0700, a random name,
-/// made by the server at its start), so that no other user can plant a file or a link there.
-fn scratch_dir(dir: &std::path::Path) -> rattle::Result<&std::path::Path> {
-    Ok(dir)
 }
 
 async fn page() -> Response {

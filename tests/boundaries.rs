@@ -234,39 +234,35 @@ fn a_newton_failure_from_afar_is_not_the_cycles_end() {
     assert_eq!(lag, Some(14));
 }
 
-/// A cycle that ends without a multiplier crossing the circle is typed by how it approaches
-/// its end: the period-15 cycle of cell (15, 62) of tests/data/r_lambda_128.toml (R 0.52421875,
-/// lambda 0.048828125), continued towards R 0.52265625, ends where its leading multiplier
-/// reaches +1 like the square root of the distance: a fold (it was `undetermined` while a
-/// failure from afar counted as the end, and is a fold only where 1 - mu shrinks so). The
-/// judge, the reference's own Newton (`DryReference::cycle`: central differences of its exact
-/// map, its multipliers by nalgebra): 1 - mu shrinks like the square root of the distance before the point, and no
-/// stable period-15 cycle continues after it.
-#[test]
-fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
+/// The change located when the stable period-`n` cycle of tests/data/r_lambda_128.toml at R
+/// `from`, lambda `lambda`, refined from the map's final state `start`, is continued towards R
+/// `to`: the config, the parameters at `from` and the located point.
+fn end_along_r(
+    (from, to): (f64, f64),
+    lambda: f64,
+    start: ([f64; 4], rattle::model::Mode),
+    n: u32,
+) -> (
+    Config,
+    rattle::model::Params<f64>,
+    rattle::stability::BifurcationPoint,
+) {
     use rattle::cycles::refine;
     use rattle::method::{Integrator, PointState};
-    use rattle::model::Mode;
-    use rattle::stability::{Change, Found, Kind, locate_changes};
+    use rattle::stability::{Change, Found, locate_changes};
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
     let cfg = Config::load(&path, &[]).unwrap();
     let settings = cfg.settings();
-    let (from, to) = (0.52421875, 0.52265625);
     let mut p = cfg.params();
     cfg.map.x.set(&mut p, from);
-    cfg.map.y.set(&mut p, 0.048828125);
-    let start = PointState {
-        y: [
-            -0.33390969038009644,
-            -0.060250572860240936,
-            -1.0161230564117432,
-            0.4920041561126709,
-        ],
-        mode: Mode::SlipNeg,
+    cfg.map.y.set(&mut p, lambda);
+    let st = PointState {
+        y: start.0,
+        mode: start.1,
         diag: Default::default(),
     };
-    let cycle = refine(&Integrator::<f64>::new(&p, &settings), &start, 15);
-    assert!(cycle.is_stable() && cycle.period == 15, "{cycle:?}");
+    let cycle = refine(&Integrator::<f64>::new(&p, &settings), &st, n);
+    assert!(cycle.is_stable() && cycle.period == n, "{cycle:?}");
     let found = locate_changes(
         &settings,
         &[Change {
@@ -280,6 +276,31 @@ fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
     let Found::Located(b) = &found[0] else {
         panic!("{:?}", found[0]);
     };
+    let b = b.clone();
+    (cfg, p, b)
+}
+
+/// A cycle that ends without a multiplier crossing the circle is typed by how it approaches
+/// its end: the period-15 cycle of cell (15, 62) of tests/data/r_lambda_128.toml (R 0.52421875,
+/// lambda 0.048828125), continued towards R 0.52265625, ends where its leading multiplier
+/// reaches +1 like the square root of the distance: a fold (it was `undetermined` while a
+/// failure from afar counted as the end, and is a fold only where 1 - mu shrinks so). The
+/// judge, the reference's own Newton (`DryReference::cycle`: central differences of its exact
+/// map, its multipliers by nalgebra): 1 - mu shrinks like the square root of the distance before the point, and no
+/// stable period-15 cycle continues after it.
+#[test]
+fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
+    use rattle::model::Mode;
+    use rattle::stability::Kind;
+    let y = [
+        -0.33390969038009644,
+        -0.060250572860240936,
+        -1.0161230564117432,
+        0.4920041561126709,
+    ];
+    let (from, to) = (0.52421875, 0.52265625);
+    let (cfg, p, b) = end_along_r((from, to), 0.048828125, (y, Mode::SlipNeg), 15);
+    let settings = cfg.settings();
     assert_eq!(b.kind, Kind::Fold, "{b:?}");
     // The reference's Newton on either side of the point: before it, 1 - mu shrinks like the
     // square root of the distance (1/64 and 1/1024 of a cell: a ratio of 1/4), after it no
@@ -319,42 +340,17 @@ fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
 /// stable period-7 cycle continues after it.
 #[test]
 fn a_grazing_end_is_named_where_the_exact_system_grazes() {
-    use rattle::cycles::refine;
-    use rattle::method::{Integrator, PointState};
     use rattle::model::Mode;
-    use rattle::stability::{Change, Found, Kind, locate_changes};
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
-    let cfg = Config::load(&path, &[]).unwrap();
-    let settings = cfg.settings();
+    use rattle::stability::Kind;
+    let y = [
+        -0.3926962912082672,
+        0.7103724479675293,
+        -0.07760855555534363,
+        -0.4069114029407501,
+    ];
     let (from, to) = (0.51015625, 0.51171875);
-    let mut p = cfg.params();
-    cfg.map.x.set(&mut p, from);
-    cfg.map.y.set(&mut p, 0.001171875);
-    let start = PointState {
-        y: [
-            -0.3926962912082672,
-            0.7103724479675293,
-            -0.07760855555534363,
-            -0.4069114029407501,
-        ],
-        mode: Mode::SlipPos,
-        diag: Default::default(),
-    };
-    let cycle = refine(&Integrator::<f64>::new(&p, &settings), &start, 7);
-    assert!(cycle.is_stable() && cycle.period == 7, "{cycle:?}");
-    let found = locate_changes(
-        &settings,
-        &[Change {
-            base: p,
-            param: cfg.map.x,
-            from,
-            cycle: &cycle,
-            to,
-        }],
-    );
-    let Found::Located(b) = &found[0] else {
-        panic!("{:?}", found[0]);
-    };
+    let (cfg, p, b) = end_along_r((from, to), 0.001171875, (y, Mode::SlipPos), 7);
+    let settings = cfg.settings();
     assert_eq!(b.kind, Kind::Grazing, "{b:?}");
     let edge = to - from;
     let at = |v: f64| {

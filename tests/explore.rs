@@ -172,27 +172,7 @@ fn the_configuration_is_read_once() {
 /// A small map's server started with TMPDIR `tmp` on any free port: the process and its port.
 #[cfg(unix)]
 fn start_server(tmp: &std::path::Path) -> (std::process::Child, u16) {
-    use std::io::BufRead;
-    let cfg = tmp.join("map.toml");
-    std::fs::write(
-        &cfg,
-        "[model]\neta = 1.26\n[method]\nsteps_per_period = 64\n[run]\ntransient_periods = 4\n\
-         sample_periods = 8\n[map]\nx = \"R\"\nx_from = 0.5\nx_to = 0.7\nx_points = 8\n\
-         y = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 8\n",
-    )
-    .unwrap();
-    let mut p = common::rattle()
-        .args(["explore", "--backend", "cpu", "--port", "0", "--config"])
-        .arg(&cfg)
-        .env("TMPDIR", tmp)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    std::io::BufReader::new(p.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    let (mut p, line) = spawn_server(tmp, &[]);
     let port = line
         .split("http://127.0.0.1:")
         .nth(1)
@@ -205,6 +185,35 @@ fn start_server(tmp: &std::path::Path) -> (std::process::Child, u16) {
             panic!("no address printed: {line:?}");
         }
     }
+}
+
+/// The server of a small map with TMPDIR `tmp`, any free port and the options `extra`: the
+/// process (its stderr piped) and the first line it printed.
+#[cfg(unix)]
+fn spawn_server(tmp: &std::path::Path, extra: &[&str]) -> (std::process::Child, String) {
+    use std::io::BufRead;
+    let cfg = tmp.join("map.toml");
+    std::fs::write(
+        &cfg,
+        "[model]\neta = 1.26\n[method]\nsteps_per_period = 64\n[run]\ntransient_periods = 4\n\
+         sample_periods = 8\n[map]\nx = \"R\"\nx_from = 0.5\nx_to = 0.7\nx_points = 8\n\
+         y = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 8\n",
+    )
+    .unwrap();
+    let mut p = common::rattle()
+        .args(["explore", "--backend", "cpu", "--port", "0", "--config"])
+        .arg(&cfg)
+        .args(extra)
+        .env("TMPDIR", tmp)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(p.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    (p, line)
 }
 
 /// SIGINT, as Ctrl-C: the server's exit status.
@@ -319,31 +328,9 @@ fn only_the_servers_own_page_talks_to_it() {
 #[cfg(unix)]
 #[test]
 fn listening_beyond_the_loopback_warns() {
-    use std::io::{BufRead, Read};
+    use std::io::Read;
     let tmp = common::scratch("explore-host");
-    let cfg = tmp.join("map.toml");
-    std::fs::copy(common::config("r_lambda.toml"), &cfg).unwrap();
-    let mut p = common::rattle()
-        .args([
-            "explore",
-            "--backend",
-            "cpu",
-            "--host",
-            "0.0.0.0",
-            "--port",
-            "0",
-        ])
-        .arg("--config")
-        .arg(&cfg)
-        .env("TMPDIR", &*tmp)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    std::io::BufReader::new(p.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    let (mut p, line) = spawn_server(&tmp, &["--host", "0.0.0.0"]);
     let status = interrupt(&mut p);
     let mut err = String::new();
     p.stderr.take().unwrap().read_to_string(&mut err).unwrap();

@@ -19,7 +19,7 @@ use crate::cycles::{Cycle, Refine};
 use crate::engine::Decider;
 use crate::method::{Integrator, PointState};
 use crate::model::{Mode, Params};
-use crate::stability::{BifurcationPoint, Change, Found, Kind, locate_changes};
+use crate::stability::{BifurcationPoint, Change, Found, Grazed, Kind, locate_changes};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 
@@ -293,6 +293,13 @@ impl<'a> Grid<'a> {
         p
     }
 
+    /// Periods a side's motion is run for at an edge's midpoint: as long as the map's own
+    /// look, what the map would call this motion's attractor.
+    fn look(&self) -> u32 {
+        let run = &self.cfg.run;
+        (run.transient_periods + run.sample_periods).max(run.look)
+    }
+
     /// The edges whose cells' classes differ.
     fn edges(&self, class: &[i32]) -> Vec<Edge> {
         let (nx, ny) = (self.nx, self.ny);
@@ -320,18 +327,17 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
     let edges = grid.edges(cells.class);
     let (trials, cycles) = side_cycles(&grid, &settings, cells, &edges);
     let t1 = std::time::Instant::now();
-    let (per_edge, continuations) = continuations(&grid, &settings, cells, &edges, &cycles);
-    let (per_edge, free) = with_impact_free_grazings(&grid, &settings, cells, &edges, per_edge);
+    let (mut per_edge, continuations) = continuations(&grid, &settings, cells, &edges, &cycles);
+    let both_sides = impact_free_grazings(&grid, &settings, cells, &edges, &mut per_edge);
     let continuation_s = t1.elapsed().as_secs_f64();
     let t2 = std::time::Instant::now();
     let (coexists, claims) = coexistences(&grid, &settings, cells, &edges, &cycles, &per_edge);
     let free: HashMap<usize, &str> = {
         use rayon::prelude::*;
-        let run = &cfg.run;
-        let periods = (run.transient_periods + run.sample_periods).max(run.look);
-        free.par_iter()
-            .filter_map(|(&k, &c)| {
-                impact_free_verdict(&grid, &settings, cells, edges[k], c, periods).map(|v| (k, v))
+        both_sides
+            .par_iter()
+            .filter_map(|(&k, &other)| {
+                crisis(&grid, &settings, cells, edges[k], other).map(|why| (k, why))
             })
             .collect()
     };
@@ -351,7 +357,7 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
         points,
         trials,
         continuations,
-        claims: claims + free.len(),
+        claims: claims + both_sides.len(),
         continuation_s,
         coexistence_s,
         seconds: t0.elapsed().as_secs_f64(),
@@ -440,15 +446,16 @@ fn continuations(
 /// edge: whether the impact-free motion grazes a stop between them ([`stability::graze`]:
 /// continued from the `no_impact` side with the stops removed, the value where one period with
 /// the stops first holds an impact, bisected). The chaotic sea's edge against impact-free
-/// motion is such a grazing where the impact-free motion ends between the cells; where it does
-/// not (the cell's index in the second map, by edge), [`impact_free_verdict`] tells.
-fn with_impact_free_grazings(
+/// motion is such a grazing where the impact-free motion ends between the cells; the edges
+/// where it exists on both sides are returned (edge index -> the impacting cell), for
+/// [`crisis`] to name.
+fn impact_free_grazings(
     grid: &Grid,
     settings: &crate::method::Settings,
     cells: &Cells,
     edges: &[Edge],
-    mut per_edge: Vec<EdgeFound>,
-) -> (Vec<EdgeFound>, HashMap<usize, usize>) {
+    per_edge: &mut [EdgeFound],
+) -> HashMap<usize, usize> {
     use rayon::prelude::*;
     let free = Class::NoImpact.code();
     let impacts = |c: usize| cells.class[c] != free && cells.class[c] != Class::Failed.code();
@@ -469,56 +476,46 @@ fn with_impact_free_grazings(
         })
         .collect();
     let m = &grid.cfg.map;
-    let found: Vec<(usize, usize, Option<BifurcationPoint>)> = tasks
+    let found: Vec<(usize, usize, usize, Grazed)> = tasks
         .par_iter()
-        .map(|&(k, good, bad, along_x)| {
-            let st = cell_state(cells, good);
-            let p = st.and_then(|st| {
-                crate::stability::graze(
-                    &grid.params(good),
-                    if along_x { m.x } else { m.y },
-                    settings,
-                    grid.along(good, along_x),
-                    st,
-                    grid.along(bad, along_x),
-                )
-            });
-            (k, good, p)
+        .filter_map(|&(k, good, bad, along_x)| {
+            let grazed = crate::stability::graze(
+                &grid.params(good),
+                if along_x { m.x } else { m.y },
+                settings,
+                grid.along(good, along_x),
+                cell_state(cells, good)?,
+                grid.along(bad, along_x),
+            );
+            Some((k, good, bad, grazed))
         })
         .collect();
-    let mut free = HashMap::new();
-    for (k, good, p) in found {
-        match p {
-            Some(p) => per_edge[k].push((Found::Located(p), 1, good)),
-            None => {
-                free.insert(k, good);
+    let mut both_sides = HashMap::new();
+    for (k, good, bad, g) in found {
+        match g {
+            Grazed::At(p) => per_edge[k].push((Found::Located(p), 1, good)),
+            Grazed::FreeThere => {
+                both_sides.insert(k, bad);
             }
+            Grazed::NotFree => {}
         }
     }
-    (per_edge, free)
+    both_sides
 }
 
-/// Where the impact-free motion of the `no_impact` cell `free` exists at its impacting
-/// neighbour's parameters too (no grazing between them), whether the impacting side's motion
-/// persists at the edge's midpoint: run there from its own state for `periods` periods, it
-/// still impacts in its last one, or ends impact-free; the reason of the `undetermined` edge.
-fn impact_free_verdict(
+/// The impacting side `other` of an edge whose impact-free motion exists on both sides: run
+/// at the edge's midpoint from its own state for the map's periods, it still impacts in its
+/// last one, or ends impact-free; the reason of the `undetermined` edge (`None`: not followed).
+fn crisis(
     grid: &Grid,
     settings: &crate::method::Settings,
     cells: &Cells,
-    (a, b, along_x): Edge,
-    free: usize,
-    periods: u32,
+    (a, b, _): Edge,
+    other: usize,
 ) -> Option<&'static str> {
-    let other = if free == a { b } else { a };
-    let m = &grid.cfg.map;
-    let param = if along_x { m.x } else { m.y };
-    let st = cell_state(cells, free)?;
-    let value = grid.along(other, along_x);
-    crate::stability::impact_free_at(&grid.params(free), param, settings, value, &st)?;
     let mut st = cell_state(cells, other)?;
     let it = Integrator::<f64>::new(&grid.midpoint_params(a, b), settings);
-    for _ in 0..periods {
+    for _ in 0..grid.look() {
         crate::progress::poll();
         it.period(&mut st);
         if st.diag.nonfinite {
@@ -558,9 +555,7 @@ fn coexistences(
             }
         }
     }
-    // As long as the map's own look: what the map would call this motion's attractor.
-    let run = &grid.cfg.run;
-    let periods = (run.transient_periods + run.sample_periods).max(run.look);
+    let periods = grid.look();
     use rayon::prelude::*;
     let verdicts = claims
         .par_iter()

@@ -242,15 +242,18 @@ fn grazing_points(
         .collect();
     pairs
         .into_par_iter()
-        .filter_map(|(i, good, st, bad)| {
-            graze(base, param, settings, good, st, bad).map(|b| (i, b))
-        })
+        .filter_map(
+            |(i, good, st, bad)| match graze(base, param, settings, good, st, bad) {
+                Grazed::At(b) => Some((i, b)),
+                _ => None,
+            },
+        )
         .collect()
 }
 
 /// The motion from `st` at parameter value `v`: settled without stops, then one period with
 /// them; `Some(settled state)` if that period holds no impact.
-pub fn impact_free_at(
+fn impact_free_at(
     base: &Params<f64>,
     param: Param,
     settings: &Settings,
@@ -272,10 +275,19 @@ pub fn impact_free_at(
     (check.diag.impacts == 0 && !check.diag.nonfinite).then_some(s)
 }
 
-/// [`grazing_points`] for one pair: `None` where the motion is still impact-free at `bad` (it
-/// coexists there with the neighbour's impacting attractor) or not impact-free at `good`.
-/// Also a map's edge between a `no_impact` cell and one that impacts
-/// ([`crate::map::boundaries`]).
+/// What [`graze`] found between an impact-free value and an impacting one.
+pub enum Grazed {
+    /// The impact-free motion grazes a stop between them.
+    At(BifurcationPoint),
+    /// It is still impact-free at the impacting value (it coexists there with the
+    /// neighbour's impacting attractor).
+    FreeThere,
+    /// It is not impact-free at the impact-free value (from the state given).
+    NotFree,
+}
+
+/// [`grazing_points`] for one pair; also a map's edge between a `no_impact` cell and one that
+/// impacts ([`crate::map::boundaries`]).
 pub fn graze(
     base: &Params<f64>,
     param: Param,
@@ -283,10 +295,12 @@ pub fn graze(
     good: f64,
     st: PointState<f64>,
     bad: f64,
-) -> Option<BifurcationPoint> {
-    let mut last = impact_free_at(base, param, settings, good, &st)?;
+) -> Grazed {
+    let Some(mut last) = impact_free_at(base, param, settings, good, &st) else {
+        return Grazed::NotFree;
+    };
     if impact_free_at(base, param, settings, bad, &last).is_some() {
-        return None;
+        return Grazed::FreeThere;
     }
     let (mut good, mut bad) = (good, bad);
     for _ in 0..BISECTIONS {
@@ -304,7 +318,7 @@ pub fn graze(
     param.set(&mut p, good);
     let it = Integrator::<f64>::new(&p, settings);
     let (_, tan) = crate::cycles::flow(&it, &last, 1);
-    Some(BifurcationPoint {
+    Grazed::At(BifurcationPoint {
         kind: Kind::Grazing,
         value: 0.5 * (good + bad),
         uncertainty: 0.5 * (good - bad).abs(),
