@@ -10,6 +10,12 @@ use crate::map::MapOptions;
 use crate::request::{Command, Loaded, Request, Source};
 use serde::{Deserialize, Serialize};
 
+/// How explore computes a view's map: the whole view in one run (no shards).
+pub const EXPLORE: MapOptions = MapOptions {
+    one_run: Some("explore computes each view in one run"),
+    ..MapOptions::WHOLE
+};
+
 /// A view of the map: the ranges of its two axes (the grid stays the configured one). A key
 /// it does not have is refused, not ignored (`x_points` would say the grid changes).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -78,7 +84,7 @@ impl Explorer {
             base.source = Source::Text(text);
         }
         let loaded = base.load(Command::Map)?;
-        MapOptions::default().check(&loaded.cfg)?;
+        EXPLORE.check(&loaded.cfg)?;
         let cfg = loaded.cfg.clone();
         let e = Explorer {
             base,
@@ -109,7 +115,7 @@ impl Explorer {
     /// grid's memory): a bad view gets the command line's message.
     pub fn map_config(&self, view: &View) -> crate::Result<Config> {
         let cfg = self.request(view, &[]).load(Command::Map)?.cfg;
-        MapOptions::default().check(&cfg)?;
+        EXPLORE.check(&cfg)?;
         Ok(cfg)
     }
 

@@ -208,10 +208,11 @@ fn run(cli: Cli) -> Result<()> {
                 failure_points,
                 backends: common.backends(),
             };
-            let (rows, reference) = study(&cfg, &o, &mut |s| {
+            let (rows, reference, timings) = study(&cfg, &o, &mut |s| {
                 eprintln!("accuracy: {s} ({:.0} s)", t0.elapsed().as_secs_f64())
             })?;
-            write_outputs(&out, &cfg, &rows, &reference, t0.elapsed().as_secs_f64())?
+            eprintln!("accuracy: {}", timings.line());
+            write_outputs(&out, &cfg, &rows, &reference, &timings)?
         }
         Cmd::Adapters => {
             say(rattle::engine::adapters_report()?)?;
@@ -300,6 +301,7 @@ fn map_command(a: MapArgs) -> Result<Vec<PathBuf>> {
         refine: a.refine,
         refine_clear: a.refine_clear,
         boundaries: a.boundaries,
+        one_run: None,
     };
     map_cmd(&cfg, &a.out, &opts, a.adapters)
 }

@@ -157,20 +157,47 @@ pub fn blocks_in_flight(points: usize, streams: usize) -> f64 {
         + rest as f64 * STREAM_BLOCK_BYTES_PER_CELL as f64
 }
 
+/// The memory a map (or a share) of `cells` cells with `starts` starts each needs: its layers
+/// and the blocks in flight, in as many streams as the run plans for it. Returns (bytes,
+/// streams).
+fn map_need(cfg: &Config, cells: usize, starts: usize) -> (f64, usize) {
+    let per = map_bytes_per_cell(starts.max(1));
+    let points = cells * starts.max(1);
+    let streams = crate::engine::planned_overlap(cfg.method.backend, cfg.run.overlap, points);
+    let need = per as f64 * cells as f64 + blocks_in_flight(points, streams);
+    (need, streams)
+}
+
+/// The most cells a map of `cfg` with `starts` starts may have within `have` bytes: the largest
+/// count [`map_need`] accepts (the blocks in flight included, so that the count the refusal
+/// names is one the check accepts).
+fn most_cells(cfg: &Config, starts: usize, have: f64) -> u64 {
+    let fits = |n: u64| map_need(cfg, n as usize, starts).0 <= have;
+    let (mut lo, mut hi) = (
+        0u64,
+        (have / map_bytes_per_cell(starts.max(1)) as f64) as u64 + 1,
+    );
+    if !fits(lo) {
+        return 0;
+    }
+    // The need grows with the cells: the largest count that fits lies in [lo, hi).
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if fits(mid) { lo = mid } else { hi = mid }
+    }
+    lo
+}
+
 /// Refuses a map (or a share of `cells` of it) whose estimate exceeds the usable memory;
-/// `shardable`: whether the message may advise shards (not with `--boundaries`, which needs
-/// the whole map).
+/// `one_run`: why it cannot be split into shards, if it cannot (`--boundaries`, explore's
+/// views): the message then advises a coarser grid instead of shards.
 pub fn check_map(
     cfg: &Config,
     cells: usize,
     starts: usize,
-    shardable: bool,
+    one_run: Option<&str>,
 ) -> Result<(), ConfigError> {
-    let per = map_bytes_per_cell(starts.max(1));
-    let points = cells * starts.max(1);
-    let streams = crate::engine::planned_overlap(cfg.method.backend, cfg.run.overlap, points);
-    let block = blocks_in_flight(points, streams);
-    let need = per as f64 * cells as f64 + block;
+    let (need, streams) = map_need(cfg, cells, starts);
     let have = available()? as f64 * USABLE;
     if need > have {
         return Err(ConfigError::Range {
@@ -190,11 +217,10 @@ pub fn check_map(
                 "at most {} of the {} available, i.e. <= {} cells{}",
                 gib(have),
                 gib(have / USABLE),
-                (have / per as f64) as u64,
-                if shardable {
-                    " (or split the map into shards)"
-                } else {
-                    " (--boundaries needs the whole map in one run: a coarser grid)"
+                most_cells(cfg, starts, have),
+                match one_run {
+                    None => " (or split the map into shards)".to_string(),
+                    Some(why) => format!(" ({why}: a coarser grid)"),
                 }
             ),
         });

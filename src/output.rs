@@ -75,6 +75,9 @@ pub struct Staged {
     manifest: Option<PathBuf>,
     /// Files of this run committed by a set of their own, listed in this one's manifest.
     listed: Vec<PathBuf>,
+    /// Files the set was computed from, with their fingerprints then: the commit goes ahead
+    /// only if each is still so, checked under the commit's lock.
+    read: Vec<(PathBuf, String)>,
 }
 
 /// The part of a set's JSON that lists its files.
@@ -86,6 +89,18 @@ struct Manifest {
     /// still the one the set wrote.
     #[serde(default)]
     file_sums: std::collections::BTreeMap<String, String>,
+}
+
+/// The fingerprint of a file whose contents are `bytes` ([`fingerprint`]).
+pub fn fingerprint_of(bytes: &[u8]) -> String {
+    format!("{}:{:08x}", bytes.len(), crc32fast::hash(bytes))
+}
+
+/// The fingerprints a set's JSON `text` recorded at its commit, by file name.
+pub fn recorded_sums(text: &[u8]) -> std::collections::BTreeMap<String, String> {
+    serde_json::from_slice::<Manifest>(text)
+        .map(|m| m.file_sums)
+        .unwrap_or_default()
 }
 
 /// A file's size and CRC-32, `SIZE:CRC` (hex); None where it cannot be read.
@@ -343,6 +358,13 @@ impl Staged {
         self.listed.push(path.to_path_buf());
     }
 
+    /// The set is computed from `path` as it was when its fingerprint was `sum`: the commit
+    /// fails, leaving everything as it is, if the file has changed since (another run
+    /// replaced the set it belongs to).
+    pub fn read_from(&mut self, path: &Path, sum: String) {
+        self.read.push((path.to_path_buf(), sum));
+    }
+
     /// `path`, if it exists, is removed at commit: the set no longer contains it.
     pub fn remove_stale(&mut self, path: &Path) {
         self.stale.push(path.to_path_buf());
@@ -367,8 +389,18 @@ impl Staged {
 
     /// The renames of [`Staged::commit`], under its lock.
     fn rename_all(&mut self, files: Vec<(PathBuf, PathBuf)>) -> Result<Vec<PathBuf>, OutputError> {
-        // Every destination, and every stale file to remove, is checked before the first
-        // rename: a failure leaves nothing.
+        // Every file the set was computed from is as it was, and every destination and every
+        // stale file to remove is checked, before the first rename: a failure leaves nothing.
+        for (path, sum) in &self.read {
+            if fingerprint(path).as_ref() != Some(sum) {
+                self.files = files.clone();
+                return Err(other(
+                    path,
+                    "changed while this set was computed from it (another run replaced it): \
+                     nothing written",
+                ));
+            }
+        }
         for dst in files.iter().map(|f| &f.1).chain(&self.stale) {
             if dst.is_dir() {
                 self.files = files.clone();

@@ -1,9 +1,10 @@
 //! `rattle explore`'s HTTP server: one page (HTML, JavaScript and CSS embedded in the binary)
 //! and a small JSON API over the library ([`rattle::explore`]). Every request is checked by the
 //! command line's own request path before anything is computed (a bad one gets that message
-//! as a 400 with JSON); one computation runs at a time, and a new view interrupts the one
-//! running ([`rattle::progress::interrupt`]); nothing a request says names a file: exports are
-//! written to a directory of the server's own and handed to the browser.
+//! as a 400 with JSON); one computation runs at a time, each under its own
+//! [`rattle::progress::Stop`]: a new view interrupts the one running, a new click the point
+//! running, a client that goes away its own; nothing a request says names a file: exports are
+//! written to a directory of the server's own once per map and handed out from memory.
 
 use anyhow::{Context, Result};
 use axum::Router;
@@ -15,7 +16,8 @@ use axum::routing::{get, post};
 use rattle::config::Config;
 use rattle::engine::Engine;
 use rattle::explore::{Explorer, View, coarse, map_view};
-use rattle::map::{MapOptions, MapResult};
+use rattle::map::MapResult;
+use rattle::progress::Stop;
 use serde::Deserialize;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -31,6 +33,9 @@ struct App {
     engine: Engine,
     /// Held by the computation running (one at a time).
     running: Mutex<()>,
+    /// The running computation's kind and stop: a newer request of a kind that replaces it
+    /// stops it.
+    active: Mutex<Option<(Kind, Stop)>>,
     /// The newest map request's number: an older one gives way.
     newest: AtomicU64,
     /// The newest point request's number.
@@ -45,7 +50,9 @@ struct App {
     bounds: Mutex<Option<(View, Arc<rattle::map::boundaries::Boundaries>)>>,
     /// The last clicked point's figure (PNG).
     point_png: Mutex<Option<Vec<u8>>>,
-    /// Where the exports are written before they are handed out (the server's own).
+    /// The files of the last full map's set, written once and kept in memory: an export is
+    /// then read from here (a second ask of any file of that set writes nothing).
+    exports: Mutex<Option<Exports>>,
     /// The server's own directory for the files of one reply: private (mode 0700, a random
     /// name, made at the start), so that no other user can plant a file or a link there.
     scratch: PathBuf,
@@ -59,6 +66,21 @@ impl rattle::progress::Progress for App {
     fn more(&self, n: u64) {
         self.total.fetch_add(n, Ordering::Relaxed);
     }
+}
+
+/// What a computation is: a view's (a map, its boundaries) or a clicked point's.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    View,
+    Point,
+}
+
+/// A map's set as written for the exports: the map and the boundaries it was written with
+/// (compared by identity) and each file's name and bytes.
+struct Exports {
+    map: Arc<MapResult>,
+    bounds: Option<Arc<rattle::map::boundaries::Boundaries>>,
+    files: Vec<(String, Vec<u8>)>,
 }
 
 /// What a computation came to.
@@ -123,41 +145,57 @@ fn parse<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<T, Refusal> {
         .map_err(|e| Refusal(StatusCode::BAD_REQUEST, format!("malformed request: {e}")))
 }
 
-/// Interrupts the computation of map request `ticket` if its client goes away before it ends.
+/// Stops a request's computation if its client goes away before it ends (the future awaiting
+/// it is dropped).
 struct CancelOnDrop {
-    app: Arc<App>,
-    ticket: u64,
+    stop: Stop,
     armed: bool,
 }
 
 impl Drop for CancelOnDrop {
     fn drop(&mut self) {
-        if self.armed && self.app.newest.load(Ordering::SeqCst) == self.ticket {
-            rattle::progress::interrupt();
+        if self.armed {
+            self.stop.stop();
         }
     }
 }
 
 impl App {
-    /// Runs `work` as the one computation, unless a newer request (`is_newest` false) took
-    /// its place; an interrupt unwinds it.
-    fn exclusive<T>(
+    /// Stops the computation running if it is of a kind in `kinds`.
+    fn stop_running(&self, kinds: &[Kind]) {
+        let active = self.active.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((k, stop)) = &*active
+            && kinds.contains(k)
+        {
+            stop.stop();
+        }
+    }
+
+    /// Runs `work` as the one computation, under `stop`, unless a newer request (`is_newest`
+    /// false) took its place or its client left while it waited; a stop unwinds it.
+    fn exclusive<T: Send>(
         &self,
+        (kind, stop): (Kind, &Stop),
         is_newest: impl Fn() -> bool,
         total: u64,
-        work: impl FnOnce() -> rattle::Result<T>,
+        work: impl FnOnce() -> rattle::Result<T> + Send,
     ) -> Outcome<T> {
         let _one = self.running.lock().unwrap_or_else(|p| p.into_inner());
-        rattle::progress::clear_interrupt();
-        // A newer request's interrupt after this check stops this one.
-        if !is_newest() {
+        // Shown as running before the check: a newer request either is seen by the check or
+        // sees this one to stop it.
+        *self.active.lock().unwrap_or_else(|p| p.into_inner()) = Some((kind, stop.clone()));
+        if !is_newest() || stop.is_stopped() {
+            *self.active.lock().unwrap_or_else(|p| p.into_inner()) = None;
             return Outcome::Cancelled;
         }
         self.done.store(0, Ordering::Relaxed);
         self.total.store(total, Ordering::Relaxed);
         self.busy.store(true, Ordering::Relaxed);
-        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            rattle::progress::stoppable(stop, work)
+        }));
         self.busy.store(false, Ordering::Relaxed);
+        *self.active.lock().unwrap_or_else(|p| p.into_inner()) = None;
         match r {
             Ok(Ok(v)) => Outcome::Done(v),
             Ok(Err(e)) => Outcome::Failed(e.to_string()),
@@ -166,11 +204,16 @@ impl App {
         }
     }
 
-    fn compute_map(&self, ticket: u64, cfg: Config, is_coarse: bool) -> Outcome<Arc<MapResult>> {
-        let o = MapOptions::default();
+    fn compute_map(
+        &self,
+        (ticket, stop): (u64, &Stop),
+        cfg: Config,
+        is_coarse: bool,
+    ) -> Outcome<Arc<MapResult>> {
+        let o = rattle::explore::EXPLORE;
         let total = rattle::map::work(&self.engine, &cfg, &o);
         let newest = || self.newest.load(Ordering::SeqCst) == ticket;
-        let out = self.exclusive(newest, total, || {
+        let out = self.exclusive((Kind::View, stop), newest, total, || {
             rattle::map::compute_map(&self.engine, &cfg, &o, self).map(Arc::new)
         });
         if let Outcome::Done(m) = &out
@@ -184,39 +227,21 @@ impl App {
     /// The point `cfg` (at `xy` of the view's axes) as `rattle point` decides it, with its figure.
     fn compute_point(
         &self,
-        ticket: u64,
+        (ticket, stop): (u64, &Stop),
         cfg: Config,
         xy: (f64, f64),
     ) -> Outcome<serde_json::Value> {
         let newest = || self.newest_point.load(Ordering::SeqCst) == ticket;
-        let out = self.exclusive(newest, 0, || {
+        let out = self.exclusive((Kind::Point, stop), newest, 0, || {
             let report = rattle::point::run(&self.engine, &cfg, &rattle::progress::Silent)?;
-            // The figure as `point --plot` draws it (CPU, f64).
-            use rattle::point::plot::{PlotOptions, compute, write_outputs};
-            let o = PlotOptions::default();
-            let png = match o.check(&cfg) {
-                Ok(()) => {
-                    let p = compute(&cfg, &o, &rattle::progress::Silent)?;
-                    let files = write_outputs(&self.scratch.join("point"), &p)?;
-                    let at = files
-                        .iter()
-                        .find(|f| f.extension().is_some_and(|e| e == "png"));
-                    let png = at.map(|f| {
-                        std::fs::read(f).map_err(|source| rattle::output::OutputError::Io {
-                            path: f.display().to_string(),
-                            source,
-                        })
-                    });
-                    let png = png.transpose();
-                    remove(&files);
-                    png?
-                }
-                Err(_) => None,
-            };
-            Ok((report, png))
+            Ok((report, self.point_figure(&cfg)))
         });
         match out {
             Outcome::Done((report, png)) => {
+                let (png, why) = match png {
+                    Ok(png) => (Some(png), None),
+                    Err(e) => (None, Some(e)),
+                };
                 let figure = png.is_some();
                 *self.point_png.lock().unwrap_or_else(|p| p.into_inner()) = png;
                 Outcome::Done(serde_json::json!({
@@ -226,6 +251,7 @@ impl App {
                     "y_param": self.explorer.cfg.map.y.name(),
                     "report": report,
                     "figure": figure,
+                    "figure_error": why,
                 }))
             }
             Outcome::Cancelled => Outcome::Cancelled,
@@ -233,8 +259,26 @@ impl App {
         }
     }
 
-    /// The last full map's file `what` as `rattle map` writes it (written to the server's own
-    /// directory, read and removed): (content type, file name, bytes).
+    /// The point's figure as `point --plot` draws it (CPU, f64), or why there is none (a point
+    /// the figure's checks refuse, a motion with nothing to plot, a file that could not be
+    /// written): the report is given either way.
+    fn point_figure(&self, cfg: &Config) -> Result<Vec<u8>, String> {
+        use rattle::point::plot::{PlotOptions, compute, write_outputs};
+        let o = PlotOptions::default();
+        o.check(cfg).map_err(|e| e.to_string())?;
+        let p = compute(cfg, &o, &rattle::progress::Silent).map_err(|e| e.to_string())?;
+        let files = write_outputs(&self.scratch.join("point"), &p).map_err(|e| e.to_string())?;
+        let png = files
+            .iter()
+            .find(|f| f.extension().is_some_and(|e| e == "png"))
+            .map(|f| std::fs::read(f).map_err(|e| format!("{}: {e}", f.display())));
+        remove(&files);
+        png.unwrap_or_else(|| Err("no PNG written".into()))
+    }
+
+    /// The last full map's file `what` as `rattle map` writes it: (content type, file name,
+    /// bytes). The set is written once per map (to the server's own directory, read into
+    /// memory and removed), so that asking again, or for another file of it, costs nothing.
     fn export(&self, what: &str) -> Result<(&'static str, String, Vec<u8>), Refusal> {
         let last = self.last.lock().unwrap_or_else(|p| p.into_inner()).clone();
         let Some(m) = last else {
@@ -280,20 +324,50 @@ impl App {
                 }
             },
         };
-        let _one = self.running.lock().unwrap_or_else(|p| p.into_inner());
-        let prefix = self.scratch.join("view");
-        let files =
-            rattle::map::write_outputs(&prefix, &m.cfg, &m.fields, &m.report, bounds.as_deref())
-                .map_err(internal)?;
         let name = match ext {
             "npy" => format!("view-{what}"),
             "boundaries.csv" | "boundaries.png" => format!("view-{ext}"),
             _ => format!("view.{ext}"),
         };
-        let bytes = std::fs::read(self.scratch.join(&name));
-        remove(&files);
-        let bytes = bytes.map_err(internal)?;
-        Ok((kind, name, bytes))
+        let mut exports = self.exports.lock().unwrap_or_else(|p| p.into_inner());
+        let current = exports.as_ref().is_some_and(|e| {
+            Arc::ptr_eq(&e.map, &m)
+                && match (&e.bounds, &bounds) {
+                    (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+                    (None, None) => true,
+                    _ => false,
+                }
+        });
+        if !current {
+            *exports = None;
+            let prefix = self.scratch.join("view");
+            let files = rattle::map::write_outputs(
+                &prefix,
+                &m.cfg,
+                &m.fields,
+                &m.report,
+                bounds.as_deref(),
+            )
+            .map_err(internal)?;
+            let read: std::io::Result<Vec<(String, Vec<u8>)>> = files
+                .iter()
+                .map(|f| {
+                    let name = f.file_name().unwrap_or_default().to_string_lossy();
+                    Ok((name.into_owned(), std::fs::read(f)?))
+                })
+                .collect();
+            remove(&files);
+            *exports = Some(Exports {
+                map: m.clone(),
+                bounds: bounds.clone(),
+                files: read.map_err(internal)?,
+            });
+        }
+        let files = exports.as_ref().map(|e| &e.files[..]).unwrap_or_default();
+        match files.iter().find(|(n, _)| *n == name) {
+            Some((_, bytes)) => Ok((kind, name, bytes.clone())),
+            None => Err(internal(format!("{name} is not in the map's set"))),
+        }
     }
 }
 
@@ -355,28 +429,38 @@ async fn map(State(app): State<Arc<App>>, body: Bytes) -> Response {
     };
     let cfg = if req.coarse { coarse(&cfg) } else { cfg };
     let is_coarse = req.coarse;
-    let out = newest_view(&app, move |worker, ticket| {
-        out_map(worker.compute_map(ticket, cfg, is_coarse), is_coarse)
+    let out = newest_view(&app, move |worker, run| {
+        out_map(worker.compute_map(run, cfg, is_coarse), is_coarse)
     })
     .await;
     out.unwrap_or_else(|e| error(StatusCode::INTERNAL_SERVER_ERROR, e))
 }
 
-/// Runs `work` (given the app and its ticket) as the newest view's computation: the one running
-/// gives way to it, and a client that goes away before it ends interrupts it.
+/// Runs `work` (given the app, its ticket and its stop) as the newest view's computation: the
+/// computation running (a view's or a point's) gives way to it.
 async fn newest_view<T: Send + 'static>(
     app: &Arc<App>,
-    work: impl FnOnce(&App, u64) -> T + Send + 'static,
+    work: impl FnOnce(&App, (u64, &Stop)) -> T + Send + 'static,
 ) -> Result<T, tokio::task::JoinError> {
     let ticket = app.newest.fetch_add(1, Ordering::SeqCst) + 1;
-    rattle::progress::interrupt();
+    app.stop_running(&[Kind::View, Kind::Point]);
+    own_run(app, ticket, work).await
+}
+
+/// Runs `work` (given the app, `ticket` and a stop of its own) off the server's threads; a
+/// client that goes away before it ends stops it.
+async fn own_run<T: Send + 'static>(
+    app: &Arc<App>,
+    ticket: u64,
+    work: impl FnOnce(&App, (u64, &Stop)) -> T + Send + 'static,
+) -> Result<T, tokio::task::JoinError> {
+    let stop = Stop::new();
     let mut guard = CancelOnDrop {
-        app: app.clone(),
-        ticket,
+        stop: stop.clone(),
         armed: true,
     };
     let worker = app.clone();
-    let out = tokio::task::spawn_blocking(move || work(&worker, ticket)).await;
+    let out = tokio::task::spawn_blocking(move || work(&worker, (ticket, &stop))).await;
     guard.armed = false;
     out
 }
@@ -405,16 +489,20 @@ async fn point(State(app): State<Arc<App>>, body: Bytes) -> Response {
         Ok(c) => c,
         Err(e) => return error(StatusCode::BAD_REQUEST, e),
     };
+    // A newer click replaces an older point, running or waiting (not a view's map).
     let ticket = app.newest_point.fetch_add(1, Ordering::SeqCst) + 1;
-    let worker = app.clone();
-    let out = tokio::task::spawn_blocking(move || worker.compute_point(ticket, cfg, xy)).await;
+    app.stop_running(&[Kind::Point]);
+    let out = own_run(&app, ticket, move |worker, run| {
+        worker.compute_point(run, cfg, xy)
+    })
+    .await;
     match out {
         Ok(Outcome::Done(v)) => json_reply(&v),
         Ok(Outcome::Cancelled) => error(
             StatusCode::CONFLICT,
             "cancelled: a newer point or view was asked",
         ),
-        Ok(Outcome::Failed(e)) => error(StatusCode::BAD_REQUEST, e),
+        Ok(Outcome::Failed(e)) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
         Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, e),
     }
 }
@@ -431,9 +519,9 @@ async fn boundaries(State(app): State<Arc<App>>, body: Bytes) -> Response {
         let why = "the boundaries need that view's map at the configured grid first";
         return error(StatusCode::CONFLICT, why);
     };
-    let out = newest_view(&app, move |worker, ticket| {
+    let out = newest_view(&app, move |worker, (ticket, stop)| {
         let newest = || worker.newest.load(Ordering::SeqCst) == ticket;
-        worker.exclusive(newest, 0, || {
+        worker.exclusive((Kind::View, stop), newest, 0, || {
             Ok(rattle::map::boundaries::of_fields(&m.cfg, &m.fields))
         })
     })
@@ -591,6 +679,7 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
         explorer,
         engine,
         running: Mutex::new(()),
+        active: Mutex::new(None),
         newest: AtomicU64::new(0),
         newest_point: AtomicU64::new(0),
         done: AtomicU64::new(0),
@@ -599,6 +688,7 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
         last: Mutex::new(None),
         bounds: Mutex::new(None),
         point_png: Mutex::new(None),
+        exports: Mutex::new(None),
         scratch,
     });
     let router = Router::new()
@@ -632,7 +722,40 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
         println!("rattle explore: http://{at}/ (Ctrl-C stops it)");
         use std::io::Write;
         std::io::stdout().flush()?;
-        axum::serve(listener, router).await?;
-        Ok(())
+        accept(listener, router).await
     })
+}
+
+/// Connections served at once; more wait in the kernel's queue until one ends.
+const MAX_CONNECTIONS: usize = 64;
+/// A connection that has not sent a request's whole header within this is closed.
+const HEADER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// Serves each connection accepted on `listener` with `router`, at most [`MAX_CONNECTIONS`] at
+/// once and each closed if a request's header is not read within [`HEADER_TIMEOUT`], so that
+/// clients that open connections and never finish a request cannot hold every descriptor or
+/// every slot (axum's own `serve` has neither bound).
+async fn accept(listener: tokio::net::TcpListener, router: Router) -> Result<()> {
+    use hyper_util::rt::{TokioIo, TokioTimer};
+    let slots = Arc::new(tokio::sync::Semaphore::new(MAX_CONNECTIONS));
+    loop {
+        let slot = slots.clone().acquire_owned().await?;
+        let stream = match listener.accept().await {
+            Ok((stream, _)) => stream,
+            // Out of descriptors, or a connection reset before it was taken: wait, go on.
+            Err(_) => {
+                tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+                continue;
+            }
+        };
+        let service = hyper_util::service::TowerToHyperService::new(router.clone());
+        tokio::spawn(async move {
+            let _ = hyper::server::conn::http1::Builder::new()
+                .timer(TokioTimer::new())
+                .header_read_timeout(HEADER_TIMEOUT)
+                .serve_connection(TokioIo::new(stream), service)
+                .await;
+            drop(slot);
+        });
+    }
 }

@@ -710,3 +710,54 @@ fn boundaries_refuse_what_is_not_a_map() {
     assert_ne!(out.status.code(), Some(0));
     assert!(err.contains("not the JSON of a map"), "{err}");
 }
+
+/// `rattle boundaries x` while `rattle map --out x` of another config replaces the set: the
+/// boundaries are not committed (round 7 H2: they were, the older map's JSON, config and
+/// caption with sums recomputed over the newer map's layers, a mixed set every later check
+/// passed; both exited 0). The commit checks, under its lock, that the map's JSON and layers
+/// are the ones read; the newer map's set stays whole.
+#[test]
+fn boundaries_of_a_map_replaced_meanwhile_are_not_committed() {
+    let d = scratch("boundaries-race");
+    let a = short_map(&d, 96);
+    let b = d.join("b.toml");
+    let text = std::fs::read_to_string(&a).unwrap();
+    std::fs::write(
+        &b,
+        text.replace("eta = 1.26", "eta = 1.5")
+            .replace("_points = 96", "_points = 4"),
+    )
+    .unwrap();
+    let map = |cfg: &Path| {
+        ok(rattle()
+            .args(["map", "--backend", "cpu", "--config"])
+            .arg(cfg)
+            .arg("--out")
+            .arg(d.join("p")))
+    };
+    map(&a);
+    let child = rattle()
+        .arg("boundaries")
+        .arg(d.join("p"))
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    map(&b);
+    let mut child = child;
+    let still = child.try_wait().unwrap().is_none();
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        still,
+        "the boundaries ended before the map: too short for the test to bite"
+    );
+    assert_ne!(out.status.code(), Some(0), "{err}");
+    assert!(err.contains("changed while"), "{err}");
+    assert!(!d.join("p-boundaries.json").exists());
+    let j = json(&d.join("p.json"));
+    assert_eq!(j["config"]["model"]["eta"], 1.5);
+    assert!(j["files"].as_array().unwrap().len() > 3);
+    // The newer map's set is whole: its own boundaries are added to it.
+    ok(rattle().arg("boundaries").arg(d.join("p")));
+}

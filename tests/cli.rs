@@ -2,7 +2,7 @@
 //! exit and no output files.
 
 mod common;
-use common::{config, rattle, scratch};
+use common::{config, ok, rattle, scratch};
 
 /// `rattle point --config configs/fig2.toml --eta ETA --backend cpu --json [EXTRA]`, which must
 /// succeed; its JSON.
@@ -313,6 +313,49 @@ fn every_commands_timings_share_the_split_keys() {
         "16",
     ];
     check("sensitivity", &run(&sens, "fig2.toml", "s"), true);
+    // Round 7 L9: the accuracy study had no `timings` (the paper figure neither: tested in
+    // tests/reliability.rs), a merged map no transfer counters.
+    let acc = [
+        "accuracy",
+        "--ensemble",
+        "1",
+        "--failure-points",
+        "2",
+        "--transient",
+        "10",
+    ];
+    check("accuracy", &run(&acc, "fig2.toml", "a"), true);
+    let shard = |i: usize| {
+        let o = rattle()
+            .args(["map", "--backend", "cpu", "--config"])
+            .arg(config("r_lambda.toml"))
+            .args(["--set", "map.x_points=4", "--set", "map.y_points=4"])
+            .args([
+                "--set",
+                "run.transient_periods=50",
+                "--set",
+                "run.sample_periods=20",
+            ])
+            .args(["--shard", &format!("{i}/2"), "--out"])
+            .arg(d.join("m"))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        d.join(format!("m.part-{i}-of-2.json"))
+    };
+    let parts = [shard(0), shard(1)];
+    ok(rattle()
+        .arg("merge")
+        .args(&parts)
+        .arg("--out")
+        .arg(d.join("mm")));
+    let t = &common::json(&d.join("mm.json"))["timings"];
+    for k in ["integration_s", "host_s", "device_decide_s"] {
+        assert!(t[k].as_f64().is_some(), "merged map: timings.{k}: {t}");
+    }
+    for k in ["round_trips", "polls", "readback_bytes"] {
+        assert_eq!(t[k].as_u64(), Some(0), "merged map: timings.{k}: {t}");
+    }
 }
 
 /// With `run.look = 0` a chaotic point's report says that no long look ran (it said "a look

@@ -191,6 +191,16 @@ fn start_server(tmp: &std::path::Path) -> (std::process::Child, u16) {
 /// process (its stderr piped) and the first line it printed.
 #[cfg(unix)]
 fn spawn_server(tmp: &std::path::Path, extra: &[&str]) -> (std::process::Child, String) {
+    spawn_with(common::rattle(), tmp, extra)
+}
+
+/// [`spawn_server`], the server started by `launcher` (the binary, or a shell that starts it).
+#[cfg(unix)]
+fn spawn_with(
+    mut launcher: std::process::Command,
+    tmp: &std::path::Path,
+    extra: &[&str],
+) -> (std::process::Child, String) {
     use std::io::BufRead;
     let cfg = tmp.join("map.toml");
     std::fs::write(
@@ -200,7 +210,7 @@ fn spawn_server(tmp: &std::path::Path, extra: &[&str]) -> (std::process::Child, 
          y = \"lambda\"\ny_from = 0.0\ny_to = 0.1\ny_points = 8\n",
     )
     .unwrap();
-    let mut p = common::rattle()
+    let mut p = launcher
         .args(["explore", "--backend", "cpu", "--port", "0", "--config"])
         .arg(&cfg)
         .args(extra)
@@ -214,6 +224,75 @@ fn spawn_server(tmp: &std::path::Path, extra: &[&str]) -> (std::process::Child, 
         .read_line(&mut line)
         .unwrap();
     (p, line)
+}
+
+/// One request (`head`: its request line and headers, without the last line break) to the
+/// server at `port` on a connection of its own: the reply's status code and its whole text.
+#[cfg(unix)]
+fn ask(port: u16, head: &str, body: &str) -> (u16, String) {
+    let (code, bytes) = ask_bytes(port, head, body);
+    (code, String::from_utf8_lossy(&bytes).into_owned())
+}
+
+/// [`ask`], the reply as bytes.
+#[cfg(unix)]
+fn ask_bytes(port: u16, head: &str, body: &str) -> (u16, Vec<u8>) {
+    use std::io::{Read, Write};
+    let mut c = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    let req = format!(
+        "{head}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    );
+    c.write_all(req.as_bytes()).unwrap();
+    let mut out = Vec::new();
+    c.read_to_end(&mut out).unwrap();
+    let code = String::from_utf8_lossy(&out[..out.len().min(16)])
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    (code, out)
+}
+
+/// The body of a reply's bytes (after the header).
+#[cfg(unix)]
+fn body(reply: &[u8]) -> &[u8] {
+    let at = reply.windows(4).position(|w| w == b"\r\n\r\n").unwrap();
+    &reply[at + 4..]
+}
+
+/// The port in the first line a server printed.
+#[cfg(unix)]
+fn port_of(line: &str) -> u16 {
+    line.split("http://127.0.0.1:")
+        .nth(1)
+        .and_then(|r| r.split('/').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no address printed: {line:?}"))
+}
+
+/// A JSON POST's head to the server at `port`.
+#[cfg(unix)]
+fn post(port: u16, path: &str) -> String {
+    format!("POST {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nContent-Type: application/json")
+}
+
+/// The small map's whole view (spawn_server's config).
+#[cfg(unix)]
+const HOME: &str = "{\"x_from\": 0.5, \"x_to\": 0.7, \"y_from\": 0.0, \"y_to\": 0.1}";
+
+/// The small map's whole view computed at its grid by the server at `port`.
+#[cfg(unix)]
+fn home_map(port: u16) -> (u16, String) {
+    let body = format!("{{\"view\": {HOME}}}");
+    ask(port, &post(port, "/api/map"), &body)
+}
+
+/// Whether the server at `port` is busy computing.
+#[cfg(unix)]
+fn busy(port: u16) -> bool {
+    let head = format!("GET /api/progress HTTP/1.1\r\nHost: 127.0.0.1:{port}");
+    ask(port, &head, "").1.contains("\"busy\":true")
 }
 
 /// SIGINT, as Ctrl-C: the server's exit status.
@@ -269,25 +348,9 @@ fn the_servers_scratch_directory_is_private() {
 #[cfg(unix)]
 #[test]
 fn only_the_servers_own_page_talks_to_it() {
-    use std::io::{Read, Write};
     let tmp = common::scratch("explore-gate");
     let (mut p, port) = start_server(&tmp);
-    let ask = |head: &str, body: &str| -> (u16, String) {
-        let mut c = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
-        let req = format!(
-            "{head}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
-            body.len()
-        );
-        c.write_all(req.as_bytes()).unwrap();
-        let mut out = String::new();
-        c.read_to_string(&mut out).unwrap();
-        let code = out
-            .split_whitespace()
-            .nth(1)
-            .and_then(|c| c.parse().ok())
-            .unwrap_or(0);
-        (code, out)
-    };
+    let ask = |head: &str, body: &str| ask(port, head, body);
     let host = format!("Host: 127.0.0.1:{port}");
     let answers = [
         ask(&format!("GET /api/base HTTP/1.1\r\n{host}"), ""),
@@ -370,4 +433,199 @@ fn very_large_coordinates_are_values() {
     assert_eq!(e.map_config(&v).unwrap().map.y_to, 1e19);
     let p = e.point_config(&v, (0.6, 2.5e19)).unwrap();
     assert_eq!(p.model.lambda, 2.5e19);
+}
+
+/// Waits up to `secs` seconds for `what` to hold; whether it did.
+#[cfg(unix)]
+fn within(secs: u64, what: impl Fn() -> bool) -> bool {
+    let t = std::time::Instant::now();
+    while t.elapsed().as_secs() < secs {
+        if what() {
+            return true;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    what()
+}
+
+/// A newer click stops the point running, and a click whose client goes away stops its own
+/// (round 7 L6: neither did; with a large `run.look` the next click waited 103 s). The point
+/// (eta 1.72, Fig. 2's R and lambda: chaotic) with a look of 10^7 periods runs 25 s alone.
+#[cfg(unix)]
+#[test]
+fn a_newer_click_or_a_client_leaving_stops_the_point() {
+    use std::io::Write;
+    let tmp = common::scratch("explore-clicks");
+    let sets = [
+        "--set",
+        "model.eta=1.72",
+        "--set",
+        "run.look=10000000",
+        "--set",
+        "run.transient_periods=500",
+        "--set",
+        "run.sample_periods=200",
+    ];
+    let (mut p, line) = spawn_server(&tmp, &sets);
+    let port = port_of(&line);
+    let click = format!("{{\"view\": {HOME}, \"x\": 0.6, \"y\": 0.02}}");
+    let first = {
+        let click = click.clone();
+        std::thread::spawn(move || ask(port, &post(port, "/api/point"), &click))
+    };
+    let started = within(30, || busy(port));
+    // The second click, on a connection this test closes later.
+    let mut second = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    let req = format!(
+        "{}\r\nContent-Length: {}\r\n\r\n{click}",
+        post(port, "/api/point"),
+        click.len()
+    );
+    second.write_all(req.as_bytes()).unwrap();
+    let t = std::time::Instant::now();
+    let (code, text) = first.join().unwrap();
+    let gave_way = t.elapsed().as_secs_f64();
+    let second_runs = within(30, || busy(port));
+    drop(second);
+    let stopped = within(10, || !busy(port));
+    interrupt(&mut p);
+    assert!(started, "the first point never ran");
+    assert_eq!(code, 409, "{text}");
+    assert!(text.contains("newer point"), "{text}");
+    assert!(
+        gave_way < 10.0,
+        "the first point gave way after {gave_way:.1} s"
+    );
+    assert!(second_runs, "the second point never ran");
+    assert!(stopped, "the second point ran on after its client left");
+}
+
+/// A click whose motion fails gets `rattle point`'s report (`failed`) with no figure and the
+/// figure's reason (round 7 L2: a 400 "nothing to plot" and no report).
+#[cfg(unix)]
+#[test]
+fn a_failed_point_gets_its_report() {
+    let tmp = common::scratch("explore-failed-point");
+    let (mut p, line) = spawn_server(&tmp, &["--set", "model.b1=1e30"]);
+    let port = port_of(&line);
+    let click = format!("{{\"view\": {HOME}, \"x\": 0.6, \"y\": 0.02}}");
+    let (code, text) = ask(port, &post(port, "/api/point"), &click);
+    interrupt(&mut p);
+    assert_eq!(code, 200, "{text}");
+    let v: serde_json::Value = serde_json::from_slice(body(text.as_bytes())).unwrap();
+    assert_eq!(v["report"]["class"], "failed", "{v}");
+    assert_eq!(v["figure"], false, "{v}");
+    let why = v["figure_error"].as_str().unwrap_or("");
+    assert!(why.contains("nothing to plot"), "{v}");
+}
+
+/// An export writes the map's set once and answers every later ask of that map from memory
+/// (round 7 M7: each export rewrote the whole set, 31 files, under the computation's lock, so
+/// abandoned exports delayed the next view). Here the scratch directory is replaced by a file
+/// after the first export: later exports, of that file and of others, are still answered, the
+/// same bytes.
+#[cfg(unix)]
+#[test]
+fn an_export_writes_the_set_once() {
+    let tmp = common::scratch("explore-exports");
+    let (mut p, port) = start_server(&tmp);
+    let (code, text) = home_map(port);
+    let get = |what: &str| {
+        let head = format!("GET /api/export/{what} HTTP/1.1\r\nHost: 127.0.0.1:{port}");
+        ask_bytes(port, &head, "")
+    };
+    let png = get("png");
+    let scratch: Vec<std::path::PathBuf> = std::fs::read_dir(&*tmp)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|d| d.is_dir())
+        .collect();
+    for d in &scratch {
+        std::fs::remove_dir_all(d).unwrap();
+        std::fs::write(d, "not a directory").unwrap();
+    }
+    let again = get("png");
+    let npy = get("lyapunov.npy");
+    let json = get("json");
+    interrupt(&mut p);
+    assert_eq!(code, 200, "{text}");
+    assert_eq!(scratch.len(), 1, "{scratch:?}");
+    assert_eq!(png.0, 200);
+    assert!(body(&png.1).starts_with(b"\x89PNG"));
+    assert_eq!(again.0, 200, "{}", String::from_utf8_lossy(&again.1));
+    assert_eq!(body(&again.1), body(&png.1));
+    assert_eq!(npy.0, 200, "{}", String::from_utf8_lossy(&npy.1));
+    assert!(body(&npy.1).starts_with(b"\x93NUMPY"));
+    assert_eq!(json.0, 200, "{}", String::from_utf8_lossy(&json.1));
+}
+
+/// Clients that open connections and never finish a request no longer starve everyone (round 7
+/// L5: 150 of them, at `ulimit -n 128`, made the server answer no one): at most 64 connections
+/// are served at once and one whose request header is not read within 5 s is closed, so a
+/// request made after 150 stalled ones is answered, and the stalled ones are closed.
+#[cfg(unix)]
+#[test]
+fn stalled_connections_do_not_starve_the_server() {
+    use std::io::{Read, Write};
+    let tmp = common::scratch("explore-stalled");
+    let mut sh = std::process::Command::new("sh");
+    sh.args(["-c", "ulimit -n 128 && exec \"$0\" \"$@\""])
+        .arg(common::rattle().get_program());
+    let (mut p, line) = spawn_with(sh, &tmp, &[]);
+    let port = port_of(&line);
+    let stalled: Vec<std::net::TcpStream> = (0..150)
+        .map(|_| {
+            let mut c = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+            c.write_all(b"GET /api/base HTTP/1.1\r\n").unwrap();
+            c
+        })
+        .collect();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let head = format!("GET /api/base HTTP/1.1\r\nHost: 127.0.0.1:{port}");
+        let _ = tx.send(ask(port, &head, ""));
+    });
+    let answer = rx.recv_timeout(std::time::Duration::from_secs(60));
+    let closed = stalled
+        .into_iter()
+        .take(64)
+        .filter(|c| {
+            let mut c = c;
+            c.set_read_timeout(Some(std::time::Duration::from_secs(1)))
+                .unwrap();
+            let mut b = [0u8; 64];
+            matches!(c.read(&mut b), Ok(0) | Err(_)) || b.starts_with(b"HTTP/1.1 408")
+        })
+        .count();
+    interrupt(&mut p);
+    let (code, text) = answer.expect("no answer within 60 s of 150 stalled connections");
+    assert_eq!(code, 200, "{text}");
+    assert_eq!(
+        closed, 64,
+        "the first 64 stalled connections are closed by the server"
+    );
+}
+
+/// An interrupt while an export is being written leaves nothing of the server's on disk
+/// (round 7 L1: the scratch directory stayed in 5 of 7 tries).
+#[cfg(unix)]
+#[test]
+fn an_interrupt_during_an_export_leaves_nothing() {
+    use std::io::Write;
+    let tmp = common::scratch("explore-export-interrupt");
+    let (mut p, port) = start_server(&tmp);
+    let (code, text) = home_map(port);
+    let mut c = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    let head = format!("GET /api/export/json HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n");
+    c.write_all(head.as_bytes()).unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    let status = interrupt(&mut p);
+    let left: Vec<String> = std::fs::read_dir(&*tmp)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "map.toml")
+        .collect();
+    assert_eq!(code, 200, "{text}");
+    assert_eq!(status.code(), Some(130));
+    assert!(left.is_empty(), "left in TMPDIR: {left:?}");
 }

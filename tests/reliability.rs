@@ -134,6 +134,26 @@ fn the_paper_figure_needs_no_checkout() {
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(d.join("p.png").exists());
+    // Its JSON has the split every command's has (round 7 L9: it had no `timings`).
+    let t = &common::json(&d.join("p.json"))["timings"];
+    let keys = [
+        "integration_s",
+        "device_decide_s",
+        "host_s",
+        "files_s",
+        "wall_s",
+    ];
+    let wall = t["wall_s"].as_f64().unwrap_or(0.0);
+    for k in keys {
+        let v = t[k].as_f64().unwrap_or(-1.0);
+        assert!(
+            v >= 0.0 && (k == "files_s" || v <= wall),
+            "timings.{k}: {t}"
+        );
+    }
+    for k in ["round_trips", "polls", "readback_bytes"] {
+        assert_eq!(t[k].as_u64(), Some(0), "timings.{k}: {t}");
+    }
 }
 
 #[test]

@@ -170,13 +170,18 @@ fn detached<T: Send + 'static>(
     work: impl FnOnce(&Reporter) -> rattle::Result<T> + Send + 'static,
 ) -> PyResult<T> {
     quiet_cancel_panics();
-    rattle::progress::clear_interrupt();
+    // This computation's own interrupt: another thread's Ctrl-C or raising callback stops
+    // only its own.
+    let stop = rattle::progress::Stop::new();
     let reporter = Arc::new(Reporter::default());
     let (tx, rx) = std::sync::mpsc::channel();
     {
         let reporter = reporter.clone();
+        let stop = stop.clone();
         std::thread::spawn(move || {
-            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(&reporter)));
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                rattle::progress::stoppable(&stop, || work(&reporter))
+            }));
             let _ = tx.send(r);
         });
     }
@@ -216,7 +221,7 @@ fn detached<T: Send + 'static>(
                     if let Err(e) = py.check_signals() {
                         // Stop the work at its next report or integrator period, then raise.
                         reporter.cancel.store(true, Ordering::Relaxed);
-                        rattle::progress::interrupt();
+                        stop.stop();
                         interrupted = Some(e);
                         continue;
                     }
@@ -225,7 +230,7 @@ fn detached<T: Send + 'static>(
                     {
                         // A callback that raises ends the computation as an interrupt does.
                         reporter.cancel.store(true, Ordering::Relaxed);
-                        rattle::progress::interrupt();
+                        stop.stop();
                         interrupted = Some(e);
                     }
                 }

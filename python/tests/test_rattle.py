@@ -510,3 +510,44 @@ def test_ctrl_c_stops_a_long_look_and_the_boundaries_at_once():
     # The package still works afterwards, and the boundaries are whole again.
     assert rattle.point(FIG2, eta=1.5).cls == "period-1"
     assert len(m.boundaries()["points"]["x"]) > 0
+
+
+def test_an_interrupt_stops_its_own_computation_only():
+    # Round 7 M6: the interrupt was one flag for the whole library: a progress callback that
+    # raised in one thread, or Ctrl-C in the main thread, made another thread's rattle.map raise
+    # KeyboardInterrupt (and each start cleared the flag for all). Each computation now has its
+    # own: the other thread's map completes, equal to the same map run alone.
+    o = dict(SMALL, **{"map.x_points": 48, "map.y_points": 48})
+    alone = rattle.map(RL, **o)
+    got = {}
+
+    def other():
+        try:
+            got["map"] = rattle.map(RL, **o)
+        except BaseException as e:  # noqa: BLE001 - the test reports what it was
+            got["error"] = e
+
+    class Stop(Exception):
+        pass
+
+    def raising(done, total):
+        raise Stop(done)
+
+    t = threading.Thread(target=other)
+    t.start()
+    time.sleep(0.3)
+    # A callback that raises in this thread, then Ctrl-C here, while the other map runs.
+    with pytest.raises(Stop):
+        rattle.map(RL, progress=raising, **o)
+    timer = threading.Timer(0.3, _thread.interrupt_main)
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            rattle.map(RL, **dict(o, **{"map.x_points": 256, "map.y_points": 256}))
+    finally:
+        timer.cancel()
+    still = t.is_alive()
+    t.join()
+    assert "error" not in got, got
+    assert still, "the other map ended before both interrupts: too short for the test to bite"
+    np.testing.assert_array_equal(got["map"].classes, alone.classes)

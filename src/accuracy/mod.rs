@@ -6,7 +6,7 @@ use crate::config::{Backend, Config, Precision};
 use crate::engine::Engine;
 use crate::error::OptionError;
 use crate::error::{Error, Result};
-use crate::method::{ImpactMethod, Integrator, RunResult, Settings};
+use crate::method::{ImpactMethod, Integrator, RunResult, Settings, Split, Timings};
 use crate::model::{Param, Params};
 use crate::output::{Staged, with_ext};
 use crate::progress::Silent;
@@ -164,17 +164,23 @@ pub fn study(
     cfg: &Config,
     o: &Options,
     log: &mut dyn FnMut(&str),
-) -> Result<(Vec<Row>, ReferenceInfo)> {
+) -> Result<(Vec<Row>, ReferenceInfo, Split)> {
+    let t0 = std::time::Instant::now();
     check_options(o)?;
     let engines: Vec<Engine> = o
         .backends
         .iter()
         .map(|&b| Engine::open(b))
         .collect::<Result<_, _>>()?;
-    let (mut rows, meta) = error_rows(cfg, o, &engines, log)?;
-    rows.extend(failure_rows(cfg, o, &engines[0], log)?);
+    let mut t = Timings::default();
+    let (mut rows, meta) = error_rows(cfg, o, &engines, &mut t, log)?;
+    rows.extend(failure_rows(cfg, o, &engines[0], &mut t, log)?);
     rows.extend(stress_rows(o));
-    Ok((rows, meta))
+    // The engine's runs are timed; the rest (the f64 references, Newton's polish, the
+    // bookkeeping) is the host's.
+    let wall = t0.elapsed().as_secs_f64();
+    let host = (wall - t.integration_s - t.decide_s - t.host_s).max(0.0);
+    Ok((rows, meta, Split::of(&t, host, wall)))
 }
 
 /// The study's own options, checked before any computing.
@@ -206,6 +212,7 @@ fn error_rows(
     cfg: &Config,
     o: &Options,
     engines: &[Engine],
+    timings: &mut Timings,
     log: &mut dyn FnMut(&str),
 ) -> Result<(Vec<Row>, ReferenceInfo)> {
     let mut rows = Vec::new();
@@ -257,6 +264,7 @@ fn error_rows(
                 let mut polish = None;
                 match engine.run(&spec, &Points::along(&[Param::Eta], &etas), &Silent) {
                     Ok((rs, t)) => {
+                        timings.add(&t);
                         let secs = t.kernel_s.unwrap_or(t.integration_s);
                         let steps = o.ensemble as f64 * (transient + 1) as f64 * n as f64;
                         row.error = Some(max_diff(&rs[0].final_y, &reference));
@@ -310,6 +318,7 @@ fn failure_rows(
     cfg: &Config,
     o: &Options,
     engine: &Engine,
+    timings: &mut Timings,
     log: &mut dyn FnMut(&str),
 ) -> Result<Vec<Row>> {
     let mut rows = Vec::new();
@@ -346,6 +355,7 @@ fn failure_rows(
                 };
                 match engine.run(&sc, &points, &Silent) {
                     Ok((rs, t)) => {
+                        timings.add(&t);
                         let cl = classes_of(&rs);
                         let k = values.len() as f64;
                         row.class_mismatch = Some(
@@ -478,6 +488,7 @@ struct AccuracyJson<'a> {
     orders: Vec<OrderJson<'a>>,
     config: &'a Config,
     seconds: f64,
+    timings: Split,
 }
 
 /// Writes PREFIX.csv (every row), PREFIX.png and PREFIX.svg (work-precision chart: one line per
@@ -489,8 +500,9 @@ pub fn write_outputs(
     cfg: &Config,
     rows: &[Row],
     reference: &ReferenceInfo,
-    seconds: f64,
+    timings: &Split,
 ) -> Result<Vec<PathBuf>> {
+    let t_files = std::time::Instant::now();
     let mut st = Staged::new();
     write_csv(&mut st, &with_ext(out, "csv"), rows)?;
     let (series, orders) = work_precision_series(rows, reference.case.as_str());
@@ -537,7 +549,11 @@ pub fn write_outputs(
         reference,
         orders,
         config: cfg,
-        seconds,
+        seconds: timings.wall_s,
+        timings: Split {
+            files_s: Some(t_files.elapsed().as_secs_f64()),
+            ..*timings
+        },
     };
     st.write_json(&with_ext(out, "json"), &j)?;
     Ok(st.commit()?)

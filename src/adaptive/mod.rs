@@ -916,13 +916,18 @@ fn configured_summaries(
             (idx, live)
         })
         .collect();
+    // The streams work for the caller's computation: its interrupt stops them.
+    let carried = crate::progress::carry();
     let runs = std::thread::scope(|scope| {
         let handles: Vec<_> = streams
             .iter()
             .map(|(_, live)| {
+                let carried = carried.clone();
                 scope.spawn(move || {
-                    let sub = live.points(points);
-                    drive(engine, spec, &sub, early, &mut Summaries, progress)
+                    carried.enter(|| {
+                        let sub = live.points(points);
+                        drive(engine, spec, &sub, early, &mut Summaries, progress)
+                    })
                 })
             })
             .collect();

@@ -60,6 +60,8 @@ struct PaperJson<'a> {
     height_cm: f64,
     height_px: u32,
     panels: Vec<PaperPanelJson<'a>>,
+    /// The four diagrams' split, summed, as every command's (`method::Split`).
+    timings: crate::method::Split,
     version: &'static str,
     width_cm: f64,
     width_px: u32,
@@ -182,6 +184,7 @@ pub fn paper_figure(
     out: &Path,
     progress: &dyn Progress,
 ) -> Result<Vec<PathBuf>> {
+    let t0 = std::time::Instant::now();
     let cfgs = paper_configs(dir, adjust)?;
     let mut data = Vec::new();
     for (name, cfg) in cfgs {
@@ -217,8 +220,24 @@ pub fn paper_figure(
         .collect();
     let px = |cm: f64| (cm / 2.54 * PAPER_DPI).round() as u32;
     let (w, h) = (px(PAPER_WIDTH_CM), px(PAPER_HEIGHT_CM));
+    let mut timings = crate::method::Split {
+        wall_s: t0.elapsed().as_secs_f64(),
+        files_s: None,
+        ..Default::default()
+    };
+    for (_, _, b) in &data {
+        let t = b.timings.unwrap_or_default();
+        timings.integration_s += b.integration_s;
+        timings.device_decide_s += t.decide_s;
+        timings.transfers.add(&t.transfers);
+    }
+    // The rest of the wall is the host's: Newton's confirmations, the search for the
+    // bifurcation points, the engines' start.
+    timings.host_s = (timings.wall_s - timings.integration_s - timings.device_decide_s).max(0.0);
+    let t_files = std::time::Instant::now();
     let mut st = Staged::new();
     let stats = panels_png(&st.path(out), &panels, 2, w, h)?;
+    timings.files_s = Some(t_files.elapsed().as_secs_f64());
     let dropped: usize = stats.iter().map(|s| s.dropped).sum();
     let inside: usize = stats.iter().map(|s| s.inside).sum();
     let caption = paper_caption(
@@ -239,6 +258,7 @@ pub fn paper_figure(
         width_px: w,
         height_px: h,
         y_range,
+        timings,
         version: env!("CARGO_PKG_VERSION"),
         panels: data
             .iter()

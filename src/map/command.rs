@@ -34,20 +34,30 @@ pub struct MapOptions<'a> {
     /// Locate and type the boundaries of the whole map and write them beside it
     /// (`--boundaries`, [`super::boundaries::of_fields`]).
     pub boundaries: bool,
+    /// Why the map cannot be split into shards, where it cannot for another reason than
+    /// `boundaries` (explore computes each view in one run): a refusal for memory then
+    /// advises a coarser grid, not shards.
+    pub one_run: Option<&'static str>,
+}
+
+impl MapOptions<'_> {
+    /// One start per cell, the whole map at once.
+    pub const WHOLE: MapOptions<'static> = MapOptions {
+        starts: 1,
+        shard: None,
+        checkpoint: None,
+        compare: None,
+        refine: None,
+        refine_clear: None,
+        boundaries: false,
+        one_run: None,
+    };
 }
 
 impl Default for MapOptions<'_> {
-    /// One start per cell, the whole map at once.
+    /// [`MapOptions::WHOLE`].
     fn default() -> Self {
-        MapOptions {
-            starts: 1,
-            shard: None,
-            checkpoint: None,
-            compare: None,
-            refine: None,
-            refine_clear: None,
-            boundaries: false,
-        }
+        MapOptions::WHOLE
     }
 }
 
@@ -191,7 +201,11 @@ impl MapOptions<'_> {
         let held = self
             .shard
             .map_or(cells, |(i, n)| shard_range(cells, i, n).len());
-        crate::memory::check_map(cfg, held, self.starts, !self.boundaries)?;
+        let one_run = match self.boundaries {
+            true => Some("--boundaries needs the whole map in one run"),
+            false => self.one_run,
+        };
+        crate::memory::check_map(cfg, held, self.starts, one_run)?;
         Ok(())
     }
 }
@@ -587,6 +601,23 @@ pub fn run_shared(
     })
 }
 
+/// The timings of a map merged from `parts`: each part's split and what crossed to its device,
+/// summed (the parts ran apart: no wall time of one run).
+fn merged_timings(parts: &[Part]) -> MapTimings {
+    let mut t = Timings::default();
+    for p in parts {
+        t.add(&p.timings);
+    }
+    MapTimings {
+        integration_s_sum: Some(t.integration_s),
+        integration_s: Some(t.integration_s),
+        host_s: Some(t.host_s),
+        device_decide_s: Some(t.decide_s),
+        transfers: Some(t.transfers),
+        ..MapTimings::default()
+    }
+}
+
 /// Merges part files into the files of a single run.
 pub fn merge_files(paths: &[PathBuf], out: &Path) -> crate::Result<MapSummary> {
     // The merged set's JSON is PREFIX.json: a part named so would be replaced by it.
@@ -613,10 +644,7 @@ pub fn merge_files(paths: &[PathBuf], out: &Path) -> crate::Result<MapSummary> {
         merged_by: Some(env!("CARGO_PKG_VERSION")),
         shards: Some(parts.len()),
         devices: Some(parts.iter().map(|p| p.device.clone()).collect()),
-        timings: MapTimings {
-            integration_s_sum: Some(parts.iter().map(|p| p.timings.integration_s).sum()),
-            ..MapTimings::default()
-        },
+        timings: merged_timings(&parts),
         ..MapReport::default()
     };
     Ok(MapSummary {

@@ -766,8 +766,17 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
         .iter()
         .map(|x| with_ext(&base, x))
         .collect();
+    // The set is committed only if the map is still the one read: its JSON and every layer
+    // as they were (a map committed at PREFIX meanwhile fails this, rather than having its
+    // layers blessed with the older map's config and caption).
+    st.read_from(&json, crate::output::fingerprint_of(&text));
+    let sums = crate::output::recorded_sums(&text);
     for f in own.iter().filter(|f| **f != json && !ours.contains(f)) {
         st.also_list(f);
+        let name = f.file_name().unwrap_or_default().to_string_lossy();
+        if let Some(sum) = sums.get(name.as_ref()) {
+            st.read_from(f, sum.clone());
+        }
     }
     let files = st.manifest(&json);
     if let Some(o) = v.as_object_mut() {
