@@ -130,7 +130,8 @@ impl Class {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Shown {
     Period(u32),
-    /// A confirmed cycle of period 65-128 (a candidate period beyond the detector's), one
+    /// A confirmed cycle of period 65-1024 (a candidate period beyond the detector's, or a
+    /// recurrence of the host's search, [`crate::recurrence`]), one
     /// colour for all.
     LongPeriod,
     /// A class other than `period-n`.
@@ -171,7 +172,7 @@ impl Shown {
     pub fn label(self) -> String {
         match self {
             Shown::Period(n) => format!("period {n}"),
-            Shown::LongPeriod => "periods 65-128".into(),
+            Shown::LongPeriod => "periods 65-1024".into(),
             Shown::Other(c) => c.label().into(),
             Shown::Coexisting => "coexisting attractors".into(),
         }

@@ -320,6 +320,13 @@ fn mode_after_update(it: &Integrator<f64>, st: &PointState<f64>) -> Mode {
     }
 }
 
+/// The largest Lyapunov exponent per unit time of a cycle of `period` forcing periods whose
+/// leading multiplier has modulus `modulus`, at forcing frequency `eta` (a period is 2 pi /
+/// eta): ln |mu_1| over the cycle's duration.
+pub fn exponent(modulus: f64, period: u32, eta: f64) -> f64 {
+    modulus.ln() * eta / (2.0 * std::f64::consts::PI * f64::from(period.max(1)))
+}
+
 /// Lyapunov exponents from a tangent run.
 #[derive(Clone, Debug, Serialize)]
 pub struct Spectrum {

@@ -35,6 +35,7 @@ pub mod output;
 pub mod point;
 pub mod progress;
 pub mod real;
+pub mod recurrence;
 pub mod reference;
 pub mod render;
 pub mod request;

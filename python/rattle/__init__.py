@@ -193,6 +193,8 @@ class Point:
         self.period: Optional[int] = report["period"]
         self.lyapunov: float = report["lyapunov"]
         self.lyapunov_se: float = report["lyapunov_se"]
+        # The run's own exponent over its last window (`lyapunov` is a confirmed cycle's).
+        self.run_lyapunov: float = report["run_lyapunov"][0]
         self.rule: str = report["rule"]
         self.samples = np.asarray(report["samples"], dtype=float).reshape(-1, 4)
         self.impact_speeds = np.asarray(report["impact_speeds"], dtype=float)

@@ -14,7 +14,9 @@
 //!    ([`Look::of`]). Each answer depends on the point's own run and its neighbours' runs
 //!    before the look, so a map split into shards or checkpoints (each with a halo of one row)
 //!    looks at every cell as the whole map does.
-//! 2. **Carried cycles** ([`coexist`], [`crate::carry`]): once every point is decided, the
+//! 2. **Cycles beyond the kernel's tail** ([`recur`]): a point still torus-looking or undecided
+//!    runs on, on the host, for a recurrence of up to 1024 periods that Newton confirms.
+//! 3. **Carried cycles** ([`coexist`], [`crate::carry`]): once every point is decided, the
 //!    stable cycles are carried to the neighbours that did not land on them (a map carries
 //!    over its whole grid when its parts are joined, [`crate::map::carry_over`]).
 //!
@@ -26,9 +28,12 @@ use super::{Keep, Start, drive_stages, look_stages};
 use crate::carry::{Carried, Neighbours, Seed, carry, coexisting};
 use crate::class::Class;
 use crate::classify::Rule;
+use crate::cycles::Cycle;
 use crate::decide::Look;
 use crate::engine::{Decider, Engine, EngineError, Timings};
+use crate::method::Integrator;
 use crate::model::Mode;
+use crate::model::Params;
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
 
@@ -45,6 +50,10 @@ pub trait Looked: Keep {
     fn coexists(&self, p: &mut Self::Point, c: Option<Carried>);
     /// Records how long the point was looked at.
     fn looked(&self, _p: &mut Self::Point, _look: Look) {}
+    /// Makes the stable cycle `c` that [`recur`] found the point's attractor: in a window of
+    /// `ran` periods after the point's first `from`, of the point of `params`. The exponent
+    /// is then the cycle's own (ln |mu| over its period), its settle time `from`.
+    fn recurred(&self, p: &mut Self::Point, c: Cycle, at: (u32, u32), params: &Params<f64>);
 }
 
 /// The look's counts, for logs and reports.
@@ -159,6 +168,59 @@ pub fn look<K: Looked>(
         counts.left
     );
     Ok((timings, counts))
+}
+
+/// Cycles beyond the kernel's tail ([`crate::recurrence`]): every point among the first `own`
+/// still torus-looking or undecided after the look runs on, on the host in f64, for a window in
+/// which a lag of up to 1024 periods that recurs is tried by Newton's method; a stable cycle
+/// the motion approaches becomes its class ([`Looked::recurred`]); where the run asks for it
+/// ([`crate::recurrence::asked`]). Returns the points searched and those that found a cycle.
+pub fn recur<K: Looked + Sync>(
+    spec: &RunSpec,
+    points: &Points,
+    own: usize,
+    keep: &K,
+    done: &mut [K::Point],
+    periods: &mut [u32],
+) -> (usize, usize)
+where
+    K::Point: Sync,
+{
+    use rayon::prelude::*;
+    let t0 = std::time::Instant::now();
+    if !crate::recurrence::asked(spec) {
+        return (0, 0);
+    }
+    let idx: Vec<usize> = (0..own.min(done.len()))
+        .filter(|&i| matches!(keep.verdict(&done[i]).1, Rule::Torus | Rule::Undecided))
+        .collect();
+    let found: Vec<(usize, crate::recurrence::Search)> = idx
+        .par_iter()
+        .map(|&i| {
+            let it = Integrator::<f64>::new(&points.params(&spec.params, i), &spec.settings);
+            let (y, mode, _) = keep.state(&done[i]);
+            (
+                i,
+                crate::recurrence::search(&it, &it.start_in(y, Some(mode))),
+            )
+        })
+        .collect();
+    let mut cycles = 0;
+    for (i, s) in found {
+        if let Some(c) = s.found {
+            let at = (periods[i], s.periods);
+            keep.recurred(&mut done[i], c, at, &points.params(&spec.params, i));
+            periods[i] += s.periods;
+            cycles += 1;
+        }
+    }
+    log::debug!(
+        "recurrence: {} torus-looking or undecided points searched, {cycles} cycles found, \
+         {:.2} s",
+        idx.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    (idx.len(), cycles)
 }
 
 /// Carries the stable cycles of the decided points `done` to their neighbours `nb` ([`carry`])

@@ -222,9 +222,19 @@ impl Config {
     }
 
     /// Parameter values of map cell (ix, iy): grid points at cell centres.
+    ///
+    /// Each half is counted from its own end (the middle cell of an odd count is the range's
+    /// midpoint), so that an axis given the other way round (`from` and `to` swapped) has the
+    /// same values bit for bit in the reverse order: a mirrored map integrates the very same
+    /// parameters, and long runs that amplify an ulp (the recurrence search) agree.
     pub fn map_axis(from: f64, to: f64, n: u32) -> Vec<f64> {
+        let d = to - from;
         (0..n)
-            .map(|i| from + (to - from) * (i as f64 + 0.5) / n as f64)
+            .map(|i| match (2 * i + 1).cmp(&n) {
+                std::cmp::Ordering::Less => from + d * (i as f64 + 0.5) / n as f64,
+                std::cmp::Ordering::Equal => (from + to) / 2.0,
+                std::cmp::Ordering::Greater => to - d * ((n - 1 - i) as f64 + 0.5) / n as f64,
+            })
             .collect()
     }
 }

@@ -102,8 +102,11 @@ pub(super) fn caption(
          averages of y1 over the two halves of the window agree to {digits} digits) with an \
          exponent shown to be within {bound} of zero (|exponent| + {z} standard errors); aperiodic where no exponent was \
          computed. A cell still undecided gets doubling windows up to {hz} x the configured \
-         periods (PREFIX-periods.npy) and is unresolved only then.{looked} Cells by deciding rule: \
-         {rules}. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64) with \
+         periods (PREFIX-periods.npy) and is unresolved only then.{looked} A cell still \
+         quasi-periodic or unresolved then runs {win} periods more on the host (f64) for a \
+         recurrence at a lag <= {maxl} that Newton's method confirms as a stable cycle the \
+         motion approaches. Cells by deciding rule: \
+         {rules}. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64, 65-1024) with \
          lightness steps inside a family; chaotic near-black, quasi-periodic light green. The \
          legend gives the share and the count of every class shown. Most frequent: \
          {top}.{coex}{refined} Raster image, 1100 x 800 px ({RASTER}).",
@@ -116,6 +119,8 @@ pub(super) fn caption(
         bound = crate::classify::TORUS_BOUND,
         cand = crate::classify::MAX_CANDIDATES,
         maxp = crate::classify::MAX_TRIAL_PERIOD,
+        win = crate::recurrence::WINDOW,
+        maxl = crate::recurrence::MAX_LONG_PERIOD,
         ctol = crate::classify::CANDIDATE_TOL,
         z = crate::classify::CHAOS_MARGIN,
         blocks = crate::classify::BLOCKS,

@@ -145,7 +145,7 @@ map_layers! {
     period: [i32; 1] = |c| [c.class.period().map_or(0, |p| p as i32)];
     /// Mean impacts per sampled forcing period.
     impacts_per_period: [f64; 1] = |c| [c.impacts_per_period];
-    /// Largest Lyapunov exponent per unit time; NaN where no estimate exists.
+    /// Largest Lyapunov exponent per unit time: of a cell with a confirmed stable cycle the cycle's own (ln |mu_1| over its period, its standard error 0), otherwise the run's over its last windows; NaN where no estimate exists.
     lyapunov: [Option<f64>; 1] = |c| [finite(c.lyapunov.value)];
     /// Largest Floquet multiplier modulus of the cell's stable cycle; NaN where not periodic.
     multiplier: [Option<f64>; 1] = |c| [finite(c.multiplier)];

@@ -129,13 +129,14 @@ impl Part {
         if !(1..=64).contains(&self.starts) {
             return Err(PartError(format!("starts {} outside [1, 64]", self.starts)));
         }
-        // The adaptive horizon, then the long look (docs/classes.md).
+        // The adaptive horizon, the long look, then the recurrence search (docs/classes.md).
         let total = (self.config.run.transient_periods + self.config.run.sample_periods)
             * self.config.run.horizon
-            + self.config.run.look;
+            + self.config.run.look
+            + crate::recurrence::WINDOW;
         for c in 0..len {
             let class = f.class[c];
-            let codes = Class::min_code()..=crate::classify::MAX_TRIAL_PERIOD as i32;
+            let codes = Class::min_code()..=crate::recurrence::MAX_LONG_PERIOD as i32;
             let bad = if !codes.contains(&class) {
                 Some(format!("class code {class}"))
             } else if f.cpu_rerun[c] > 1 {

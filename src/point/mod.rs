@@ -33,9 +33,16 @@ pub struct PointReport {
     /// end (CPU, f64), and their distribution: how hard the parts hit, impact by impact.
     pub impact_speeds: Vec<f64>,
     pub impact_speed_distribution: Distribution,
+    /// The largest Lyapunov exponent per unit time: of a confirmed stable cycle, the cycle's
+    /// own (ln |mu_1| over its period, exact: `lyapunov_se` 0); otherwise the run's over its
+    /// last sampled windows.
     pub lyapunov: f64,
-    /// Standard error of `lyapunov` by batch means over the last sampled window.
+    /// Standard error of `lyapunov` by batch means over the last sampled window (0 for a
+    /// cycle's own).
     pub lyapunov_se: f64,
+    /// The run's exponent and its standard error over its last sampled windows, whatever the
+    /// class (of a cycle still approached, it holds the transient).
+    pub run_lyapunov: [f64; 2],
     /// Agreeing digits of the torus test (weighted Birkhoff averages of y1 over the two
     /// halves of the last sampled window).
     pub torus_digits: f64,
@@ -108,6 +115,13 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     } else {
         Some(spectrum(&it, &mut end.clone(), spec.samples, 4).exponents)
     };
+    // A confirmed cycle's exponent is its own: ln |mu_1| per unit time over its period (none
+    // where `run.tangent = "none"` asks for no exponent).
+    let own = verdict
+        .cycle
+        .as_ref()
+        .filter(|c| class.period().is_some() && c.is_stable() && tangent != Tangent::None)
+        .map(|c| crate::cycles::exponent(c.leading_modulus(), c.period, spec.params.eta));
     let wall_s = t.elapsed().as_secs_f64();
     let timings = Split::of(&a.timings, t_host.elapsed().as_secs_f64(), wall_s);
     Ok(PointReport {
@@ -120,8 +134,9 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
             speeds.iter().map(|&v| Some(v)),
         ),
         impact_speeds: speeds,
-        lyapunov: r.lyapunov.value,
-        lyapunov_se: r.lyapunov.se,
+        lyapunov: own.map_or(r.lyapunov.value, |e| e),
+        lyapunov_se: own.map_or(r.lyapunov.se, |_| 0.0),
+        run_lyapunov: [r.lyapunov.value, r.lyapunov.se],
         torus_digits: r.torus,
         rule: verdict.rule,
         tried_periods: verdict.tried.clone(),
@@ -231,6 +246,13 @@ impl PointReport {
             writeln!(
                 f,
                 "lyapunov exponent  - (none: run.tangent = \"none\", or a failed run)"
+            )?;
+        } else if self.multipliers.is_some() && self.lyapunov_se == 0.0 {
+            writeln!(
+                f,
+                "lyapunov exponent  {:.5} (the cycle's: ln|mu_1| over its period; the run's \
+                 last window {:.5} +- {:.5})",
+                self.lyapunov, self.run_lyapunov[0], self.run_lyapunov[1]
             )?;
         } else {
             writeln!(

@@ -440,7 +440,11 @@ async function point(c) {
       row("class", r.class), row("period", r.period === null ? "-" : String(r.period)),
       row("rule", String(r.rule)),
       row("|multipliers|", mult.length ? mult.join(", ") : "-"),
-      row("Lyapunov exponent", `${r.lyapunov.toPrecision(4)} +- ${r.lyapunov_se.toPrecision(2)}`),
+      // A confirmed cycle's exponent is its own (ln|mu_1| over its period); the run's beside it.
+      r.multipliers && r.lyapunov_se === 0
+        ? row("Lyapunov exponent", `${r.lyapunov.toPrecision(4)} (the cycle's; the run's window ` +
+            `${r.run_lyapunov[0].toPrecision(4)} +- ${r.run_lyapunov[1].toPrecision(2)})`)
+        : row("Lyapunov exponent", `${r.lyapunov.toPrecision(4)} +- ${r.lyapunov_se.toPrecision(2)}`),
       row("settle (periods)", String(r.settle)),
       row("periods integrated", String(r.periods)),
       row("periods tried by Newton", (r.tried_periods || []).join(", ") || "-"),

@@ -1,0 +1,186 @@
+//! Cycles longer than the kernel's tail can show: a point that ends torus-looking or undecided
+//! is run on, on the host in f64, for [`WINDOW`] periods whose stroboscopic states are kept; a
+//! lag of up to [`MAX_LONG_PERIOD`] at which they recur (converging onto a cycle, or settled)
+//! is tried by Newton's method at that period from the window's last state. A stable cycle
+//! that the motion is seen to approach is the point's attractor.
+//!
+//! The kernel keeps [`TAIL`](crate::classify::TAIL) section values per point, enough for lags
+//! up to 128 seen twice; a tail of 2048 for every point would hold 8 KiB of a 512 x 512 map's
+//! every cell on the device. The few points left torus-looking or undecided run here instead.
+
+use crate::classify::{Candidate, SETTLED, approaches};
+use crate::cycles::{Cycle, refine};
+use crate::method::{Integrator, PointState};
+
+/// The longest cycle looked for.
+pub const MAX_LONG_PERIOD: u32 = 1024;
+
+/// Differences compared at each end of the window for a lag (as the kernel's candidates: the
+/// last 32 values, and the first 32).
+const W: usize = 32;
+
+/// Periods a search runs and keeps: every lag up to [`MAX_LONG_PERIOD`] is seen over two
+/// windows of [`W`] values that lie apart.
+pub const WINDOW: u32 = 2 * MAX_LONG_PERIOD + 2 * W as u32;
+
+/// Whether a run of `spec` searches: its look allows [`WINDOW`] periods (`run.look`, the
+/// periods a point may be followed for in all) and its sampled window holds the two windows
+/// of [`W`] values that a lag is judged by. A run of a few periods (a quick survey, a memory
+/// measurement) is not followed for thousands more, nor one whose look is off.
+pub fn asked(spec: &crate::spec::RunSpec) -> bool {
+    spec.look >= WINDOW && spec.samples >= 2 * W as u32
+}
+
+/// A lag whose recent differences are at most this fraction of its early ones converges (as
+/// [`crate::classify::CONVERGING`] for the kernel's candidates).
+const CONVERGING: f64 = 0.5;
+
+/// A converging lag is proposed only where its recent differences are within this fraction of
+/// the range: over 1024 lags chaos converges at one by chance, to 0.2-0.35 of the range (Fig.
+/// 2's eta 1.72-1.76), where Newton at a long period would be tried in vain.
+const NEAR_REPEAT: f64 = 0.05;
+
+/// The lag the search proposes: among the lags that converge (recent differences at most
+/// [`CONVERGING`] of the early ones, within [`NEAR_REPEAT`] of the range) or have settled (within
+/// [`SETTLED`] of the range), the one of the smallest recent difference, or its least divisor
+/// that qualifies too.
+pub fn best_lag(states: &[[f64; 4]]) -> Option<Candidate> {
+    let len = states.len();
+    let mut span = [0.0f64; 4];
+    for (i, s) in span.iter_mut().enumerate() {
+        let (lo, hi) = states
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |a, x| {
+                (a.0.min(x[i]), a.1.max(x[i]))
+            });
+        *s = hi - lo;
+    }
+    if !span.iter().all(|s| s.is_finite()) || span.iter().all(|&s| s <= 0.0) {
+        return None;
+    }
+    // Each component relative to its own range (a flat one, the stuck relative motion, is
+    // left out).
+    let diff = |k: usize, n: usize| {
+        (0..4)
+            .filter(|&i| span[i] > 0.0)
+            .map(|i| (states[k][i] - states[k - n][i]).abs() / span[i])
+            .fold(
+                0.0f64,
+                |a, b| if b.is_nan() { f64::INFINITY } else { a.max(b) },
+            )
+    };
+    let worst = |ks: std::ops::Range<usize>, n: usize| ks.map(|k| diff(k, n)).fold(0.0, f64::max);
+    let most = (MAX_LONG_PERIOD as usize).min(len.saturating_sub(2 * W) / 2);
+    let found: Vec<Candidate> = (1..=most)
+        .filter_map(|n| {
+            let recent = worst(len - W..len, n);
+            let early = worst(n..n + W, n);
+            let converging = recent <= CONVERGING * early && recent <= NEAR_REPEAT;
+            (converging || recent <= SETTLED).then_some(Candidate {
+                period: n as u32,
+                recent,
+                decay: Some((early, (len - W - n) as u32)),
+            })
+        })
+        .collect();
+    // The best lag, or the least of its divisors that qualifies too (a cycle recurs at its
+    // multiples as well, and a transient's rotation can suit a multiple better).
+    let best = found
+        .iter()
+        .min_by(|a, b| a.recent.total_cmp(&b.recent))
+        .copied()?;
+    found
+        .into_iter()
+        .find(|c| best.period.is_multiple_of(c.period))
+}
+
+/// What a search came to.
+#[derive(Clone, Debug, Default)]
+pub struct Search {
+    /// The stable cycle the motion approaches, where one was found.
+    pub found: Option<Cycle>,
+    /// The period Newton tried, where a lag was proposed.
+    pub tried: Option<u32>,
+    /// Periods run (the motion's settle time grows by them where a cycle was found).
+    pub periods: u32,
+    /// The lag proposed.
+    pub best: Option<Candidate>,
+}
+
+/// Runs [`WINDOW`] periods from `from` and tries Newton at the lag [`best_lag`] proposes, from
+/// the window's last state: the stable cycle found there, where the motion is seen to approach
+/// it ([`approaches`] over the window's y1 values).
+pub fn search(it: &Integrator<f64>, from: &PointState<f64>) -> Search {
+    let mut st = *from;
+    st.diag = Default::default();
+    let mut states = Vec::with_capacity(WINDOW as usize);
+    for _ in 0..WINDOW {
+        crate::progress::poll();
+        it.period(&mut st);
+        if st.diag.nonfinite {
+            return Search::default();
+        }
+        states.push(st.y);
+    }
+    let mut out = Search {
+        periods: WINDOW,
+        ..Search::default()
+    };
+    let Some(cand) = best_lag(&states) else {
+        return out;
+    };
+    out.tried = Some(cand.period);
+    out.best = Some(cand);
+    let c = refine(it, &st, cand.period);
+    let y1: Vec<f64> = states.iter().map(|s| s[0]).collect();
+    if c.is_stable() && approaches(&y1, &st.y, &cand, &c.point, c.leading_modulus()) {
+        out.found = Some(c);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::TAU;
+
+    /// Section states of a period-`n` cycle whose points go round a closed curve by `p` of `n`
+    /// steps each period (a locked torus), approached at the rate 0.995 per period.
+    fn converging(n: usize, p: usize, len: usize) -> Vec<[f64; 4]> {
+        (0..len)
+            .map(|k| {
+                let phase = (k * p % n) as f64 / n as f64;
+                let base = (TAU * phase).sin() + 0.3 * (2.0 * TAU * phase).cos();
+                let off = 0.05 * 0.995f64.powi(k as i32) * (k as f64 * 0.7).sin();
+                [
+                    base + off,
+                    (TAU * phase).cos(),
+                    0.5 * base - off,
+                    base * base,
+                ]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_long_cycle_is_proposed_at_its_period_not_a_multiple() {
+        for (n, p) in [(5, 2), (168, 65), (244, 93), (1000, 381)] {
+            let s = converging(n, p, WINDOW as usize);
+            let c = best_lag(&s).expect("a lag");
+            assert_eq!(c.period, n as u32, "{c:?}");
+        }
+    }
+
+    #[test]
+    fn a_quasi_periodic_motion_proposes_no_lag() {
+        // An irrational rotation: near-returns at some lags, none converging or settled.
+        let w = (5f64.sqrt() - 1.0) / 2.0;
+        let s: Vec<[f64; 4]> = (0..WINDOW as usize)
+            .map(|k| {
+                let t = TAU * w * k as f64;
+                [t.cos(), t.sin(), (2.0 * t).cos(), 0.3 * t.sin()]
+            })
+            .collect();
+        assert_eq!(best_lag(&s), None);
+    }
+}

@@ -1,0 +1,103 @@
+//! Cycles longer than the kernel's tail (issue 66): a stable cycle of period 558, judged by the
+//! independent reference (`reference::dry`: exact motion between events, its own Newton by
+//! central differences and its own multipliers), named with its period and multipliers by
+//! `rattle point` and on a map cell, on the CPU in f64 and on the GPU in f32.
+
+mod common;
+use common::{config, npy, ok, rattle, scratch};
+use rattle::config::Config;
+use rattle::reference::dry::DryReference;
+
+/// Fig. 2's model at R = 0.8, lambda = 0.02, eta = 1 + 73/299 (a point of an eta sweep from 1
+/// to 2 in 300 values): after 3,600 periods rattle said `unresolved` (Newton tried period 66).
+const SETS: [&str; 3] = [
+    "model.R=0.8",
+    "model.lambda=0.02",
+    "model.eta=1.2441471571906355",
+];
+
+/// The reference's verdict from rest: the lag at which its stroboscopic states repeat to 1e-6
+/// after 2 x 10^4 periods, and its own cycle there (least period, leading |mu|).
+fn judged() -> (Option<usize>, u32, f64, bool) {
+    let sets: Vec<String> = SETS.iter().map(|s| s.to_string()).collect();
+    let cfg = Config::load(&config("fig2.toml"), &sets).unwrap();
+    let zeno = rattle::spec::RunSpec::new(&cfg).settings.zeno_speed;
+    let r = DryReference::new(&cfg.params(), 1024, zeno).unwrap();
+    let mut st = r.start([0.0; 4]);
+    r.run(&mut st, 20_000, None).unwrap();
+    let s = r.run(&mut st, 2 * 1024 + 8, None).unwrap();
+    let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
+    let lag = (1..=1024).find(|&m| {
+        (m..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - m][c]).abs() < 1e-6 * scale))
+    });
+    let c = r
+        .cycle(*s.last().unwrap(), lag.unwrap_or(1) as u32)
+        .unwrap();
+    let lead = c.lead()[0].hypot(c.lead()[1]);
+    (lag, c.period, lead, c.stable())
+}
+
+#[test]
+fn a_stable_cycle_of_period_558_is_named_by_point_and_map() {
+    let (lag, period, lead, stable) = judged();
+    assert_eq!(
+        (lag, period, stable),
+        (Some(558), 558, true),
+        "the judge's cycle"
+    );
+    let sets: Vec<&str> = SETS.iter().flat_map(|s| ["--set", s]).collect();
+    for backend in [["--backend", "cpu"], ["--backend", "gpu"]] {
+        let out = ok(rattle()
+            .args(["point", "--json", "--config"])
+            .arg(config("fig2.toml"))
+            .args(sets.iter().copied())
+            .args(backend));
+        let j: serde_json::Value = serde_json::from_str(&out).unwrap();
+        assert_eq!(j["class"], "period-558", "{backend:?}");
+        let mu = &j["multipliers"][0];
+        let m = mu[0].as_f64().unwrap().hypot(mu[1].as_f64().unwrap());
+        assert!(
+            (m - lead).abs() < 2e-3,
+            "{backend:?}: |mu| {m} against {lead}"
+        );
+        // The exponent of a confirmed cycle is the cycle's own: ln |mu| over its period.
+        let eta = 1.2441471571906355;
+        let own = lead.ln() * eta / (2.0 * std::f64::consts::PI * 558.0);
+        let e = j["lyapunov"].as_f64().unwrap();
+        assert!(
+            (e - own).abs() < 1e-5,
+            "{backend:?}: exponent {e} against {own}"
+        );
+    }
+    // The map cell at that point (the centre of a 3 x 3 map around it), on the CPU in f64 and
+    // on the GPU in f32.
+    let d = scratch("long-cycle-map");
+    for (b, p) in [("cpu", "f64"), ("gpu", "f32")] {
+        let prefix = d.join(b);
+        ok(rattle()
+            .args(["map", "--config"])
+            .arg(config("fig2.toml"))
+            .args(["--set", SETS[2]])
+            .args(["--backend", b, "--precision", p])
+            .args([
+                "--set",
+                "map.x=R",
+                "--set",
+                "map.x_from=0.799",
+                "--set",
+                "map.x_to=0.801",
+            ])
+            .args(["--set", "map.x_points=3", "--set", "map.y=lambda"])
+            .args(["--set", "map.y_from=0.0199", "--set", "map.y_to=0.0201"])
+            .args(["--set", "map.y_points=3", "--out"])
+            .arg(&prefix));
+        let class: Vec<i32> = npy(&d.join(format!("{b}-class.npy")));
+        let mult: Vec<f64> = npy(&d.join(format!("{b}-multiplier.npy")));
+        assert_eq!(class[4], 558, "{b}: {class:?}");
+        assert!(
+            (mult[4] - lead).abs() < 2e-3,
+            "{b}: |mu| {} against {lead}",
+            mult[4]
+        );
+    }
+}
