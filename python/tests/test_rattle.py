@@ -551,3 +551,21 @@ def test_an_interrupt_stops_its_own_computation_only():
     assert "error" not in got, got
     assert still, "the other map ended before both interrupts: too short for the test to bite"
     np.testing.assert_array_equal(got["map"].classes, alone.classes)
+
+
+def test_a_cycle_longer_than_128_periods_is_named_from_python():
+    # Issue 66: the period-558 cycle of tests/long_cycles.rs (judged there by the independent
+    # reference: |mu| 0.3051) was `unresolved`; Python names it as the command line does, with
+    # the cycle's own exponent (ln|mu| over its period) and the run's beside it.
+    o = {"model.R": 0.8, "model.lambda": 0.02, "model.eta": 1.2441471571906355}
+    p = rattle.point(FIG2, **o, **{"method.backend": "cpu"})
+    assert p.cls == "period-558" and p.period == 558
+    mu = abs(p.multipliers[0])
+    assert abs(mu - 0.3051) < 2e-3, mu
+    own = np.log(mu) * 1.2441471571906355 / (2 * np.pi * 558)
+    assert abs(p.lyapunov - own) < 1e-9 and p.lyapunov_se == 0.0
+    assert np.isfinite(p.run_lyapunov)
+    r = cli("point", "--config", FIG2, "--json", "--backend", "cpu",
+            *[a for k, v in o.items() for a in ("--set", f"{k}={v}")])
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["class"] == "period-558"
