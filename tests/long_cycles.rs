@@ -20,8 +20,12 @@ const SETS: [&str; 3] = [
 /// after 2 x 10^4 periods, and its own cycle there (least period, leading |mu|).
 fn judged() -> (Option<usize>, u32, f64, bool) {
     let sets: Vec<String> = SETS.iter().map(|s| s.to_string()).collect();
-    let cfg = Config::load(&config("fig2.toml"), &sets).unwrap();
-    let zeno = rattle::spec::RunSpec::new(&cfg).settings.zeno_speed;
+    judged_at(&Config::load(&config("fig2.toml"), &sets).unwrap())
+}
+
+/// [`judged`] of the point of `cfg`.
+fn judged_at(cfg: &Config) -> (Option<usize>, u32, f64, bool) {
+    let zeno = rattle::spec::RunSpec::new(cfg).settings.zeno_speed;
     let r = DryReference::new(&cfg.params(), 1024, zeno).unwrap();
     let mut st = r.start([0.0; 4]);
     r.run(&mut st, 20_000, None).unwrap();
@@ -99,5 +103,51 @@ fn a_stable_cycle_of_period_558_is_named_by_point_and_map() {
             "{b}: |mu| {} against {lead}",
             mult[4]
         );
+    }
+}
+
+/// A slowly approached cycle (issue 66 item 2): the cell (124, 24) of tests/data/r_lambda_128.toml
+/// (R 0.694531, lambda 0.019141), a stable period-8 cycle with |mu| 0.979, was `unresolved` on
+/// the lavapipe f32 map (its windows still converging after the look). The reference judges it
+/// (period 8, |mu| 0.9787); the map cell now names it on the CPU in f64 and on lavapipe in f32,
+/// through the recurrence search where the look did not.
+#[test]
+fn a_slow_cycle_left_unresolved_is_named() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
+    let base = Config::load(&path, &[]).unwrap();
+    let (ix, iy) = (124, 24);
+    let xs = Config::map_axis(base.map.x_from, base.map.x_to, base.map.x_points);
+    let ys = Config::map_axis(base.map.y_from, base.map.y_to, base.map.y_points);
+    let mut at = base.clone();
+    at.model.restitution = xs[ix];
+    at.model.lambda = ys[iy];
+    let (lag, period, lead, stable) = judged_at(&at);
+    assert_eq!(
+        (lag, period, stable),
+        (Some(8), 8, true),
+        "the judge's cycle"
+    );
+    assert!(lead > 0.96, "not a slow cycle: |mu| {lead}");
+    let mut engines = vec![(rattle::engine::Engine::Cpu, rattle::config::Precision::F64)];
+    if let Some(g) = common::gpu_engine() {
+        engines.push((g, rattle::config::Precision::F32));
+    }
+    for (engine, precision) in &engines {
+        let mut cfg = base.clone();
+        cfg.method.precision = *precision;
+        let cell = iy * base.map.x_points as usize + ix;
+        let got =
+            rattle::map::compute_cells(engine, &cfg, [cell], 1, true, &rattle::progress::Silent)
+                .unwrap()
+                .0;
+        let s = &got[0].0;
+        assert_eq!(
+            s.class,
+            rattle::class::Class::Periodic(8),
+            "{} {s:?}",
+            engine.name()
+        );
+        assert!((s.multiplier - lead).abs() < 2e-3, "{s:?} against {lead}");
     }
 }
