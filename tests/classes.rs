@@ -523,7 +523,8 @@ fn scored_uniform(
 /// each drawn uniformly and judged by the reference, in f64 on the CPU and f32 on the adapter:
 /// eta x R at lambda 0.03 meets the targets (>= 90% right, <= 3% wrong; 77 and 2 of 79
 /// measured); R x lambda at eta 1.70 is >= 87% right but 6 of 76 wrong (7.9%): 4 cells chaotic
-/// where the reference reaches a torus, 2 period-1 where it lands on a coexisting period-26.
+/// where the judge says torus (at 2 of them the reference's own motion is chaotic by 5,000
+/// periods: the judge named a transient), 2 period-1 where it lands on a coexisting period-26.
 /// Its bound records that miss so that it can only shrink.
 #[test]
 fn untuned_maps_agree_with_the_judge() {
