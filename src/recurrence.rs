@@ -99,11 +99,9 @@ pub fn best_lag(states: &[[f64; 4]]) -> Option<Candidate> {
 pub struct Search {
     /// The stable cycle the motion approaches, where one was found.
     pub found: Option<Cycle>,
-    /// The period Newton tried, where a lag was proposed.
-    pub tried: Option<u32>,
     /// Periods run (the motion's settle time grows by them where a cycle was found).
     pub periods: u32,
-    /// The lag proposed.
+    /// The lag proposed, where one was: the period Newton tried.
     pub best: Option<Candidate>,
 }
 
@@ -129,7 +127,6 @@ pub fn search(it: &Integrator<f64>, from: &PointState<f64>) -> Search {
     let Some(cand) = best_lag(&states) else {
         return out;
     };
-    out.tried = Some(cand.period);
     out.best = Some(cand);
     let c = refine(it, &st, cand.period);
     let y1: Vec<f64> = states.iter().map(|s| s[0]).collect();
