@@ -11,7 +11,9 @@
 #      test can catch it running);
 #   3. checks that the merge job fails, naming task 2 and the command to resubmit;
 #   4. runs that command, which must submit task 2 alone and a new merge job;
-#   5. checks that the merged NPY files are byte-identical to a single-machine run.
+#   5. checks that the merged NPY files are byte-identical to a single-machine run;
+#   6. runs a volume (configs/atlas.toml at 4 slices of 24 x 24) as 3 tasks and checks its
+#      merged NPY files against a single run in the same way.
 # Tears everything down on exit (also on failure). Needs root (the daemons run as root) and
 # no network beyond localhost. Prints PASS or FAIL; exits non-zero on failure.
 #
@@ -256,4 +258,32 @@ done
 ((n > 0)) || fail "no NPY files"
 [[ $(find maps -maxdepth 1 -name 'rl-*.npy' | wc -l) == "$n" ]] || fail "the merge wrote other NPY files than the single run"
 
-say "PASS: $n NPY files byte-identical after a cancelled and resubmitted task ($((SECONDS - start_s - build_s)) s after the build)"
+plane_n=$n
+
+# --- a volume -------------------------------------------------------------------------
+say "a volume: configs/atlas.toml at 4 slices of 24 x 24 as 3 array tasks + merge"
+cp "$repo/configs/atlas.toml" .
+vol_opts=(--set map.x_points=24 --set map.y_points=24 --set map.z_points=4
+  --set run.transient_periods=50 --set run.sample_periods=20)
+out=$("$repo/scripts/slurm-array.sh" --config atlas.toml --out maps/atlas --shards 3 \
+  --backend cpu --cpus 1 --rattle "$rattle" -- "${vol_opts[@]}")
+echo "$out"
+array3=$(field ARRAY_JOB "$out")
+merge3=$(field MERGE_JOB "$out")
+[[ -n $array3 && -n $merge3 ]] || fail "no job ids for the volume"
+wait_job "$merge3" COMPLETED FAILED
+cat "maps/atlas.slurm/merge-$merge3.out"
+[[ $(job_state "$merge3") == COMPLETED ]] || fail "volume merge job $merge3 did not complete"
+"$rattle" map --config atlas.toml --backend cpu "${vol_opts[@]}" --out vsingle
+n=0
+for f in vsingle-*.npy; do
+  g=maps/atlas-${f#vsingle-}
+  cmp "$f" "$g" || fail "$g differs from $f"
+  n=$((n + 1))
+done
+((n > 0)) || fail "no NPY files of the volume"
+python3 -c "import json,sys; j=json.load(open('maps/atlas.json')); sys.exit(0 if len(j['axes']['z_values']) == 4 else 1)" ||
+  fail "the merged volume's JSON has no 4 z values"
+echo "volume: $n NPY files of shape (4, 24, 24) byte-identical"
+
+say "PASS: $plane_n NPY files byte-identical after a cancelled and resubmitted task, $n of a volume through 3 tasks ($((SECONDS - start_s - build_s)) s after the build)"

@@ -68,7 +68,8 @@ impl Neighbours {
         let mut of = Vec::with_capacity(cells.len() * k);
         let mut complete = Vec::with_capacity(cells.len() * k);
         for &g in cells {
-            let (ix, iy) = (g % nx, g / nx);
+            // A volume's cells see their own slice only (`g / nx` counts the slices' rows).
+            let (ix, iy) = (g % nx, (g / nx) % ny);
             let mut grid = Vec::with_capacity(4);
             if ix > 0 {
                 grid.push(g - 1);

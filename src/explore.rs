@@ -84,6 +84,15 @@ impl Explorer {
             base.source = Source::Text(text);
         }
         let loaded = base.load(Command::Map)?;
+        if loaded.cfg.z_axis().is_some() {
+            return Err(crate::error::OptionError::Unsuitable {
+                option: "config",
+                why: "explore shows one plane: a volume (map.z set) is not explored; remove \
+                      map.z, map.z_from, map.z_to and map.z_points, or set the slice's z value"
+                    .into(),
+            }
+            .into());
+        }
         EXPLORE.check(&loaded.cfg)?;
         let cfg = loaded.cfg.clone();
         let e = Explorer {

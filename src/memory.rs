@@ -188,6 +188,89 @@ fn most_cells(cfg: &Config, starts: usize, have: f64) -> u64 {
     lo
 }
 
+/// Bytes a volume holds per cell of its share while its chunks are computed: the layers of the
+/// cells computed so far (the part's, then the merged set's) and their conversion for the
+/// files. Bounds the measured peak of docs/maps.md's volume beyond the memory bound.
+pub const VOLUME_BYTES_PER_CELL: u64 = 640;
+
+/// The cells of a volume's share of `cells` cells computed at once: all of them where the
+/// share fits as a map's would, else the most whole slices (whole rows where one slice is too
+/// big) that fit beside the layers of the whole share; each chunk is computed with its halo,
+/// so the cells' answers do not depend on the chunking (as a shard's do not). Refused where
+/// not even one row fits.
+pub fn volume_chunk(cfg: &Config, cells: usize, starts: usize) -> Result<usize, ConfigError> {
+    let have = available()? as f64 * USABLE;
+    if map_need(cfg, cells, starts).0 <= have {
+        return Ok(cells);
+    }
+    let (nx, plane) = (
+        cfg.map.x_points as usize,
+        cfg.map.x_points as usize * cfg.map.y_points as usize,
+    );
+    let fixed = VOLUME_BYTES_PER_CELL as f64 * cells as f64;
+    let fits = |n: usize| fixed + map_need(cfg, n, starts).0 <= have;
+    let (mut lo, mut hi) = (0usize, cells);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if fits(mid) { lo = mid } else { hi = mid }
+    }
+    let chunk = if lo >= plane {
+        lo / plane * plane
+    } else {
+        lo / nx * nx
+    };
+    if chunk == 0 {
+        let most = ((have - map_need(cfg, nx, starts).0) / VOLUME_BYTES_PER_CELL as f64).max(0.0);
+        return Err(ConfigError::Range {
+            key: "map.x_points x map.y_points x map.z_points".into(),
+            value: format!(
+                "{} x {} x {} with {starts} start(s) (about {} of layers in memory)",
+                cfg.map.x_points,
+                cfg.map.y_points,
+                cfg.z_count(),
+                gib(fixed)
+            ),
+            range: format!(
+                "at most {} of the {} available, i.e. <= {} cells in all (or split the volume \
+                 into shards)",
+                gib(have),
+                gib(have / USABLE),
+                most as u64
+            ),
+        });
+    }
+    Ok(chunk)
+}
+
+/// How a volume's share runs within the memory bound (its JSON's `memory`).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct VolumePlan {
+    /// Bytes available (MemAvailable or `RATTLE_MEMORY_LIMIT`) and the share a run may plan for.
+    pub available_bytes: u64,
+    pub usable_bytes: u64,
+    /// Cells computed at once ([`volume_chunk`]): the whole share where it fits.
+    pub cells_at_once: usize,
+    /// The estimate of the run's peak: the chunk's runs and blocks in flight, with the layers
+    /// of the whole share where it runs in chunks.
+    pub estimated_peak_bytes: u64,
+}
+
+/// The plan of a volume's share of `cells` cells ([`volume_chunk`] and its estimated peak).
+pub fn volume_plan(cfg: &Config, cells: usize, starts: usize) -> Result<VolumePlan, ConfigError> {
+    let available = available()?;
+    let chunk = volume_chunk(cfg, cells, starts)?;
+    let layers = match chunk < cells {
+        true => VOLUME_BYTES_PER_CELL as f64 * cells as f64,
+        false => 0.0,
+    };
+    Ok(VolumePlan {
+        available_bytes: available,
+        usable_bytes: (available as f64 * USABLE) as u64,
+        cells_at_once: chunk,
+        estimated_peak_bytes: (layers + map_need(cfg, chunk, starts).0) as u64,
+    })
+}
+
 /// Refuses a map (or a share of `cells` of it) whose estimate exceeds the usable memory;
 /// `one_run`: why it cannot be split into shards, if it cannot (`--boundaries`, explore's
 /// views): the message then advises a coarser grid instead of shards.
@@ -197,6 +280,10 @@ pub fn check_map(
     starts: usize,
     one_run: Option<&str>,
 ) -> Result<(), ConfigError> {
+    // A volume runs in chunks within the bound ([`volume_chunk`]) where one run does not fit.
+    if cfg.z_axis().is_some() && one_run.is_none() {
+        return volume_chunk(cfg, cells, starts).map(|_| ());
+    }
     let (need, streams) = map_need(cfg, cells, starts);
     let have = available()? as f64 * USABLE;
     if need > have {

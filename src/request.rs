@@ -102,7 +102,11 @@ impl Request {
         let cfg = cfg.with_overrides(&flags);
         cfg.check_command(cmd)?;
         let varied: Vec<(Param, &str)> = match cmd {
-            Command::Map => vec![(cfg.map.x, "map.x varies"), (cfg.map.y, "map.y varies")],
+            Command::Map => {
+                let mut v = vec![(cfg.map.x, "map.x varies"), (cfg.map.y, "map.y varies")];
+                v.extend(cfg.map.z.map(|z| (z, "map.z varies")));
+                v
+            }
             Command::Sweep => vec![(cfg.sweep.param, "sweep.param varies")],
             Command::Point | Command::Plot | Command::Basin | Command::Sensitivity => Vec::new(),
         };

@@ -224,7 +224,8 @@ class Point:
 
 class Map:
     """A map over two parameters: every layer of the command line's NPY files as an array of
-    shape (ny, nx) (or (ny, nx, 2)), rows along `y`, columns along `x`."""
+    shape (ny, nx) (or (ny, nx, 2)), rows along `y`, columns along `x`. A volume (`map.z`
+    set) has a first axis along `z`: shape (nz, ny, nx), slice k the map at z[k]."""
 
     def __init__(self, data):
         self._data = data
@@ -234,6 +235,9 @@ class Map:
         self.y = np.asarray(self._json["y"]["values"], dtype=float)
         self.x_param: str = self._json["x"]["param"]
         self.y_param: str = self._json["y"]["param"]
+        z = self._json.get("z")
+        self.z: Optional[np.ndarray] = None if z is None else np.asarray(z["values"], dtype=float)
+        self.z_param: Optional[str] = None if z is None else z["param"]
         self.class_counts: Dict[str, int] = self._json["class_counts"]
         self.timings: Dict[str, float] = self._json["report"]["timings"]
 
@@ -285,18 +289,32 @@ class Map:
         return [str(p) for p in self._data.save(os.fspath(prefix))]
 
     def to_xarray(self):
-        """An `xarray.Dataset` of every 2-D layer on the (y, x) axes (needs xarray)."""
+        """An `xarray.Dataset` of every layer of one value per cell on the (y, x) axes, or a
+        volume's on the (z, y, x) axes, each coordinate with its values, its parameter's
+        label (`long_name`) and units ("1": the model's parameters are dimensionless)
+        (needs xarray)."""
         import xarray as xr  # type: ignore
 
-        coords = {self.y_param: self.y, self.x_param: self.x}
-        dims = (self.y_param, self.x_param)
+        axes = [("y", self.y_param, self.y), ("x", self.x_param, self.x)]
+        if self.z_param is not None:
+            axes.insert(0, ("z", self.z_param, self.z))
+        coords = {
+            p: (p, v, {"long_name": self._json[a]["label"], "units": "1", "axis": a.upper()})
+            for a, p, v in axes
+        }
+        dims = tuple(p for _, p, _ in axes)
         return xr.Dataset(
-            {k: (dims, v) for k, v in self.layers.items() if v.ndim == 2},
+            {k: (dims, v) for k, v in self.layers.items() if v.ndim == len(dims)},
             coords=coords,
             attrs={"caption": self.caption},
         )
 
     def __repr__(self) -> str:
+        if self.z_param is not None:
+            return (
+                f"<rattle.Map volume {len(self.z)} x {len(self.y)} x {len(self.x)} over "
+                f"{self.z_param}, {self.y_param}, {self.x_param}>"
+            )
         return f"<rattle.Map {len(self.y)} x {len(self.x)} over {self.x_param}, {self.y_param}>"
 
 

@@ -330,8 +330,11 @@ impl MapData {
             "config": r.cfg,
             "class_counts": r.fields.counts(),
             "rule_counts": r.fields.rule_counts(),
-            "x": { "param": m.x.name(), "values": axis(m.x_from, m.x_to, m.x_points) },
-            "y": { "param": m.y.name(), "values": axis(m.y_from, m.y_to, m.y_points) },
+            "x": { "param": m.x.name(), "label": m.x.label(), "values": axis(m.x_from, m.x_to, m.x_points) },
+            "y": { "param": m.y.name(), "label": m.y.label(), "values": axis(m.y_from, m.y_to, m.y_points) },
+            "z": r.cfg.z_axis().map(|z| serde_json::json!({
+                "param": z.param.name(), "label": z.param.label(), "values": z.values(),
+            })),
         });
         Ok(j.to_string())
     }

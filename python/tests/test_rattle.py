@@ -262,6 +262,57 @@ def test_to_xarray_where_xarray_is_installed():
     np.testing.assert_array_equal(ds["R"].values, m.x)
 
 
+VOLUME = dict(
+    SMALL,
+    **{
+        "map.x_points": 6,
+        "map.y_points": 5,
+        "map.z": "eta",
+        "map.z_from": 1.2,
+        "map.z_to": 1.8,
+        "map.z_points": 3,
+    },
+)
+
+
+def test_a_volume_is_the_command_lines_z_y_x_arrays(tmp_path):
+    m = rattle.map(RL, **VOLUME)
+    r = cli("map", "--config", RL, *sets(VOLUME), "--out", str(tmp_path / "cli"))
+    assert r.returncode == 0, r.stderr
+    assert m.z_param == "eta" and m.z.shape == (3,) and np.all(np.diff(m.z) > 0)
+    cj = json.loads((tmp_path / "cli.json").read_text())
+    np.testing.assert_array_equal(np.asarray(cj["axes"]["z_values"]), m.z)
+    for name, v in m.layers.items():
+        a = np.load(tmp_path / f"cli-{name}.npy")
+        assert a.shape == v.shape == (3, 5, 6) + a.shape[3:], name
+        np.testing.assert_array_equal(a, v, err_msg=name)
+    assert cj["class_counts"] == m.class_counts
+    # Slice 1 is the plane at its eta, from Python too.
+    plane = {k: v for k, v in VOLUME.items() if not k.startswith("map.z")}
+    p = rattle.map(RL, eta=float(m.z[1]), **plane)
+    for name, v in p.layers.items():
+        np.testing.assert_array_equal(m.layers[name][1], v, err_msg=name)
+    assert "volume 3 x 5 x 6" in repr(m)
+
+
+def test_a_volume_is_refused_as_the_command_line_refuses_it():
+    bad = dict(VOLUME, **{"map.z": "R"})
+    with pytest.raises(rattle.ConfigError, match="map.z"):
+        rattle.map(RL, **bad)
+    r = cli("map", "--config", RL, *sets(bad), "--out", "/nonexistent/x")
+    assert r.returncode == 2 and "map.z" in r.stderr
+
+
+def test_a_volume_to_xarray_has_z_y_x_with_units():
+    xr = pytest.importorskip("xarray")
+    m = rattle.map(RL, **VOLUME)
+    ds = m.to_xarray()
+    assert ds["class"].dims == ("eta", "lambda", "R") and ds["class"].shape == (3, 5, 6)
+    np.testing.assert_array_equal(ds["eta"].values, m.z)
+    assert ds["eta"].attrs["units"] == "1" and "forcing" in ds["eta"].attrs["long_name"]
+    assert ds["R"].attrs["axis"] == "X"
+
+
 # Reliability round 5: the package's edges, each against what the command line does.
 
 

@@ -20,6 +20,35 @@ pub struct MapConfig {
     /// `.npy`: the probability that a Gaussian perturbation of the two parameters lands on
     /// another class); empty: no risk map.
     pub risk: Vec<f64>,
+    /// The third axis of a volume (an atlas: one map of x and y per z value); unset: a plane.
+    /// Unset keys are not written, so that a plane's config (its run identity) is unchanged.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub z: Option<Param>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub z_from: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub z_to: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub z_points: Option<u32>,
+}
+
+/// Most slices of a volume (`map.z_points`).
+pub const MAX_Z_POINTS: u32 = 4096;
+
+/// The z axis of a volume, resolved: (parameter, from, to, points).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ZAxis {
+    pub param: Param,
+    pub from: f64,
+    pub to: f64,
+    pub points: u32,
+}
+
+impl ZAxis {
+    /// The z values, at the grid's cell centres as the other axes' ([`Config::map_axis`]).
+    pub fn values(&self) -> Vec<f64> {
+        Config::map_axis(self.from, self.to, self.points)
+    }
 }
 
 impl MapConfig {
@@ -35,6 +64,10 @@ impl MapConfig {
             ("y_from", self.y_from == other.y_from),
             ("y_to", self.y_to == other.y_to),
             ("y_points", self.y_points == other.y_points),
+            ("z", self.z == other.z),
+            ("z_from", self.z_from == other.z_from),
+            ("z_to", self.z_to == other.z_to),
+            ("z_points", self.z_points == other.z_points),
         ]
         .into_iter()
         .find(|(_, same)| !same)
@@ -55,6 +88,10 @@ impl Default for MapConfig {
             y_points: 128,
             title: String::new(),
             risk: Vec::new(),
+            z: None,
+            z_from: None,
+            z_to: None,
+            z_points: None,
         }
     }
 }
@@ -173,6 +210,7 @@ impl Config {
             ));
         }
         check_grid("map", (m.x_points, m.y_points), 65536, MAX_MAP_CELLS)?;
+        self.check_z()?;
         if !(m.risk.is_empty()
             || m.risk.len() == 2 && m.risk.iter().all(|s| s.is_finite() && *s > 0.0))
         {
@@ -240,6 +278,116 @@ impl Config {
 }
 
 impl Config {
+    /// The z axis of a volume (`map.z` set and checked), or None for a plane.
+    pub fn z_axis(&self) -> Option<ZAxis> {
+        let m = &self.map;
+        Some(ZAxis {
+            param: m.z?,
+            from: m.z_from?,
+            to: m.z_to?,
+            points: m.z_points?,
+        })
+    }
+
+    /// Slices of the map: `map.z_points` for a volume, 1 for a plane.
+    pub fn z_count(&self) -> usize {
+        self.z_axis().map_or(1, |z| z.points as usize)
+    }
+
+    /// Slice `k` of a volume as the plane `rattle map` computes: the z parameter set to its
+    /// k-th value, no z axis (a plane's config is its own only slice).
+    pub fn slice(&self, k: usize) -> Config {
+        let mut c = self.clone();
+        if let Some(z) = self.z_axis() {
+            c.model.set(z.param, z.values()[k]);
+        }
+        c.map.z = None;
+        c.map.z_from = None;
+        c.map.z_to = None;
+        c.map.z_points = None;
+        c
+    }
+
+    /// Checks `map.z`, `map.z_from`, `map.z_to` and `map.z_points`: all four or none; a
+    /// parameter other than x and y within its range, a range of non-zero width, at most
+    /// [`MAX_Z_POINTS`] slices and [`MAX_MAP_CELLS`] cells in all.
+    fn check_z(&self) -> Result<(), ConfigError> {
+        let m = &self.map;
+        let Some(z) = m.z else {
+            let given = [
+                ("map.z_from", m.z_from.is_some()),
+                ("map.z_to", m.z_to.is_some()),
+                ("map.z_points", m.z_points.is_some()),
+            ];
+            if let Some((key, _)) = given.iter().find(|g| g.1) {
+                return Err(ConfigError::Conflict(format!(
+                    "`{key}` applies to a volume only: set `map.z` (the third axis's parameter) \
+                     or remove it"
+                )));
+            }
+            return Ok(());
+        };
+        for (key, missing) in [
+            ("map.z_from", m.z_from.is_none()),
+            ("map.z_to", m.z_to.is_none()),
+            ("map.z_points", m.z_points.is_none()),
+        ] {
+            if missing {
+                return Err(ConfigError::Conflict(format!(
+                    "`map.z` = \"{z}\" needs `{key}` too (a volume's z axis: map.z_from, \
+                     map.z_to, map.z_points)"
+                )));
+            }
+        }
+        if z == Param::Lambda && self.model.friction != FrictionLaw::Coulomb {
+            return Err(ConfigError::range(
+                "map.z",
+                "\"lambda\"",
+                "fs, fk, l1 or l2 with friction = \"stribeck\"",
+            ));
+        }
+        if z.overlaps(m.x) || z.overlaps(m.y) {
+            return Err(ConfigError::range(
+                "map.z",
+                format!("\"{z}\""),
+                &format!(
+                    "a parameter other than map.x = \"{}\" and map.y = \"{}\"",
+                    m.x, m.y
+                ),
+            ));
+        }
+        let (from, to, n) = (
+            m.z_from.unwrap_or(0.0),
+            m.z_to.unwrap_or(0.0),
+            m.z_points.unwrap_or(0),
+        );
+        if !(1..=MAX_Z_POINTS).contains(&n) {
+            return Err(ConfigError::range(
+                "map.z_points",
+                n,
+                &format!("[1, {MAX_Z_POINTS}]"),
+            ));
+        }
+        let cells = u64::from(m.x_points) * u64::from(m.y_points) * u64::from(n);
+        if cells > MAX_MAP_CELLS {
+            return Err(ConfigError::range(
+                "map.x_points x map.y_points x map.z_points",
+                format!("{} x {} x {n} = {cells} cells", m.x_points, m.y_points),
+                &format!("at most {MAX_MAP_CELLS} cells"),
+            ));
+        }
+        self.check_value("map.z_from", z, from)?;
+        self.check_value("map.z_to", z, to)?;
+        if from == to {
+            return Err(ConfigError::range(
+                "map.z_to",
+                to,
+                &format!("values other than map.z_from = {from} (a range of non-zero width)"),
+            ));
+        }
+        Ok(())
+    }
+
     /// The basin axes' ranges, defaults resolved: (x_from, x_to, y_from, y_to).
     pub fn basin_ranges(&self) -> (f64, f64, f64, f64) {
         let b = &self.basin;

@@ -11,7 +11,7 @@ pub use checks::Command;
 mod grids;
 mod overrides;
 
-pub use grids::{BasinConfig, MapConfig, StateCoord};
+pub use grids::{BasinConfig, MAX_Z_POINTS, MapConfig, StateCoord, ZAxis};
 
 use overrides::apply_override;
 
@@ -198,6 +198,14 @@ macro_rules! model_config {
             /// The parameters as given, whether the friction law reads them or not.
             pub fn given(&self) -> Params<f64> {
                 Params { $($field: self.$field,)* }
+            }
+
+            /// Sets the key of parameter `p` (`lambda` for the Coulomb coefficient).
+            pub fn set(&mut self, p: Param, v: f64) {
+                match p {
+                    $(Param::$variant => self.$field = v,)*
+                    Param::Lambda => self.lambda = v,
+                }
             }
         }
     };

@@ -15,7 +15,9 @@ pub fn title(cfg: &Config) -> String {
     if !cfg.map.title.is_empty() {
         return cfg.map.title.clone();
     }
-    crate::caption::model_title(cfg, &[cfg.map.x.name(), cfg.map.y.name()])
+    let mut varied = vec![cfg.map.x.name(), cfg.map.y.name()];
+    varied.extend(cfg.z_axis().map(|z| z.param.name()));
+    crate::caption::model_title(cfg, &varied)
 }
 
 /// The caption of a map's JSON.
@@ -138,9 +140,9 @@ pub(super) fn caption(
 /// The grid and model of a map, for the captions of its images.
 pub(super) fn grid_phrase(cfg: &Config) -> String {
     let m = &cfg.map;
-    format!(
+    let plane = format!(
         "{nx} x {ny} cell centres: {x} from {x0} to {x1} (horizontal) and {y} from {y0} to {y1} \
-         (vertical); {title}",
+         (vertical)",
         nx = m.x_points,
         ny = m.y_points,
         x = m.x,
@@ -149,8 +151,19 @@ pub(super) fn grid_phrase(cfg: &Config) -> String {
         y = m.y,
         y0 = m.y_from,
         y1 = m.y_to,
-        title = title(cfg),
-    )
+    );
+    match cfg.z_axis() {
+        // A volume: one panel per slice, each a map of x and y.
+        Some(z) => format!(
+            "{} slices (panels, one per value of {} from {} to {}) of {plane}; {}",
+            z.points,
+            z.param,
+            z.from,
+            z.to,
+            title(cfg)
+        ),
+        None => format!("{plane}; {}", title(cfg)),
+    }
 }
 
 /// The caption of PREFIX-lyapunov.png; None where it is not drawn.

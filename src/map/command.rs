@@ -115,6 +115,34 @@ impl MapOptions<'_> {
                 format!("1 to {MAX_STARTS}"),
             );
         }
+        if cfg.z_axis().is_some() {
+            // What works on a plane only, refused with its reason before anything runs.
+            let plane_only: [(bool, &'static str, &str); 3] = [
+                (
+                    self.refine.is_some(),
+                    "refine",
+                    "coarse-to-fine infers cells from a plane's blocks; a volume computes \
+                     every cell",
+                ),
+                (
+                    self.compare.is_some(),
+                    "compare",
+                    "the comparison draws one plane; compare two slices' maps instead",
+                ),
+                (
+                    self.boundaries,
+                    "boundaries",
+                    "boundaries are located on planes: run `rattle map` at the slice's z \
+                     with --boundaries",
+                ),
+            ];
+            if let Some((_, option, why)) = plane_only.iter().find(|p| p.0) {
+                return bad(OptionError::Unsuitable {
+                    option,
+                    why: format!("not on a volume (map.z is set): {why}"),
+                });
+            }
+        }
         if self.boundaries && self.shard.is_some() {
             return bad(OptionError::Unsuitable {
                 option: "boundaries",
@@ -235,7 +263,13 @@ pub struct MapSummary {
     pub boundaries: Option<String>,
     /// What crossed between the host and the device.
     pub transfers: crate::method::Transfers,
+    /// A volume's plan within the memory bound.
+    pub memory: Option<crate::memory::VolumePlan>,
+    /// Parts the run was computed in (`--checkpoint K`), for the plan's line.
+    pub shards: usize,
 }
+
+const GIB: f64 = (1u64 << 30) as f64;
 
 impl MapSummary {
     /// Lines for the terminal: resumed shards, class changes, what ran where and how long.
@@ -253,6 +287,25 @@ impl MapSummary {
         if let Some(b) = &self.boundaries {
             s += b;
             s += "\n";
+        }
+        if let Some(m) = &self.memory {
+            let z = cfg.z_count();
+            s += &match m.cells_at_once < crate::map::cell_count(cfg) / self.shards.max(1) {
+                true => format!(
+                    "volume: {z} slices computed in chunks of {} cells within the memory bound \
+                     ({:.2} of {:.2} GiB usable, estimated peak {:.2} GiB)\n",
+                    m.cells_at_once,
+                    m.usable_bytes as f64 / GIB,
+                    m.available_bytes as f64 / GIB,
+                    m.estimated_peak_bytes as f64 / GIB
+                ),
+                false => format!(
+                    "volume: {z} slices in one run (estimated peak {:.2} GiB of {:.2} GiB \
+                     usable)\n",
+                    m.estimated_peak_bytes as f64 / GIB,
+                    m.usable_bytes as f64 / GIB
+                ),
+            };
         }
         let streams = match self.streams {
             k if k > 1 => format!(", summed over {k} streams run at once"),
@@ -361,6 +414,17 @@ fn assemble(engine: &Engine, o: &MapOptions, parts: Vec<Part>) -> crate::Result<
             transfers: Some(timings.transfers),
             ..MapTimings::default()
         },
+        memory: match cfg.z_axis() {
+            Some(_) => {
+                let most = parts.iter().map(|p| p.range.1 - p.range.0).max();
+                Some(crate::memory::volume_plan(
+                    &cfg,
+                    most.unwrap_or(0),
+                    o.starts,
+                )?)
+            }
+            None => None,
+        },
         refine: o.refine.map(|k| CoarseReport {
             spacing: k,
             chaotic_clear: o.clear_chaotic(),
@@ -446,6 +510,8 @@ pub fn run(
     summary.decide_s = decide_s;
     summary.streams = timings.streams;
     summary.transfers = timings.transfers;
+    summary.memory = report.memory;
+    summary.shards = n;
     if n > 1 {
         for i in 0..n {
             let _ = std::fs::remove_file(part_path(out, i, n));

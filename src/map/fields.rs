@@ -59,7 +59,8 @@ pub struct LayerInfo {
 macro_rules! map_layers {
     ($( #[doc = $doc:literal] $name:ident: [$t:ty; $w:literal] = |$s:ident| $from:expr; )*) => {
         /// Per-cell fields as stored in partial outputs and NPY files (`PREFIX-NAME.npy`,
-        /// shape (y_points, x_points) or (y_points, x_points, 2)).
+        /// shape (y_points, x_points) or (y_points, x_points, 2); a volume's with z_points
+        /// first).
         #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
         pub struct Fields {
             $( #[doc = $doc] #[serde(default)] pub $name: Vec<$t>, )*
@@ -79,6 +80,13 @@ macro_rules! map_layers {
 
             pub(crate) fn append(&mut self, o: Fields) {
                 $( self.$name.extend(o.$name); )*
+            }
+
+            /// The cells `r` of every layer (a slice of a volume, a shard's share).
+            pub fn range(&self, r: std::ops::Range<usize>) -> Fields {
+                Fields {
+                    $( $name: self.$name.get(r.start * $w..r.end * $w).map_or_else(Vec::new, |v| v.to_vec()), )*
+                }
             }
 
             /// Cells of each layer (its length over its values per cell; usize::MAX where that
@@ -101,26 +109,27 @@ macro_rules! map_layers {
 
             /// Each layer as the bytes of its NPY file ([`crate::output::npy_bytes`]), in the
             /// order of [`Fields::layer_list`].
-            pub fn npy_bytes(&self, (ny, nx): (usize, usize)) -> Vec<(&'static str, Vec<u8>)> {
+            pub fn npy_bytes(&self, dims: &[usize]) -> Vec<(&'static str, Vec<u8>)> {
                 let mut out = Vec::new();
                 $({
                     let v: Vec<_> = self.$name.iter().map(|x| x.npy()).collect();
-                    let shape = layer_shape((ny, nx), $w);
+                    let shape = layer_shape(dims, $w);
                     out.push((stringify!($name), crate::output::npy_bytes(&shape, &v)));
                 })*
                 out
             }
 
             /// Calls `write(name, save)` for each layer, where `save(path)` writes its NPY file
-            /// of shape `(ny, nx)` (or `(ny, nx, 2)`).
+            /// of shape `dims` (`(ny, nx)`, a volume's `(nz, ny, nx)`), with the values per cell
+            /// as a last axis where more than one.
             pub fn each_npy<E>(
                 &self,
-                (ny, nx): (usize, usize),
+                dims: &[usize],
                 write: &mut dyn FnMut(&'static str, &dyn Fn(&Path) -> std::io::Result<()>) -> Result<(), E>,
             ) -> Result<(), E> {
                 $({
                     let v: Vec<_> = self.$name.iter().map(|x| x.npy()).collect();
-                    let shape = layer_shape((ny, nx), $w);
+                    let shape = layer_shape(dims, $w);
                     write(stringify!($name), &|p| crate::output::save_npy(p, &shape, &v))?;
                 })*
                 Ok(())
@@ -129,13 +138,14 @@ macro_rules! map_layers {
     };
 }
 
-/// A layer's NPY shape: `(ny, nx)`, or `(ny, nx, w)` for `w` values per cell.
-fn layer_shape((ny, nx): (usize, usize), w: u64) -> Vec<u64> {
-    if w == 1 {
-        vec![ny as u64, nx as u64]
-    } else {
-        vec![ny as u64, nx as u64, w]
+/// A layer's NPY shape: the grid's `dims` (`(ny, nx)` or `(nz, ny, nx)`), then `w` where a
+/// cell holds `w` > 1 values.
+fn layer_shape(dims: &[usize], w: u64) -> Vec<u64> {
+    let mut shape: Vec<u64> = dims.iter().map(|&d| d as u64).collect();
+    if w > 1 {
+        shape.push(w);
     }
+    shape
 }
 
 map_layers! {

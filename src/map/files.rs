@@ -81,6 +81,9 @@ pub struct MapReport {
     pub compare: Option<CompareReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub refine: Option<CoarseReport>,
+    /// A volume's plan within the memory bound (the largest part's, for a checkpointed run).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub memory: Option<crate::memory::VolumePlan>,
 }
 
 /// How a coarse-to-fine map (`--refine`) was computed.
@@ -164,6 +167,29 @@ struct MapJson<'a> {
     axes: Axes,
     /// The NPY layers (`risk` besides, where `map.risk` is set).
     layers: Vec<super::fields::LayerInfo>,
+    /// A volume's slices: each one's z value and class counts.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    slices: Option<Vec<SliceReport>>,
+}
+
+/// One slice of a volume in its JSON.
+#[derive(Serialize)]
+struct SliceReport {
+    z: f64,
+    class_counts: BTreeMap<String, usize>,
+}
+
+/// Each slice's z value and class counts.
+fn slice_reports(cfg: &Config, fields: &Fields) -> Vec<SliceReport> {
+    let per = super::plane_cells(cfg);
+    let zs = cfg.z_axis().map_or_else(Vec::new, |z| z.values());
+    zs.into_iter()
+        .enumerate()
+        .map(|(k, z)| SliceReport {
+            z,
+            class_counts: fields.range(k * per..(k + 1) * per).counts(),
+        })
+        .collect()
 }
 
 #[derive(Serialize)]
@@ -172,6 +198,11 @@ struct Axes {
     x_values: Vec<f64>,
     y: Param,
     y_values: Vec<f64>,
+    /// A volume's third axis.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    z: Option<Param>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    z_values: Option<Vec<f64>>,
     layout: &'static str,
 }
 
@@ -182,6 +213,15 @@ struct Images<'a> {
 }
 
 impl Images<'_> {
+    /// A volume's values split into its slices, each titled with its z value.
+    fn panels<'v, T>(&self, values: &'v [T]) -> Vec<(String, &'v [T])> {
+        values
+            .chunks(super::plane_cells(self.cfg).max(1))
+            .enumerate()
+            .map(|(k, v)| (super::slice_label(self.cfg, k), v))
+            .collect()
+    }
+
     fn ranges(&self) -> ((f64, f64), (f64, f64)) {
         let m = &self.cfg.map;
         let ordered = |a: f64, b: f64| (a.min(b), a.max(b));
@@ -228,6 +268,29 @@ impl Images<'_> {
             (a, b) => a.or(b),
         };
         let (xr, yr) = self.ranges();
+        if self.cfg.z_axis().is_some() {
+            // A volume: every slice a panel, under one legend counting the whole volume.
+            let panels = self.panels(cells);
+            return Ok(crate::render::category_panels_png(
+                &st.path(&with_ext(self.prefix, "png")),
+                &crate::render::CategoryPanels {
+                    title: &title(self.cfg),
+                    x_label: &m.x.label(),
+                    y_label: &m.y.label(),
+                    x_range: xr,
+                    y_range: yr,
+                    nx,
+                    ny,
+                    panels: &panels,
+                    categories: &cat_refs,
+                    families: &fam_refs,
+                    member_label: &|c| c.to_string(),
+                    note: note.as_deref(),
+                    curves: &[],
+                    curve_legend: &[],
+                },
+            )?);
+        }
         category_map_png(
             &st.path(&with_ext(self.prefix, "png")),
             &CategoryMap {
@@ -266,6 +329,24 @@ impl Images<'_> {
             return Ok(());
         }
         let (xr, yr) = self.ranges();
+        if self.cfg.z_axis().is_some() {
+            let panels = self.panels(s.values);
+            return Ok(crate::render::scalar_panels_png(
+                &st.path(&path),
+                &crate::render::ScalarPanels {
+                    title: &s.title,
+                    x_label: &m.x.label(),
+                    y_label: &m.y.label(),
+                    x_range: xr,
+                    y_range: yr,
+                    nx: m.x_points as usize,
+                    ny: m.y_points as usize,
+                    panels: &panels,
+                    colorbar_label: s.colorbar_label,
+                    center: s.center,
+                },
+            )?);
+        }
         scalar_map_png(
             &st.path(&path),
             &ScalarMap {
@@ -314,6 +395,18 @@ fn risk_of(cfg: &Config, cells: &[u16]) -> Option<(Vec<f64>, Vec<&'static str>)>
     let m = &cfg.map;
     if m.risk.len() != 2 {
         return None;
+    }
+    if cfg.z_axis().is_some() {
+        // A volume's risk is each slice's own: the perturbation is of x and y.
+        let per = super::plane_cells(cfg);
+        let mut all = Vec::with_capacity(cells.len());
+        let mut coarse = Vec::new();
+        for (k, slice) in cells.chunks(per).enumerate() {
+            let (r, c) = risk_of(&cfg.slice(k), slice)?;
+            all.extend(r);
+            coarse = c;
+        }
+        return Some((all, coarse));
     }
     let (nx, ny) = (m.x_points as usize, m.y_points as usize);
     let spacing = [
@@ -383,7 +476,7 @@ fn write_npys(
     prefix: &Path,
     fields: &Fields,
     risk: Option<&[f64]>,
-    (ny, nx): (usize, usize),
+    dims: &[usize],
 ) -> crate::Result<()> {
     let npy = |st: &mut Staged, name: &str, write: &dyn Fn(&Path) -> std::io::Result<()>| {
         let path = with_ext(&crate::output::with_suffix(prefix, name), "npy");
@@ -393,11 +486,10 @@ fn write_npys(
             source,
         })
     };
-    fields.each_npy((ny, nx), &mut |name, write| npy(st, name, write))?;
+    fields.each_npy(dims, &mut |name, write| npy(st, name, write))?;
+    let shape: Vec<u64> = dims.iter().map(|&d| d as u64).collect();
     match risk {
-        Some(r) => npy(st, "risk", &|p| {
-            crate::output::save_npy(p, &[ny as u64, nx as u64], r)
-        })?,
+        Some(r) => npy(st, "risk", &|p| crate::output::save_npy(p, &shape, r))?,
         None => st.remove_stale(&with_ext(
             &crate::output::with_suffix(prefix, "risk"),
             "npy",
@@ -458,14 +550,11 @@ pub fn risk_layer(cfg: &Config, fields: &Fields) -> Option<Vec<f64>> {
 /// Every NPY layer of the set as (name, the bytes of its file): the fields' layers and the risk
 /// where `map.risk` is set, as [`write_outputs`] writes them.
 pub fn npy_layers(cfg: &Config, fields: &Fields) -> Vec<(&'static str, Vec<u8>)> {
-    let m = &cfg.map;
-    let (ny, nx) = (m.y_points as usize, m.x_points as usize);
-    let mut out = fields.npy_bytes((ny, nx));
+    let dims = super::grid_dims(cfg);
+    let mut out = fields.npy_bytes(&dims);
     if let Some(r) = risk_layer(cfg, fields) {
-        out.push((
-            "risk",
-            crate::output::npy_bytes(&[ny as u64, nx as u64], &r),
-        ));
+        let shape: Vec<u64> = dims.iter().map(|&d| d as u64).collect();
+        out.push(("risk", crate::output::npy_bytes(&shape, &r)));
     }
     out
 }
@@ -565,13 +654,12 @@ pub fn write_outputs(
     )?;
     let risk = risk_of(cfg, &cells);
     risk_image(&mut st, &images, risk.as_ref())?;
-    let grid = (m.y_points as usize, m.x_points as usize);
     write_npys(
         &mut st,
         prefix,
         fields,
         risk.as_ref().map(|r| &r.0[..]),
-        grid,
+        &super::grid_dims(cfg),
     )?;
     // The time the files took so far (the JSON itself is written last).
     let mut timed = report.clone();
@@ -596,8 +684,17 @@ pub fn write_outputs(
             x_values: Config::map_axis(m.x_from, m.x_to, m.x_points),
             y: m.y,
             y_values: Config::map_axis(m.y_from, m.y_to, m.y_points),
-            layout: "arrays have shape (y_points, x_points); row 0 is y_from",
+            z: cfg.z_axis().map(|z| z.param),
+            z_values: cfg.z_axis().map(|z| z.values()),
+            layout: match cfg.z_axis() {
+                Some(_) => {
+                    "arrays have shape (z_points, y_points, x_points); slice 0 is z_from, row 0 \
+                     is y_from"
+                }
+                None => "arrays have shape (y_points, x_points); row 0 is y_from",
+            },
         },
+        slices: cfg.z_axis().map(|_| slice_reports(cfg, fields)),
         layers: Fields::layer_list(&prefix.file_name().unwrap_or_default().to_string_lossy()),
     };
     // The comparison is committed after this set, as a set of its own.
@@ -714,6 +811,14 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
     // The config is not covered by the layers' sums: checked as `rattle map` checks its own
     // (keys, ranges, the run's bounds) before anything is computed from it.
     cfg.check_command(crate::config::Command::Map)?;
+    if cfg.z_axis().is_some() {
+        // Refused as `rattle map --boundaries` refuses a volume, with its reason.
+        super::MapOptions {
+            boundaries: true,
+            ..super::MapOptions::default()
+        }
+        .check(&cfg)?;
+    }
     super::MapOptions::default().check(&cfg)?;
     let layer = |name: &str| -> crate::Result<Vec<u8>> {
         let path = with_ext(&crate::output::with_suffix(prefix, name), "npy");

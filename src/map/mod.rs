@@ -32,9 +32,42 @@ use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
 use std::ops::Range;
 
-/// Number of cells of the configured map.
+/// Number of cells of the configured map (of every slice of a volume).
 pub fn cell_count(cfg: &Config) -> usize {
+    plane_cells(cfg) * cfg.z_count()
+}
+
+/// Cells of one plane (a slice of a volume).
+pub fn plane_cells(cfg: &Config) -> usize {
     cfg.map.x_points as usize * cfg.map.y_points as usize
+}
+
+/// The NPY layers' grid: `(ny, nx)` for a plane, `(nz, ny, nx)` for a volume.
+pub fn grid_dims(cfg: &Config) -> Vec<usize> {
+    let (nx, ny) = (cfg.map.x_points as usize, cfg.map.y_points as usize);
+    match cfg.z_axis() {
+        Some(z) => vec![z.points as usize, ny, nx],
+        None => vec![ny, nx],
+    }
+}
+
+/// A slice's title in a volume's figures: `eta = 1.2667`, with as many decimals as tell the
+/// slices apart.
+pub fn slice_label(cfg: &Config, k: usize) -> String {
+    let Some(z) = cfg.z_axis() else {
+        return String::new();
+    };
+    let v = z.values()[k];
+    let step = (z.to - z.from).abs() / f64::from(z.points);
+    let decimals = (-(step.log10()).floor() + 1.0).clamp(1.0, 10.0) as usize;
+    format!("{} = {v:.decimals$}", z.param)
+}
+
+/// The parameters a map's cells vary: x and y, and z for a volume.
+pub fn varied(cfg: &Config) -> Vec<crate::model::Param> {
+    let mut v = vec![cfg.map.x, cfg.map.y];
+    v.extend(cfg.z_axis().map(|z| z.param));
+    v
 }
 
 /// Cells `[a, b)` of shard `i` of `n` (contiguous, row-major from the bottom row).
@@ -42,18 +75,26 @@ pub fn shard_range(cells: usize, i: usize, n: usize) -> Range<usize> {
     (cells * i / n)..(cells * (i + 1) / n)
 }
 
-/// (x, y) parameter values of the cells in `range`, point-major.
+/// Parameter values of the cells in `range`, point-major: (x, y) for a plane, (x, y, z) for a
+/// volume (cell `c` = (iz * ny + iy) * nx + ix), in the order of [`varied`].
 pub fn cell_values(cfg: &Config, range: impl IntoIterator<Item = usize>) -> Vec<f64> {
     let m = &cfg.map;
     let xs = Config::map_axis(m.x_from, m.x_to, m.x_points);
     let ys = Config::map_axis(m.y_from, m.y_to, m.y_points);
-    range
-        .into_iter()
-        .flat_map(|c| {
-            let (ix, iy) = (c % xs.len(), c / xs.len());
-            [xs[ix], ys[iy]]
-        })
-        .collect()
+    let zs = cfg.z_axis().map(|z| z.values());
+    let mut out = Vec::new();
+    for c in range {
+        let (ix, iy, iz) = (
+            c % xs.len(),
+            (c / xs.len()) % ys.len(),
+            c / xs.len() / ys.len(),
+        );
+        out.extend([xs[ix], ys[iy]]);
+        if let Some(zs) = &zs {
+            out.push(zs[iz]);
+        }
+    }
+    out
 }
 
 /// Initial states of `--starts K`: start 0 is `initial.y`; the others spread m2 over the
@@ -126,13 +167,14 @@ pub fn compute_cells(
     // Without a halo (`--refine`) an unknown neighbour does not contest: the first stage for a
     // chaotic-looking cell none of whose known neighbours is of another class.
     let nb = if halo { nb } else { nb.known_only() };
+    let vary = varied(cfg);
+    let nv = vary.len();
     let values: Vec<f64> = cell_values(cfg, cells.iter().copied())
-        .chunks(2)
-        .flat_map(|xy| std::iter::repeat_n([xy[0], xy[1]], k).flatten())
+        .chunks(nv)
+        .flat_map(|v| std::iter::repeat_n(v, k).flatten().copied())
         .collect();
     let y0 = start_states(cfg, k);
-    let y0s: Vec<[f64; 4]> = (0..values.len() / 2).map(|i| y0[i % k]).collect();
-    let vary = [cfg.map.x, cfg.map.y];
+    let y0s: Vec<[f64; 4]> = (0..values.len() / nv).map(|i| y0[i % k]).collect();
     let points = Points::along(&vary, &values).with_states(&y0s);
     let (s, t) = crate::adaptive::run_summaries(
         engine,
@@ -158,9 +200,10 @@ pub fn compute_cells(
     Ok((out, t))
 }
 
-/// The edge-neighbouring cells of cell `c` (row-major) of an `nx` x `ny` grid.
+/// The edge-neighbouring cells of cell `c` (row-major) of an `nx` x `ny` grid, within its own
+/// slice of a volume (a slice decides its cells from its own plane's evidence).
 fn grid_neighbours(c: usize, (nx, ny): (usize, usize)) -> impl Iterator<Item = usize> {
-    let (ix, iy) = (c % nx, c / nx);
+    let (ix, iy) = (c % nx, (c / nx) % ny);
     [
         (ix > 0).then(|| c - 1),
         (ix + 1 < nx).then(|| c + 1),
@@ -182,6 +225,22 @@ fn cell_spec(cfg: &Config) -> RunSpec {
 /// in f64, so that a single run, its shards and its checkpoints give the same layer. Cells
 /// filled by `--refine` neither seed nor receive. Returns the cells that gained a cycle.
 pub fn carry_over(cfg: &Config, fields: &mut Fields) -> usize {
+    if cfg.z_axis().is_some() {
+        // Slice by slice, each as the plane's own map carries (nothing crosses between slices).
+        let per = plane_cells(cfg);
+        if fields.len() != cell_count(cfg) {
+            return 0;
+        }
+        let mut gained = 0;
+        let mut coexist = Vec::with_capacity(fields.len());
+        for k in 0..cfg.z_count() {
+            let mut slice = fields.range(k * per..(k + 1) * per);
+            gained += carry_over(&cfg.slice(k), &mut slice);
+            coexist.extend(slice.coexist);
+        }
+        fields.coexist = coexist;
+        return gained;
+    }
     let n = fields.len();
     let (nx, ny) = (cfg.map.x_points as usize, cfg.map.y_points as usize);
     let spec = cell_spec(cfg);

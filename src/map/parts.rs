@@ -189,7 +189,39 @@ pub fn compute_part(
     progress: &dyn Progress,
 ) -> crate::Result<Part> {
     let range = shard_range(cell_count(cfg), i, n);
-    let (cells, timings) = compute(engine, cfg, range.clone(), starts, progress)?;
+    // A volume beyond the memory bound: chunks of whole slices (or rows), each with its halo,
+    // their layers kept and their runs' state dropped.
+    let chunk = match cfg.z_axis() {
+        Some(_) => crate::memory::volume_chunk(cfg, range.len(), starts)?.max(1),
+        None => range.len().max(1),
+    };
+    let unit = match chunk >= super::plane_cells(cfg) {
+        true => super::plane_cells(cfg),
+        false => cfg.map.x_points as usize,
+    };
+    let mut fields = Fields::default();
+    let mut timings = Timings::default();
+    let mut at = range.start;
+    loop {
+        // Chunks of a volume end on its slices' (rows') ends, wherever the share starts.
+        let end = match chunk >= range.end - at {
+            true => range.end,
+            false => ((at + chunk) / unit * unit).min(range.end),
+        };
+        let (cells, t) = compute(engine, cfg, at..end, starts, progress)?;
+        fields.append(Fields::from_cells(&cells));
+        timings.add(&t);
+        at = end;
+        if at >= range.end {
+            break;
+        }
+    }
+    if chunk < range.len() {
+        log::info!(
+            "volume: {} cells computed in chunks of at most {chunk} (the memory bound)",
+            range.len()
+        );
+    }
     Ok(Part {
         version: env!("CARGO_PKG_VERSION").into(),
         config: cfg.clone(),
@@ -199,7 +231,7 @@ pub fn compute_part(
         device: engine.device(),
         backend: engine.name().into(),
         timings,
-        fields: Fields::from_cells(&cells),
+        fields,
         source: None,
         checksum: None,
     })

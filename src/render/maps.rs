@@ -10,7 +10,7 @@ use super::{
     draw_err, extent, fmt_tick, invalid, layout, paint, render_png,
 };
 
-const MISSING_GREY: RGBColor = RGBColor(190, 190, 190);
+pub(super) const MISSING_GREY: RGBColor = RGBColor(190, 190, 190);
 /// ColorBrewer RdBu: blue below the centre, near-white at it, red above.
 /// Five stops rather than three keep the light mid-tones of the original scale.
 const RD_BU: [RGBColor; 5] = [
@@ -39,7 +39,7 @@ pub enum Marker {
 }
 
 /// Draws `marker` of half-size `r` pixels centred at pixel `(x, y)` of `area`.
-fn mark<DB: DrawingBackend>(
+pub(super) fn mark<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,
     marker: Marker,
     (x, y): (i32, i32),
@@ -244,19 +244,19 @@ pub fn category_map_png(path: &Path, map: &CategoryMap) -> Result<(), RenderErro
     })
 }
 
-fn rgb(c: [u8; 3]) -> RGBColor {
+pub(super) fn rgb(c: [u8; 3]) -> RGBColor {
     RGBColor(c[0], c[1], c[2])
 }
 
 /// The legend of a class map: every category present, with its share and count, in the given
 /// order; families of many members share rows, collapsed largest first until the legend fits.
-struct Legend<'a> {
-    map: &'a CategoryMap<'a>,
+pub(super) struct Legend<'a> {
+    pub(super) map: &'a CategoryMap<'a>,
     /// Cells per category (the last slot: unknown codes).
-    counts: &'a [usize],
+    pub(super) counts: &'a [usize],
     /// The categories with cells.
-    present: Vec<usize>,
-    width: u32,
+    pub(super) present: Vec<usize>,
+    pub(super) width: u32,
 }
 
 /// Member swatch side at font size `f`.
@@ -369,7 +369,7 @@ impl Legend<'_> {
 
     /// Draws the legend into `right` beside the plot's rows `yr`, type of `font_px` (smaller
     /// where even collapsed families do not fit).
-    fn draw(
+    pub(super) fn draw(
         &self,
         right: &Area<'_>,
         yr: std::ops::Range<i32>,
@@ -481,11 +481,16 @@ pub struct ScalarMap<'a> {
     pub height: u32,
 }
 
-pub fn scalar_map_png(path: &Path, map: &ScalarMap) -> Result<(), RenderError> {
-    check_grid(map.nx, map.ny, map.values.len())?;
-    let (lo, hi) = extent(map.values.iter().copied())
-        .ok_or_else(|| invalid(format!("'{}': no finite values", map.title)))?;
-    let (vmin, vmax, scale): (f64, f64, Box<dyn ColorMap<RGBColor, f64>>) = match map.center {
+/// The colour scale of `values` (those finite): blue-white-red symmetric about `center`, or
+/// viridis over their range; (vmin, vmax, map).
+#[allow(clippy::type_complexity)]
+pub(super) fn color_scale(
+    values: impl Iterator<Item = f64>,
+    center: Option<f64>,
+    title: &str,
+) -> Result<(f64, f64, Box<dyn ColorMap<RGBColor, f64>>), RenderError> {
+    let (lo, hi) = extent(values).ok_or_else(|| invalid(format!("'{title}': no finite values")))?;
+    let (vmin, vmax, scale): (f64, f64, Box<dyn ColorMap<RGBColor, f64>>) = match center {
         Some(c) if c.is_finite() => {
             let m = (hi - c).abs().max((lo - c).abs());
             let m = if m > 0.0 { m } else { 1.0 };
@@ -496,6 +501,12 @@ pub fn scalar_map_png(path: &Path, map: &ScalarMap) -> Result<(), RenderError> {
         None => (lo - 0.5, hi + 0.5, Box::new(ViridisRGB)),
     };
     check_range("value range", (vmin, vmax))?;
+    Ok((vmin, vmax, scale))
+}
+
+pub fn scalar_map_png(path: &Path, map: &ScalarMap) -> Result<(), RenderError> {
+    check_grid(map.nx, map.ny, map.values.len())?;
+    let (vmin, vmax, scale) = color_scale(map.values.iter().copied(), map.center, map.title)?;
     // Only finite values get here: plotters' colour maps panic on NaN.
     let cmap = |v: f64| scale.get_color_normalized(v, vmin, vmax);
     render_png(path, map.width, map.height, |root| {

@@ -13,6 +13,7 @@ mod lines;
 mod maps;
 mod orbit;
 mod palette;
+mod panels;
 mod sensitivity;
 
 pub use density::{
@@ -24,6 +25,7 @@ pub use maps::{
 };
 pub use orbit::{PointFigure, point_figure_png, point_figure_svg};
 pub use palette::{ATTRACTOR_COLORS, color, period_color};
+pub use panels::{CategoryPanels, ScalarPanels, category_panels_png, scalar_panels_png};
 pub use sensitivity::{
     Bar, Plane, SensitivityFigure, class_color, sensitivity_png, sensitivity_svg,
 };
