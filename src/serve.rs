@@ -346,7 +346,7 @@ impl App {
                 &m.cfg,
                 &m.fields,
                 &m.report,
-                bounds.as_deref(),
+                bounds.as_deref().map(std::slice::from_ref),
             )
             .map_err(internal)?;
             let read: std::io::Result<Vec<(String, Vec<u8>)>> = files

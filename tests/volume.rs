@@ -219,7 +219,6 @@ fn bad_volumes_are_refused_before_computing() {
     // Options that work on planes only, each with its reason.
     for (extra, key) in [
         (&["--refine", "4"][..], "refine"),
-        (&["--boundaries"], "boundaries"),
         (&["--compare", cfg.to_str().unwrap()], "compare"),
     ] {
         refused(&mut map(&[], extra), &[key, "volume"]);
@@ -239,4 +238,72 @@ fn bad_volumes_are_refused_before_computing() {
 
 fn plane_text() -> String {
     plane()
+}
+
+#[test]
+fn a_volumes_boundaries_are_each_slices_own() {
+    let d = scratch("vol-bounds");
+    let (vol, pl) = (d.join("vol.toml"), d.join("plane.toml"));
+    std::fs::write(&vol, volume()).unwrap();
+    std::fs::write(&pl, plane()).unwrap();
+    let run = |cfg: &Path, out: &str, extra: &[String]| {
+        ok(rattle()
+            .args([
+                "map",
+                "--backend",
+                "cpu",
+                "--precision",
+                "f64",
+                "--boundaries",
+            ])
+            .arg("--config")
+            .arg(cfg)
+            .arg("--out")
+            .arg(d.join(out))
+            .args(extra))
+    };
+    run(&vol, "v", &[]);
+    let csv = std::fs::read_to_string(d.join("v-boundaries.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert!(lines.next().unwrap().starts_with("eta,R,lambda,type,"));
+    let rows: Vec<&str> = lines.collect();
+    let j = json(&d.join("v-boundaries.json"));
+    assert_eq!(j["z_param"], "eta");
+    assert_eq!(j["points"].as_array().unwrap().len(), rows.len());
+    let zs: Vec<f64> = json(&d.join("v.json"))["axes"]["z_values"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let mut located = 0;
+    for (k, z) in zs.iter().enumerate() {
+        run(
+            &pl,
+            &format!("m{k}"),
+            &["--set".into(), format!("model.eta={z}")],
+        );
+        let own = std::fs::read_to_string(d.join(format!("m{k}-boundaries.csv"))).unwrap();
+        let own: Vec<&str> = own.lines().skip(1).collect();
+        let prefix = format!("{z},");
+        let slice: Vec<&str> = rows
+            .iter()
+            .filter_map(|r| r.strip_prefix(prefix.as_str()))
+            .collect();
+        assert_eq!(slice, own, "slice {k} (eta = {z})");
+        located += own.iter().filter(|r| r.contains(",true,")).count();
+    }
+    assert!(
+        located > 0,
+        "no change located on any slice: the test compares nothing"
+    );
+    // `rattle boundaries PREFIX` on the volume written without them: the same points.
+    ok(rattle()
+        .args(["map", "--backend", "cpu", "--precision", "f64", "--config"])
+        .arg(&vol)
+        .arg("--out")
+        .arg(d.join("w")));
+    ok(rattle().arg("boundaries").arg(d.join("w")));
+    let again = std::fs::read_to_string(d.join("w-boundaries.csv")).unwrap();
+    assert_eq!(again, csv);
 }

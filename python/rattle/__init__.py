@@ -259,7 +259,8 @@ class Map:
     def boundaries(self) -> dict:
         """The typed boundaries between the classes (`rattle map --boundaries`, docs/maps.md):
         `points` as arrays (`x`, `y`, `type`, `class_a`, `class_b`, `uncertainty`, `located`,
-        `period`, `reason`: why an `undetermined` point is not typed), `curves` as a list of dicts with `type`, `classes` and `points` (an array of
+        `period`, `reason`: why an `undetermined` point is not typed; a volume's with `z`),
+        `curves` as a list of dicts with `type`, `classes` (a volume's with `z`) and `points` (an array of
         shape (k, 2) in parameter values), and the counts (`edges`, `trials`,
         `continuations`, `claims`, `continuation_s`, `coexistence_s`, `seconds`)."""
         j = json.loads(self._data.boundaries())
@@ -275,6 +276,9 @@ class Map:
             "period": np.asarray([p["period"] for p in pts], dtype=int),
             "reason": np.asarray([p.get("reason", "") for p in pts], dtype=str),
         }
+        if self.z_param is not None:
+            # A volume's slices: each point and curve with its slice's z value.
+            j["points"]["z"] = np.asarray([p["z"] for p in pts], dtype=float)
         for c in j["curves"]:
             c["points"] = np.asarray(c["points"], dtype=float).reshape(-1, 2)
         return j

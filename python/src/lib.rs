@@ -351,9 +351,15 @@ impl MapData {
         // next period.
         let (cfg, f) = (self.result.cfg.clone(), self.result.fields.clone());
         let b = detached(py, 1, None, move |_| {
-            Ok(rattle::map::boundaries::of_fields(&cfg, &f))
+            use rattle::map::boundaries::{VolumeBoundaries, of_slices};
+            let slices = of_slices(&cfg, &f);
+            // A volume's points and curves carry their slice's z.
+            Ok(match (cfg.z_axis(), &slices[..]) {
+                (None, [b]) => serde_json::to_string(b)?,
+                _ => serde_json::to_string(&VolumeBoundaries::of(&cfg, &slices))?,
+            })
         })?;
-        serde_json::to_string(&b).map_err(|e| to_py(py, rattle::Error::from(e)))
+        Ok(b)
     }
 
     /// Writes the command line's files under `prefix`; returns their paths.

@@ -212,6 +212,112 @@ pub fn of_fields(cfg: &Config, f: &super::Fields) -> Boundaries {
     )
 }
 
+/// The boundaries of each slice of a map in memory: the plane's own for a plane; for a volume
+/// each slice's, located in its own plane as `rattle map --boundaries` at that z locates them.
+pub fn of_slices(cfg: &Config, f: &super::Fields) -> Vec<Boundaries> {
+    let per = super::plane_cells(cfg);
+    match cfg.z_axis() {
+        None => vec![of_fields(cfg, f)],
+        Some(z) => (0..z.points as usize)
+            .map(|k| of_fields(&cfg.slice(k), &f.range(k * per..(k + 1) * per)))
+            .collect(),
+    }
+}
+
+/// An item of one slice of a volume, with the slice's z value.
+#[derive(Clone, Debug, Serialize)]
+pub struct InSlice<'a, T: Serialize> {
+    pub z: f64,
+    #[serde(flatten)]
+    pub item: &'a T,
+}
+
+/// The boundaries of a volume's slices as one set: the sums of their counts and seconds, every
+/// curve and point with its slice's z (PREFIX-boundaries.json of a volume, Python's
+/// `Map.boundaries()`).
+#[derive(Clone, Debug, Serialize)]
+pub struct VolumeBoundaries<'a> {
+    pub x_param: &'static str,
+    pub y_param: &'static str,
+    pub z_param: &'static str,
+    pub edges: usize,
+    pub curves: Vec<InSlice<'a, Curve>>,
+    pub points: Vec<InSlice<'a, Point>>,
+    pub trials: usize,
+    pub continuations: usize,
+    pub claims: usize,
+    pub continuation_s: f64,
+    pub coexistence_s: f64,
+    pub seconds: f64,
+}
+
+impl<'a> VolumeBoundaries<'a> {
+    /// The boundaries `slices` ([`of_slices`]) of the volume `cfg`.
+    pub fn of(cfg: &Config, slices: &'a [Boundaries]) -> VolumeBoundaries<'a> {
+        let zs = cfg.z_axis().map_or_else(|| vec![f64::NAN], |z| z.values());
+        let sum = |f: &dyn Fn(&Boundaries) -> f64| slices.iter().map(f).sum::<f64>();
+        let count = |f: &dyn Fn(&Boundaries) -> usize| slices.iter().map(f).sum::<usize>();
+        let each = |k: usize| zs.get(k).copied().unwrap_or(f64::NAN);
+        VolumeBoundaries {
+            x_param: cfg.map.x.name(),
+            y_param: cfg.map.y.name(),
+            z_param: cfg.z_axis().map_or("", |z| z.param.name()),
+            edges: count(&|b| b.edges),
+            curves: slices
+                .iter()
+                .enumerate()
+                .flat_map(|(k, b)| {
+                    b.curves.iter().map(move |c| InSlice {
+                        z: each(k),
+                        item: c,
+                    })
+                })
+                .collect(),
+            points: slices
+                .iter()
+                .enumerate()
+                .flat_map(|(k, b)| {
+                    b.points.iter().map(move |p| InSlice {
+                        z: each(k),
+                        item: p,
+                    })
+                })
+                .collect(),
+            trials: count(&|b| b.trials),
+            continuations: count(&|b| b.continuations),
+            claims: count(&|b| b.claims),
+            continuation_s: sum(&|b| b.continuation_s),
+            coexistence_s: sum(&|b| b.coexistence_s),
+            seconds: sum(&|b| b.seconds),
+        }
+    }
+}
+
+/// The terminal's line of a map's boundaries ([`of_slices`]): a plane's, or a volume's sums.
+pub fn summary_of(cfg: &Config, slices: &[Boundaries]) -> String {
+    match (cfg.z_axis(), slices) {
+        (None, [b]) => summary_line(b),
+        _ => {
+            let v = VolumeBoundaries::of(cfg, slices);
+            format!(
+                "boundaries of {} slices: {} edges between classes, {} changes located, {} \
+                 curves ({} Newton trials, {} continuations in {:.2} s, {} coexistences checked \
+                 in {:.2} s) in {:.2} s",
+                slices.len(),
+                v.edges,
+                v.points.iter().filter(|p| p.item.located).count(),
+                v.curves.len(),
+                v.trials,
+                v.continuations,
+                v.continuation_s,
+                v.claims,
+                v.coexistence_s,
+                v.seconds
+            )
+        }
+    }
+}
+
 /// The terminal's line of `b`.
 pub fn summary_line(b: &Boundaries) -> String {
     format!(

@@ -117,7 +117,7 @@ impl MapOptions<'_> {
         }
         if cfg.z_axis().is_some() {
             // What works on a plane only, refused with its reason before anything runs.
-            let plane_only: [(bool, &'static str, &str); 3] = [
+            let plane_only: [(bool, &'static str, &str); 2] = [
                 (
                     self.refine.is_some(),
                     "refine",
@@ -128,12 +128,6 @@ impl MapOptions<'_> {
                     self.compare.is_some(),
                     "compare",
                     "the comparison draws one plane; compare two slices' maps instead",
-                ),
-                (
-                    self.boundaries,
-                    "boundaries",
-                    "boundaries are located on planes: run `rattle map` at the slice's z \
-                     with --boundaries",
                 ),
             ];
             if let Some((_, option, why)) = plane_only.iter().find(|p| p.0) {
@@ -323,8 +317,10 @@ impl MapSummary {
             String::new()
         };
         s + &format!(
-            "map: {} x {} cells on {} ({}, {}) in {:.2} s ({:.2} s integration, {:.2} s device \
+            "map: {}{} x {} cells on {} ({}, {}) in {:.2} s ({:.2} s integration, {:.2} s device \
              deciding, {:.2} s host deciding{streams}, {:.2} s files{trips}); {:?}\n",
+            cfg.z_axis()
+                .map_or(String::new(), |z| format!("{} x ", z.points)),
             cfg.map.x_points,
             cfg.map.y_points,
             self.backend,
@@ -500,11 +496,11 @@ pub fn run(
     let t_files = std::time::Instant::now();
     let b = o
         .boundaries
-        .then(|| super::boundaries::of_fields(&cfg, &fields));
+        .then(|| super::boundaries::of_slices(&cfg, &fields));
     summary
         .files
-        .extend(write_outputs(out, &cfg, &fields, &report, b.as_ref())?);
-    summary.boundaries = b.as_ref().map(super::boundaries::summary_line);
+        .extend(write_outputs(out, &cfg, &fields, &report, b.as_deref())?);
+    summary.boundaries = b.as_ref().map(|b| super::boundaries::summary_of(&cfg, b));
     summary.files_s = t_files.elapsed().as_secs_f64();
     summary.host_s = host_s;
     summary.decide_s = decide_s;
@@ -652,9 +648,9 @@ pub fn run_shared(
     };
     let b = o
         .boundaries
-        .then(|| super::boundaries::of_fields(&cfg, &fields));
-    let files = write_outputs(out, &cfg, &fields, &report, b.as_ref())?;
-    let boundaries = b.as_ref().map(super::boundaries::summary_line);
+        .then(|| super::boundaries::of_slices(&cfg, &fields));
+    let files = write_outputs(out, &cfg, &fields, &report, b.as_deref())?;
+    let boundaries = b.as_ref().map(|b| super::boundaries::summary_of(&cfg, b));
     Ok(MapSummary {
         backend: "gpu".into(),
         device: format!("{n} engines"),

@@ -246,7 +246,7 @@ impl Images<'_> {
             format!(
                 "cells inferred from block corners\n(coarse spacing {}): {} ({})",
                 r.spacing,
-                percent(r.cells_inferred, nx * ny),
+                percent(r.cells_inferred, cells.len()),
                 grouped(r.cells_inferred)
             )
         });
@@ -258,7 +258,7 @@ impl Images<'_> {
                 self.prefix
                     .file_name()
                     .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
-                percent(coexist.0, nx * ny),
+                percent(coexist.0, cells.len()),
                 grouped(coexist.0),
                 grouped(coexist.1)
             )
@@ -566,7 +566,7 @@ pub fn write_outputs(
     cfg: &Config,
     fields: &Fields,
     report: &MapReport,
-    boundaries: Option<&super::boundaries::Boundaries>,
+    boundaries: Option<&[super::boundaries::Boundaries]>,
 ) -> crate::Result<Vec<PathBuf>> {
     let t_files = std::time::Instant::now();
     let m = &cfg.map;
@@ -775,10 +775,10 @@ pub fn write_compare(
 
 /// The boundaries' JSON (`PREFIX-boundaries.json`).
 #[derive(Serialize)]
-struct BoundariesJson<'a> {
+struct BoundariesJson<'a, B: Serialize> {
     caption: String,
     #[serde(flatten)]
-    boundaries: &'a super::boundaries::Boundaries,
+    boundaries: &'a B,
     files: Vec<String>,
     version: &'static str,
 }
@@ -811,14 +811,6 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
     // The config is not covered by the layers' sums: checked as `rattle map` checks its own
     // (keys, ranges, the run's bounds) before anything is computed from it.
     cfg.check_command(crate::config::Command::Map)?;
-    if cfg.z_axis().is_some() {
-        // Refused as `rattle map --boundaries` refuses a volume, with its reason.
-        super::MapOptions {
-            boundaries: true,
-            ..super::MapOptions::default()
-        }
-        .check(&cfg)?;
-    }
     super::MapOptions::default().check(&cfg)?;
     let layer = |name: &str| -> crate::Result<Vec<u8>> {
         let path = with_ext(&crate::output::with_suffix(prefix, name), "npy");
@@ -830,39 +822,43 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
         }
         std::fs::read(&path).map_err(|e| not_a_map(e.to_string()))
     };
-    // A layer holds the config's grid: its shape (y, x[, 4]), not only as many values (a grid
-    // relabelled from x by y to y by x has as many).
-    let (nx, ny) = (cfg.map.x_points as u64, cfg.map.y_points as u64);
-    fn values<T: npyz::Deserialize>(bytes: &[u8], n: usize, grid: (u64, u64)) -> Option<Vec<T>> {
+    // A layer holds the config's grid: its shape ((z,) y, x[, 4]), not only as many values (a
+    // grid relabelled from x by y to y by x has as many).
+    let dims: Vec<u64> = super::grid_dims(&cfg).iter().map(|&d| d as u64).collect();
+    fn values<T: npyz::Deserialize>(bytes: &[u8], n: usize, dims: &[u64]) -> Option<Vec<T>> {
         let f = npyz::NpyFile::new(bytes).ok()?;
-        let shape = f.shape().to_vec();
-        if shape.len() < 2 || shape[0] != grid.1 || shape[1] != grid.0 {
+        if !f.shape().starts_with(dims) {
             return None;
         }
         let v: Vec<T> = f.into_vec().ok()?;
         (v.len() == n).then_some(v)
     }
-    let n = cfg.map.x_points as usize * cfg.map.y_points as usize;
+    let n = super::cell_count(&cfg);
     let bad = |name: &str| not_a_map(format!("its layer {name} does not hold the map's cells"));
-    let class: Vec<i32> = values(&layer("class")?, n, (nx, ny)).ok_or_else(|| bad("class"))?;
-    let coexist: Vec<i32> =
-        values(&layer("coexist")?, n, (nx, ny)).ok_or_else(|| bad("coexist"))?;
-    let state: Vec<f64> = values(&layer("state")?, 4 * n, (nx, ny)).ok_or_else(|| bad("state"))?;
-    let mode: Vec<u8> = values(&layer("mode")?, n, (nx, ny)).ok_or_else(|| bad("mode"))?;
-    let inferred: Vec<u8> =
-        values(&layer("inferred")?, n, (nx, ny)).ok_or_else(|| bad("inferred"))?;
+    let class: Vec<i32> = values(&layer("class")?, n, &dims).ok_or_else(|| bad("class"))?;
+    let coexist: Vec<i32> = values(&layer("coexist")?, n, &dims).ok_or_else(|| bad("coexist"))?;
+    let state: Vec<f64> = values(&layer("state")?, 4 * n, &dims).ok_or_else(|| bad("state"))?;
+    let mode: Vec<u8> = values(&layer("mode")?, n, &dims).ok_or_else(|| bad("mode"))?;
+    let inferred: Vec<u8> = values(&layer("inferred")?, n, &dims).ok_or_else(|| bad("inferred"))?;
     let attractors: Vec<u8> =
-        values(&layer("attractors")?, n, (nx, ny)).ok_or_else(|| bad("attractors"))?;
-    let b = super::boundaries::locate(
-        &cfg,
-        &super::boundaries::Cells {
-            class: &class,
-            coexist: &coexist,
-            state: &state,
-            mode: &mode,
-            inferred: &inferred,
-        },
-    );
+        values(&layer("attractors")?, n, &dims).ok_or_else(|| bad("attractors"))?;
+    // Each slice of a volume in its own plane, as `rattle map --boundaries` locates them.
+    let per = super::plane_cells(&cfg);
+    let b: Vec<super::boundaries::Boundaries> = (0..cfg.z_count())
+        .map(|k| {
+            let r = k * per..(k + 1) * per;
+            super::boundaries::locate(
+                &cfg.slice(k),
+                &super::boundaries::Cells {
+                    class: &class[r.clone()],
+                    coexist: &coexist[r.clone()],
+                    state: &state[4 * r.start..4 * r.end],
+                    mode: &mode[r.clone()],
+                    inferred: &inferred[r],
+                },
+            )
+        })
+        .collect();
     let mut st = Staged::new();
     stage_boundaries(&mut st, prefix, &cfg, &class, &attractors, &b)?;
     // The map's own files stay as they are, listed (with their sums) beside the new ones.
@@ -889,7 +885,7 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
         o.insert("files".into(), files.into());
     }
     st.write(&json, &serde_json::to_vec_pretty(&v)?)?;
-    Ok((st.commit()?, super::boundaries::summary_line(&b)))
+    Ok((st.commit()?, super::boundaries::summary_of(&cfg, &b)))
 }
 
 /// Whether `json` is the JSON of a map's boundaries (its curves and points), not another set's.
@@ -907,21 +903,24 @@ fn is_boundaries_json(json: &Path) -> bool {
         .is_ok_and(|p| p.curves.is_some() && p.points.is_some() && p.x_param.is_some())
 }
 
-/// Stages the boundaries of the map of `cfg` (`class` and `attractors`: its layers) in the
-/// map's set `st`: `PREFIX-boundaries.png` (the class map with the curves over it),
-/// `PREFIX-boundaries.csv` (the points) and `PREFIX-boundaries.json` (curves and points; its
-/// `files` names the three, the map's JSON lists them with the map's files).
+/// Stages the boundaries of the map of `cfg` (`class` and `attractors`: its layers; `slices`:
+/// its boundaries, one per slice, [`super::boundaries::of_slices`]) in the map's set `st`:
+/// `PREFIX-boundaries.png` (the class map with the curves over it, a volume's slices as
+/// panels), `PREFIX-boundaries.csv` (the points, a volume's with their z) and
+/// `PREFIX-boundaries.json` (curves and points; its `files` names the three, the map's JSON
+/// lists them with the map's files).
 fn stage_boundaries(
     st: &mut Staged,
     prefix: &Path,
     cfg: &Config,
     class: &[i32],
     attractors: &[u8],
-    b: &super::boundaries::Boundaries,
+    slices: &[super::boundaries::Boundaries],
 ) -> crate::Result<()> {
-    use super::boundaries::Type;
+    use super::boundaries::{Type, VolumeBoundaries};
     let base = crate::output::with_suffix(prefix, "boundaries");
     let m = &cfg.map;
+    let volume = cfg.z_axis().map(|_| VolumeBoundaries::of(cfg, slices));
     let cells: Vec<u16> = class
         .iter()
         .zip(attractors)
@@ -931,13 +930,18 @@ fn stage_boundaries(
     let (cat_refs, fam_refs) = legend_refs(&cats, &fams);
     // Coexistence and undetermined edges are counted, not drawn: they are pixel edges.
     let drawn = |t: Type| !matches!(t, Type::Coexistence | Type::Undetermined);
-    let curves: Vec<crate::render::Curve> = b
-        .curves
+    let curves: Vec<Vec<crate::render::Curve>> = slices
         .iter()
-        .filter(|c| drawn(c.ty))
-        .map(|c| (&c.points[..], c.ty.rgb(), c.ty.marker()))
+        .map(|b| {
+            b.curves
+                .iter()
+                .filter(|c| drawn(c.ty))
+                .map(|c| (&c.points[..], c.ty.rgb(), c.ty.marker()))
+                .collect()
+        })
         .collect();
-    let count = |t: Type| b.points.iter().filter(|p| p.ty == t).count();
+    let points = || slices.iter().flat_map(|b| &b.points);
+    let count = |t: Type| points().filter(|p| p.ty == t).count();
     let legend: Vec<(String, [u8; 3], crate::render::Marker)> = Type::ALL
         .iter()
         .filter(|&&t| drawn(t) && count(t) > 0)
@@ -948,50 +952,88 @@ fn stage_boundaries(
         .collect();
     let note = format!(
         "{} edges between classes:\ncoexistence {}, undetermined {}",
-        grouped(b.edges),
+        grouped(slices.iter().map(|b| b.edges).sum()),
         grouped(count(Type::Coexistence)),
         grouped(count(Type::Undetermined))
     );
     let ordered = |a: f64, b: f64| (a.min(b), a.max(b));
-    category_map_png(
-        &st.path(&with_ext(&base, "png")),
-        &CategoryMap {
-            title: &title(cfg),
-            x_label: &m.x.label(),
-            y_label: &m.y.label(),
-            x_range: ordered(m.x_from, m.x_to),
-            y_range: ordered(m.y_from, m.y_to),
-            nx: m.x_points as usize,
-            ny: m.y_points as usize,
-            cells: &cells,
-            categories: &cat_refs,
-            families: &fam_refs,
-            member_label: &|c| c.to_string(),
-            note: Some(&note),
-            curves: &curves,
-            curve_legend: &legend,
-            width: 1100,
-            height: 800,
-        },
-    )?;
+    let (nx, ny) = (m.x_points as usize, m.y_points as usize);
+    let png = st.path(&with_ext(&base, "png"));
+    if volume.is_some() {
+        let panels: Vec<(String, &[u16])> = cells
+            .chunks((nx * ny).max(1))
+            .enumerate()
+            .map(|(k, c)| (super::slice_label(cfg, k), c))
+            .collect();
+        crate::render::category_panels_png(
+            &png,
+            &crate::render::CategoryPanels {
+                title: &title(cfg),
+                x_label: &m.x.label(),
+                y_label: &m.y.label(),
+                x_range: ordered(m.x_from, m.x_to),
+                y_range: ordered(m.y_from, m.y_to),
+                nx,
+                ny,
+                panels: &panels,
+                categories: &cat_refs,
+                families: &fam_refs,
+                member_label: &|c| c.to_string(),
+                note: Some(&note),
+                curves: &curves,
+                curve_legend: &legend,
+            },
+        )?;
+    } else {
+        category_map_png(
+            &png,
+            &CategoryMap {
+                title: &title(cfg),
+                x_label: &m.x.label(),
+                y_label: &m.y.label(),
+                x_range: ordered(m.x_from, m.x_to),
+                y_range: ordered(m.y_from, m.y_to),
+                nx,
+                ny,
+                cells: &cells,
+                categories: &cat_refs,
+                families: &fam_refs,
+                member_label: &|c| c.to_string(),
+                note: Some(&note),
+                curves: curves.first().map_or(&[][..], |c| &c[..]),
+                curve_legend: &legend,
+                width: 1100,
+                height: 800,
+            },
+        )?;
+    }
+    // A volume's points carry their slice's z first.
+    let zs = cfg.z_axis().map(|z| (z.param, z.values()));
     let mut csv = format!(
-        "{},{},type,class_a,class_b,uncertainty,located,period,reason\n",
+        "{}{},{},type,class_a,class_b,uncertainty,located,period,reason\n",
+        zs.as_ref()
+            .map_or(String::new(), |(p, _)| format!("{},", p.name())),
         m.x.name(),
         m.y.name()
     );
-    for p in &b.points {
-        csv.push_str(&format!(
-            "{},{},{},{},{},{},{},{},\"{}\"\n",
-            p.x,
-            p.y,
-            p.ty.name(),
-            p.classes[0],
-            p.classes[1],
-            p.uncertainty,
-            p.located,
-            p.period,
-            p.reason
-        ));
+    for (k, b) in slices.iter().enumerate() {
+        let z = zs
+            .as_ref()
+            .map_or(String::new(), |(_, v)| format!("{},", v[k]));
+        for p in &b.points {
+            csv.push_str(&format!(
+                "{z}{},{},{},{},{},{},{},{},\"{}\"\n",
+                p.x,
+                p.y,
+                p.ty.name(),
+                p.classes[0],
+                p.classes[1],
+                p.uncertainty,
+                p.located,
+                p.period,
+                p.reason
+            ));
+        }
     }
     st.write(&with_ext(&base, "csv"), csv.as_bytes())?;
     let json_path = with_ext(&base, "json");
@@ -1006,19 +1048,49 @@ fn stage_boundaries(
             )
         })
         .collect();
-    let j = BoundariesJson {
-        caption: boundaries_caption(cfg, b),
-        boundaries: b,
-        files,
-        version: env!("CARGO_PKG_VERSION"),
+    let text = match (&volume, slices) {
+        (None, [b]) => serde_json::to_vec_pretty(&BoundariesJson {
+            caption: boundaries_caption(cfg, b),
+            boundaries: b,
+            files,
+            version: env!("CARGO_PKG_VERSION"),
+        })?,
+        _ => serde_json::to_vec_pretty(&BoundariesJson {
+            caption: volume_boundaries_caption(cfg, slices),
+            boundaries: &volume,
+            files,
+            version: env!("CARGO_PKG_VERSION"),
+        })?,
     };
-    st.write(&json_path, &serde_json::to_vec_pretty(&j)?)?;
+    st.write(&json_path, &text)?;
     Ok(())
+}
+
+/// The caption of a volume's boundaries' JSON: each slice's located as its own map's, the
+/// counts summed over the slices.
+fn volume_boundaries_caption(cfg: &Config, slices: &[super::boundaries::Boundaries]) -> String {
+    let edges = slices.iter().map(|b| b.edges).sum();
+    let located = slices
+        .iter()
+        .map(|b| b.points.iter().filter(|p| p.located).count())
+        .sum();
+    format!(
+        "{} Each slice's boundaries are located in its own plane, as those of the map at that \
+         z value are (edges between slices are not located); every point and curve carries its \
+         slice's z.",
+        caption_of_boundaries(cfg, edges, located)
+    )
 }
 
 /// The caption of the boundaries' JSON: what was done to the map `cfg`'s edges.
 fn boundaries_caption(cfg: &Config, b: &super::boundaries::Boundaries) -> String {
     let located = b.points.iter().filter(|p| p.located).count();
+    caption_of_boundaries(cfg, b.edges, located)
+}
+
+/// The caption of the boundaries of the map `cfg` with `edges` edges between classes and
+/// `located` points located.
+fn caption_of_boundaries(cfg: &Config, edges: usize, located: usize) -> String {
     format!(
         "Boundaries of the class map of {grid}: each of the {e} edges between neighbouring \
          cells of different classes, typed. Where a side landed on a stable cycle, Newton's \
@@ -1040,6 +1112,6 @@ fn boundaries_caption(cfg: &Config, b: &super::boundaries::Boundaries) -> String
          undetermined edges are counted, not drawn; the chaotic sea's edge against \
          impact-free motion is undetermined with the crisis named.",
         grid = super::caption::grid_phrase(cfg),
-        e = b.edges,
+        e = edges,
     )
 }
