@@ -274,7 +274,7 @@ impl Images<'_> {
             return Ok(crate::render::category_panels_png(
                 &st.path(&with_ext(self.prefix, "png")),
                 &crate::render::CategoryPanels {
-                    title: &title(self.cfg),
+                    title: &volume_title(self.cfg, "attractor class", &title(self.cfg)),
                     x_label: &m.x.label(),
                     y_label: &m.y.label(),
                     x_range: xr,
@@ -334,7 +334,7 @@ impl Images<'_> {
             return Ok(crate::render::scalar_panels_png(
                 &st.path(&path),
                 &crate::render::ScalarPanels {
-                    title: &s.title,
+                    title: &volume_title(self.cfg, &s.title, ""),
                     x_label: &m.x.label(),
                     y_label: &m.y.label(),
                     x_range: xr,
@@ -365,6 +365,17 @@ impl Images<'_> {
             },
         )?;
         Ok(())
+    }
+}
+
+/// A volume's figure title: `what` at its z values, then `rest` (a class map's model; the
+/// configured `map.title` in its place where given).
+fn volume_title(cfg: &Config, what: &str, rest: &str) -> String {
+    match cfg.z_axis() {
+        Some(z) if rest.is_empty() => format!("{what} at {} values of {}", z.points, z.param),
+        Some(_) if !cfg.map.title.is_empty() => cfg.map.title.clone(),
+        Some(z) => format!("{what} at {} values of {}: {rest}", z.points, z.param),
+        None => rest.to_string(),
     }
 }
 
@@ -968,7 +979,7 @@ fn stage_boundaries(
         crate::render::category_panels_png(
             &png,
             &crate::render::CategoryPanels {
-                title: &title(cfg),
+                title: &volume_title(cfg, "attractor class and boundaries", &title(cfg)),
                 x_label: &m.x.label(),
                 y_label: &m.y.label(),
                 x_range: ordered(m.x_from, m.x_to),
