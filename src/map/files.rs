@@ -342,7 +342,7 @@ impl Images<'_> {
                     nx: m.x_points as usize,
                     ny: m.y_points as usize,
                     panels: &panels,
-                    colorbar_label: s.colorbar_label,
+                    colorbar_label: s.panels_label,
                     center: s.center,
                 },
             )?);
@@ -384,6 +384,9 @@ struct Scalar<'a> {
     title: String,
     values: &'a [f64],
     colorbar_label: &'a str,
+    /// The label of a volume's bar, which spans one grid of panels (often shorter than a
+    /// map's): a shorter one.
+    panels_label: &'a str,
     center: Option<f64>,
 }
 
@@ -476,6 +479,7 @@ fn risk_image(
             ),
             values: r,
             colorbar_label: "probability that a Gaussian perturbation lands on another class",
+            panels_label: "P(perturbation lands on another class)",
             center: None,
         },
     )
@@ -619,6 +623,7 @@ pub fn write_outputs(
             title: format!("largest Lyapunov exponent over {} and {}", m.x, m.y),
             values: &shown,
             colorbar_label: "exponent per unit time (clipped at 99th percentile)",
+            panels_label: "exponent per unit time (clipped at 99%)",
             center: Some(0.0),
         },
     )?;
@@ -633,6 +638,7 @@ pub fn write_outputs(
             ),
             values: &mult,
             colorbar_label: "|mu_1| of the stable cycle (1: loss of stability; grey: not periodic)",
+            panels_label: "|mu_1| of the stable cycle (grey: none)",
             center: None,
         },
     )?;
@@ -660,6 +666,7 @@ pub fn write_outputs(
             ),
             values: &settle,
             colorbar_label: "log10 of the periods before the attractor was shown",
+            panels_label: "log10(periods before the attractor)",
             center: None,
         },
     )?;

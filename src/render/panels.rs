@@ -246,7 +246,8 @@ fn label(
 
 /// The figure title and the two axis descriptions.
 fn draw_frame(root: &Area<'_>, g: &Geometry, a: &Axes) -> Result<(), RenderError> {
-    let (t, px) = fitted(a.title, TITLE_PX, g.width as i32 - 2 * MARGIN)?;
+    // A tenth spare: the font's measured box is narrower than what it draws at this size.
+    let (t, px) = fitted(a.title, TITLE_PX, (g.width as i32 - 2 * MARGIN) * 9 / 10)?;
     let mid = (g.grid_x.0 + g.grid_x.1) / 2;
     label(
         root,
@@ -522,6 +523,12 @@ pub fn scalar_panels_png(path: &Path, p: &ScalarPanels) -> Result<(), RenderErro
         // the last row's bottom.
         let right = root.clone().shrink((g.side_x, 0), (BAR_SIDE_W, g.height));
         let labels_w = (TICK_PX * 4.5 + LABEL_PX * 2.2) as u32;
+        // The bar's label runs along the bar: at most its height (a single row is short).
+        let (desc, desc_px) = fitted(
+            p.colorbar_label,
+            LABEL_PX,
+            (g.grid_y.1 - g.grid_y.0) * 9 / 10,
+        )?;
         let mut bar = ChartBuilder::on(&right)
             .margin_top(g.grid_y.0 as u32)
             .margin_bottom((g.height as i32 - g.grid_y.1).max(0) as u32)
@@ -535,9 +542,9 @@ pub fn scalar_panels_png(path: &Path, p: &ScalarPanels) -> Result<(), RenderErro
         bar.configure_mesh()
             .disable_mesh()
             .disable_x_axis()
-            .y_desc(p.colorbar_label)
+            .y_desc(desc)
             .label_style((FONT, TICK_PX))
-            .axis_desc_style((FONT, LABEL_PX))
+            .axis_desc_style((FONT, desc_px))
             .y_label_formatter(&|v| fmt_tick(*v, vmax - vmin))
             .draw()
             .map_err(draw_err)
