@@ -244,6 +244,12 @@ static ENDING: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::ne
 /// (both under [`PENDING`]'s lock), and after an interrupt no file is created: the thread waits
 /// for the process to end. So an interrupted run leaves no `.partial`, even one being created
 /// at that instant; what a writer writes after the removal goes to an unlinked file.
+///
+/// A staged name is opened only as the file [`Staged::path`] created there itself (exclusively,
+/// `O_EXCL`), never through a link (`O_NOFOLLOW`), and only while it is that file (a regular
+/// file with one link): another user who can write to the output folder cannot have a set
+/// written through a link planted at the name, nor into a file put in its place. Any other
+/// name is created exclusively, never opened.
 pub fn create(tmp: &Path) -> std::io::Result<std::fs::File> {
     let guard = pending();
     if ENDING.load(Ordering::SeqCst) {
@@ -252,11 +258,83 @@ pub fn create(tmp: &Path) -> std::io::Result<std::fs::File> {
             std::thread::park();
         }
     }
-    std::fs::File::create(tmp)
+    let ours = created().iter().any(|p| p == tmp);
+    drop(guard);
+    match ours {
+        true => open_own(tmp, true),
+        false => exclusive(tmp),
+    }
+}
+
+/// The staged files [`Staged::path`] created, which [`create`] may open.
+static CREATED: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn created() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    CREATED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Creates `path` for writing only if no file, directory or link has that name (`O_EXCL`:
+/// a link, even a dangling one, is never followed).
+fn exclusive(path: &Path) -> std::io::Result<std::fs::File> {
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+}
+
+/// Opens a file this process created (truncated where `truncate`), refusing a link at its
+/// name (`O_NOFOLLOW`) and a file that is not the one created (not regular, or with another
+/// link to it).
+fn open_own(path: &Path, truncate: bool) -> std::io::Result<std::fs::File> {
+    let mut o = std::fs::OpenOptions::new();
+    // Truncated only once it is known to be the file created (O_TRUNC would empty another).
+    o.read(true).write(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::custom_flags(&mut o, libc::O_NOFOLLOW);
+    let f = o.open(path).map_err(|e| match e.raw_os_error() {
+        #[cfg(unix)]
+        Some(libc::ELOOP) => std::io::Error::other(
+            "a symbolic link was put in the place of the file rattle staged: not written \
+             through",
+        ),
+        _ => e,
+    })?;
+    let m = f.metadata()?;
+    if !m.is_file() || !single(&m) {
+        return Err(std::io::Error::other(
+            "another file was put in the place of the file rattle staged: not written",
+        ));
+    }
+    if truncate {
+        f.set_len(0)?;
+    }
+    Ok(f)
+}
+
+/// Whether a file has no other link than its name (a hard link put in a staged file's place
+/// has two).
+fn single(m: &std::fs::Metadata) -> bool {
+    #[cfg(unix)]
+    return std::os::unix::fs::MetadataExt::nlink(m) == 1;
+    #[cfg(not(unix))]
+    return true;
+}
+
+/// A number another user cannot predict: the staged files' names end with one, so that no link
+/// can be planted at a name before it is created.
+pub(crate) fn unpredictable() -> u64 {
+    use std::hash::{BuildHasher, Hasher};
+    // `RandomState` is keyed from the operating system's randomness.
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u64(SET.fetch_add(1, Ordering::Relaxed));
+    let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH);
+    h.write_u128(now.map_or(0, |d| d.as_nanos()));
+    h.finish()
 }
 
 fn forget(tmps: &[PathBuf]) {
     pending().retain(|p| !tmps.contains(p));
+    created().retain(|p| !tmps.contains(p));
 }
 
 /// Waits for a commit under way, then holds off the next one, and removes the temporary files
@@ -292,17 +370,41 @@ impl Staged {
         Staged::default()
     }
 
-    /// Reserves `final_path`; returns the temporary path to write instead (unique to this
-    /// process and set, so that concurrent runs never share one).
+    /// Reserves `final_path`; returns the temporary path to write instead:
+    /// `FINAL.PID-R.partial`, R a number nobody can predict, created here exclusively (a name
+    /// that exists, a planted link included, is never opened: another is drawn), so that
+    /// concurrent runs never share one and [`create`] writes only to this file. Where it cannot
+    /// be created (a read-only folder), [`create`] reports why.
     pub fn path(&mut self, final_path: &Path) -> PathBuf {
-        let mut tmp = final_path.as_os_str().to_owned();
-        tmp.push(format!(
-            ".{}-{}.partial",
-            std::process::id(),
-            SET.fetch_add(1, Ordering::Relaxed)
-        ));
-        let tmp = PathBuf::from(tmp);
-        pending().push(tmp.clone());
+        let name = || {
+            let mut tmp = final_path.as_os_str().to_owned();
+            tmp.push(format!(
+                ".{}-{}.partial",
+                std::process::id(),
+                unpredictable()
+            ));
+            PathBuf::from(tmp)
+        };
+        let mut guard = pending();
+        if ENDING.load(Ordering::SeqCst) {
+            drop(guard);
+            loop {
+                std::thread::park();
+            }
+        }
+        let mut tmp = name();
+        for _ in 0..16 {
+            match exclusive(&tmp) {
+                Ok(_) => {
+                    created().push(tmp.clone());
+                    break;
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => tmp = name(),
+                Err(_) => break,
+            }
+        }
+        guard.push(tmp.clone());
+        drop(guard);
         self.files.push((tmp.clone(), final_path.to_path_buf()));
         tmp
     }
@@ -401,6 +503,18 @@ impl Staged {
                 ));
             }
         }
+        // Each staged name still holds the file written to it: never a link renamed into place.
+        for (tmp, _) in &files {
+            if !std::fs::symlink_metadata(tmp).is_ok_and(|m| m.file_type().is_file() && single(&m))
+            {
+                self.files = files.clone();
+                return Err(other(
+                    tmp,
+                    "is not the file rattle staged (a link or another file was put in its \
+                     place): nothing written",
+                ));
+            }
+        }
         for dst in files.iter().map(|f| &f.1).chain(&self.stale) {
             if dst.is_dir() {
                 self.files = files.clone();
@@ -478,11 +592,7 @@ impl Staged {
             }
         }
         let sums = serde_json::to_string(&sums).map_err(|e| bad(e.to_string()))?;
-        let mut f = std::fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .open(tmp)
-            .map_err(|e| bad(e.to_string()))?;
+        let mut f = open_own(tmp, false).map_err(|e| bad(e.to_string()))?;
         // The JSON is an object with `files` at least: its last byte closes it.
         let end = f.seek(SeekFrom::End(-1)).map_err(|e| bad(e.to_string()))?;
         let mut last = [0u8];
@@ -653,8 +763,13 @@ pub fn check_prefix_within(
         }
         return Err(other(dir, "the output directory does not exist"));
     }
-    let probe = dir.join(format!(".rattle-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"").map_err(io(dir))?;
+    // Created exclusively under a name nobody predicts: never written through a link.
+    let probe = dir.join(format!(
+        ".rattle-probe-{}-{}",
+        std::process::id(),
+        unpredictable()
+    ));
+    exclusive(&probe).map_err(io(dir))?;
     let _ = std::fs::remove_file(&probe);
     for ext in exts {
         let p = with_ext(prefix, ext);
@@ -689,4 +804,49 @@ pub fn check_prefix_within(
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A link or another file put in the place of a staged file after [`Staged::path`] created
+    /// it is never written through, and the commit renames nothing.
+    #[cfg(unix)]
+    #[test]
+    fn a_staged_file_swapped_for_a_link_is_not_written_through() {
+        let d = std::env::temp_dir().join(format!("rattle-staged-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        let victim = d.join("victim.txt");
+        std::fs::write(&victim, "mine\n").unwrap();
+        let fin = d.join("out.json");
+        let mut st = Staged::new();
+        let tmp = st.path(&fin);
+        // Created at once, as a regular file, under a name that ends in an unpredictable number.
+        assert!(
+            std::fs::symlink_metadata(&tmp)
+                .unwrap()
+                .file_type()
+                .is_file()
+        );
+        assert_ne!(st.path(&d.join("b.json")), tmp);
+        std::fs::remove_file(&tmp).unwrap();
+        std::os::unix::fs::symlink(&victim, &tmp).unwrap();
+        let e = create(&tmp).unwrap_err();
+        assert!(e.to_string().contains("symbolic link"), "{e}");
+        // A hard link to the victim in its place is refused too.
+        std::fs::remove_file(&tmp).unwrap();
+        std::fs::hard_link(&victim, &tmp).unwrap();
+        assert!(create(&tmp).is_err());
+        assert!(st.commit().is_err());
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "mine\n");
+        assert!(!fin.exists());
+        // A name the process did not stage is created exclusively, never opened.
+        let planted = d.join("planted");
+        std::os::unix::fs::symlink(&victim, &planted).unwrap();
+        assert!(create(&planted).is_err());
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "mine\n");
+        let _ = std::fs::remove_dir_all(&d);
+    }
 }

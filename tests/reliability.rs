@@ -746,3 +746,156 @@ fn run_overlap_is_noted_where_no_streams_run() {
         stderr(&out)
     );
 }
+
+/// Runs `args` through bash, so that its process id is known beforehand, in `dir`, with links
+/// to `dir/victim.txt` planted at the staging names `FINAL.PID-N.partial` (N < 64) of every
+/// name in `finals` and at the output check's probe `.rattle-probe-PID`; returns the output.
+fn with_planted_links(
+    dir: &std::path::Path,
+    finals: &[String],
+    args: &[&str],
+) -> std::process::Output {
+    let mut script =
+        String::from("ln -s victim.txt .rattle-probe-$$; for n in $(seq 0 63); do for f in");
+    for f in finals {
+        script += &format!(" '{f}'");
+    }
+    script += "; do ln -s victim.txt \"$f.$$-$n.partial\"; done; done; exec \"$@\"";
+    std::process::Command::new("bash")
+        .arg("-c")
+        .arg(script)
+        .arg("bash")
+        .arg(env!("CARGO_BIN_EXE_rattle"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+/// The names of the set whose JSON is `json` (its `files`).
+fn set_names(json: &std::path::Path) -> Vec<String> {
+    common::json(json)["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect()
+}
+
+/// Round 8 H1: a set was written through links planted at its predictable staging names (the
+/// victim got the JSON, the set's files became links to it). Every command that writes a set:
+/// staged files are created exclusively under names nobody predicts, never opened through a
+/// link, and only regular files are renamed into place.
+#[test]
+fn no_set_is_written_through_a_planted_link() {
+    let cfg = config("fig2.toml");
+    let cfg = cfg.to_str().unwrap();
+    let cheap = [
+        "--set",
+        "run.transient_periods=5",
+        "--set",
+        "run.sample_periods=4",
+        "--set",
+        "method.steps_per_period=16",
+    ];
+    let map = |out: &str| -> Vec<String> {
+        let mut a: Vec<String> = ["map", "--backend", "cpu", "--config", cfg, "--out", out]
+            .map(String::from)
+            .to_vec();
+        a.extend(CHEAP_MAP.map(String::from));
+        a.extend(cheap[4..].iter().map(|s| s.to_string()));
+        a
+    };
+    let point: Vec<String> = [
+        "point",
+        "--backend",
+        "cpu",
+        "--config",
+        cfg,
+        "--plot",
+        "p",
+        "--periods",
+        "4",
+    ]
+    .iter()
+    .chain(&cheap)
+    .map(|s| s.to_string())
+    .collect();
+    let bif: Vec<String> = [
+        "bifurcation",
+        "--backend",
+        "cpu",
+        "--config",
+        cfg,
+        "--out",
+        "b",
+        "--set",
+        "sweep.points=12",
+    ]
+    .iter()
+    .chain(&cheap)
+    .map(|s| s.to_string())
+    .collect();
+    let shard = |i: usize| -> Vec<String> {
+        let mut a = map("s");
+        a.extend(["--shard".into(), format!("{i}/2")]);
+        a
+    };
+    // (what runs first, unplanted; the planted command; its set's JSON)
+    type Case<'a> = (Vec<Vec<String>>, Vec<String>, &'a str);
+    let cases: Vec<Case> = vec![
+        (vec![], map("x"), "x.json"),
+        (
+            vec![map("x")],
+            ["boundaries", "x"].map(String::from).to_vec(),
+            "x.json",
+        ),
+        (vec![], point, "p.json"),
+        (vec![], bif, "b.json"),
+        (
+            vec![shard(0), shard(1)],
+            [
+                "merge",
+                "s.part-0-of-2.json",
+                "s.part-1-of-2.json",
+                "--out",
+                "m",
+            ]
+            .map(String::from)
+            .to_vec(),
+            "m.json",
+        ),
+    ];
+    for (before, args, json) in cases {
+        let run_in = |d: &std::path::Path, a: &[String]| {
+            let o = rattle().args(a).current_dir(d).output().unwrap();
+            assert!(o.status.success(), "{a:?}: {}", stderr(&o));
+        };
+        // The set's names, from a run of the same commands elsewhere.
+        let learn = scratch("h1-learn");
+        for b in &before {
+            run_in(&learn, b);
+        }
+        run_in(&learn, &args);
+        let names = set_names(&learn.join(json));
+        let d = scratch("h1");
+        for b in &before {
+            run_in(&d, b);
+        }
+        std::fs::write(d.join("victim.txt"), "the victim's own\n").unwrap();
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = with_planted_links(&d, &names, &a);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        assert!(
+            std::fs::read_to_string(d.join("victim.txt")).unwrap() == "the victim's own\n",
+            "{args:?} wrote through a planted link"
+        );
+        for n in &names {
+            let m = std::fs::symlink_metadata(d.join(n)).unwrap();
+            assert!(
+                m.file_type().is_file(),
+                "{args:?}: {n} is not a regular file"
+            );
+        }
+    }
+}
