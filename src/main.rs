@@ -88,6 +88,14 @@ fn since_start() -> f64 {
 fn main() {
     START.get_or_init(std::time::Instant::now);
     init_log();
+    // A file size limit (`ulimit -f`) makes a write fail with EFBIG ("File too large"), an error
+    // reported with exit 2 and the set's staged files removed, instead of SIGXFSZ killing the
+    // process silently with its `.partial` files left behind.
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to SIG_IGN at start, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
     // Ctrl-C or SIGTERM: wait for a set being renamed into place, then end (the commit lock is
     // released by the next run, which sees that this process is gone).
     let _ = ctrlc::set_handler(|| {

@@ -248,8 +248,8 @@ static ENDING: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::ne
 /// A staged name is opened only as the file [`Staged::path`] created there itself (exclusively,
 /// `O_EXCL`), never through a link (`O_NOFOLLOW`), and only while it is that file (a regular
 /// file with one link): another user who can write to the output folder cannot have a set
-/// written through a link planted at the name, nor into a file put in its place. Any other
-/// name is created exclusively, never opened.
+/// written through a link planted at the name, nor into a file put in its place. A name that is
+/// not staged (a figure an example writes) is created or replaced, never through a link.
 pub fn create(tmp: &Path) -> std::io::Result<std::fs::File> {
     let guard = pending();
     if ENDING.load(Ordering::SeqCst) {
@@ -262,8 +262,18 @@ pub fn create(tmp: &Path) -> std::io::Result<std::fs::File> {
     drop(guard);
     match ours {
         true => open_own(tmp, true),
-        false => exclusive(tmp),
+        false => plain(tmp),
     }
+}
+
+/// A file written outside a set (an example's figure): created or replaced, never through a
+/// link at its name.
+fn plain(path: &Path) -> std::io::Result<std::fs::File> {
+    let mut o = std::fs::OpenOptions::new();
+    o.write(true).create(true).truncate(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::custom_flags(&mut o, libc::O_NOFOLLOW);
+    o.open(path)
 }
 
 /// The staged files [`Staged::path`] created, which [`create`] may open.
@@ -842,7 +852,7 @@ mod tests {
         assert!(st.commit().is_err());
         assert_eq!(std::fs::read_to_string(&victim).unwrap(), "mine\n");
         assert!(!fin.exists());
-        // A name the process did not stage is created exclusively, never opened.
+        // A name the process did not stage is never written through a link.
         let planted = d.join("planted");
         std::os::unix::fs::symlink(&victim, &planted).unwrap();
         assert!(create(&planted).is_err());

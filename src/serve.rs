@@ -625,7 +625,8 @@ impl Gate {
         let json = text(header::CONTENT_TYPE).is_some_and(|t| {
             t.split(';')
                 .next()
-                .is_some_and(|m| m.trim() == "application/json")
+                // Media types are case-insensitive (RFC 9110, 8.3.1).
+                .is_some_and(|m| m.trim().eq_ignore_ascii_case("application/json"))
         });
         if method == axum::http::Method::POST && !json {
             let why = "a POST body must be JSON, sent with Content-Type: application/json";

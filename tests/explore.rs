@@ -377,10 +377,15 @@ fn only_the_servers_own_page_talks_to_it() {
             ),
             "{\"view\": 1}",
         ),
+        // Media types are case-insensitive (RFC 9110, 8.3.1; round 8 L3: this was 415).
+        ask(
+            &format!("POST /api/map HTTP/1.1\r\n{host}\r\nContent-Type: Application/JSON"),
+            "{\"view\": 1}",
+        ),
     ];
     interrupt(&mut p);
     let codes: Vec<u16> = answers.iter().map(|a| a.0).collect();
-    assert_eq!(codes, [200, 200, 403, 403, 415, 400], "{answers:#?}");
+    assert_eq!(codes, [200, 200, 403, 403, 415, 400, 400], "{answers:#?}");
     for (_, text) in &answers[2..5] {
         assert!(text.contains("\"error\""), "{text}");
     }

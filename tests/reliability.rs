@@ -899,3 +899,32 @@ fn no_set_is_written_through_a_planted_link() {
         }
     }
 }
+
+/// Round 8 L2: under a file size limit (`ulimit -f`) SIGXFSZ killed rattle silently (exit 153)
+/// and left its `.partial` files. The write now fails with "File too large", exit 2, and the
+/// set's staged files are removed.
+#[cfg(unix)]
+#[test]
+fn a_file_size_limit_is_an_error_not_a_kill() {
+    let d = scratch("fsize");
+    let cfg = config("fig2.toml");
+    let o = std::process::Command::new("bash")
+        .arg("-c")
+        .arg("ulimit -f 8; exec \"$@\"")
+        .arg("bash")
+        .arg(env!("CARGO_BIN_EXE_rattle"))
+        .args(["map", "--backend", "cpu", "--config"])
+        .arg(&cfg)
+        .args(CHEAP_MAP)
+        .args(["--out", "x"])
+        .current_dir(&*d)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("File too large"), "{}", stderr(&o));
+    let left: Vec<_> = std::fs::read_dir(&*d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
