@@ -712,7 +712,10 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
             .await
             .with_context(|| format!("cannot listen on {}:{}", addr.0, addr.1))?;
         let at = listener.local_addr()?;
-        let router = router.layer(axum::middleware::from_fn_with_state(Gate::new(at), gate));
+        // The gate first (refused requests' bodies are not read), then the body within its time.
+        let router = router
+            .layer(axum::middleware::from_fn(whole_body))
+            .layer(axum::middleware::from_fn_with_state(Gate::new(at), gate));
         if !at.ip().is_loopback() {
             eprintln!(
                 "warning: rattle explore listens on {}: anyone who can reach that address can \
@@ -729,6 +732,73 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
 
 /// Connections served at once; more wait in the kernel's queue until one ends.
 const MAX_CONNECTIONS: usize = 64;
+/// Connections one remote address may hold at once, so that a client of another address finds
+/// a slot (clients on this machine share the loopback's address: for them the header's and the
+/// body's timeouts free the slots).
+const MAX_PER_PEER: usize = 48;
+/// A request whose body has not arrived whole within this is answered 408 and its connection
+/// closed, so that clients that send a header and never the body cannot hold the slots.
+const BODY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
+/// The largest request body read (the page's requests are a few hundred bytes).
+const MAX_BODY: usize = 1 << 20;
+
+/// Counts a new connection of `peer` in `held` unless a remote peer holds [`MAX_PER_PEER`]
+/// already (clients on this machine share the loopback's address: they wait for a slot).
+fn admit(
+    held: &mut std::collections::HashMap<std::net::IpAddr, usize>,
+    peer: std::net::IpAddr,
+) -> bool {
+    let n = held.entry(peer).or_insert(0);
+    if *n >= MAX_PER_PEER && !peer.is_loopback() {
+        return false;
+    }
+    *n += 1;
+    true
+}
+
+/// Uncounts an ended connection of `peer`.
+fn release(held: &mut std::collections::HashMap<std::net::IpAddr, usize>, peer: std::net::IpAddr) {
+    if let Some(n) = held.get_mut(&peer) {
+        *n -= 1;
+        if *n == 0 {
+            held.remove(&peer);
+        }
+    }
+}
+
+/// Reads a request's whole body within [`BODY_TIMEOUT`] (at most [`MAX_BODY`] bytes) before
+/// the handlers see it.
+async fn whole_body(req: axum::extract::Request, next: axum::middleware::Next) -> Response {
+    let (parts, body) = req.into_parts();
+    match tokio::time::timeout(BODY_TIMEOUT, axum::body::to_bytes(body, MAX_BODY)).await {
+        Ok(Ok(bytes)) => {
+            next.run(axum::extract::Request::from_parts(
+                parts,
+                axum::body::Body::from(bytes),
+            ))
+            .await
+        }
+        Ok(Err(_)) => error(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("a request body is at most {MAX_BODY} bytes, sent whole"),
+        ),
+        Err(_) => {
+            let mut r = error(
+                StatusCode::REQUEST_TIMEOUT,
+                format!(
+                    "the request's body did not arrive within {} s",
+                    BODY_TIMEOUT.as_secs()
+                ),
+            );
+            // Its unread rest is not waited for: the connection ends with this answer.
+            r.headers_mut().insert(
+                header::CONNECTION,
+                axum::http::HeaderValue::from_static("close"),
+            );
+            r
+        }
+    }
+}
 /// A connection that has not sent a request's whole header within this is closed.
 const HEADER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
 
@@ -739,24 +809,60 @@ const HEADER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
 async fn accept(listener: tokio::net::TcpListener, router: Router) -> Result<()> {
     use hyper_util::rt::{TokioIo, TokioTimer};
     let slots = Arc::new(tokio::sync::Semaphore::new(MAX_CONNECTIONS));
+    let peers: Arc<Mutex<std::collections::HashMap<std::net::IpAddr, usize>>> = Arc::default();
     loop {
         let slot = slots.clone().acquire_owned().await?;
-        let stream = match listener.accept().await {
-            Ok((stream, _)) => stream,
+        let (stream, peer) = match listener.accept().await {
+            Ok((stream, at)) => (stream, at.ip()),
             // Out of descriptors, or a connection reset before it was taken: wait, go on.
             Err(_) => {
                 tokio::time::sleep(std::time::Duration::from_millis(50)).await;
                 continue;
             }
         };
+        if !admit(&mut peers.lock().unwrap_or_else(|p| p.into_inner()), peer) {
+            // Closed at once: this peer holds its share of the slots already.
+            continue;
+        }
         let service = hyper_util::service::TowerToHyperService::new(router.clone());
+        let peers = peers.clone();
         tokio::spawn(async move {
             let _ = hyper::server::conn::http1::Builder::new()
                 .timer(TokioTimer::new())
                 .header_read_timeout(HEADER_TIMEOUT)
                 .serve_connection(TokioIo::new(stream), service)
                 .await;
+            release(&mut peers.lock().unwrap_or_else(|p| p.into_inner()), peer);
             drop(slot);
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A remote address holds at most MAX_PER_PEER connections, another one is still admitted,
+    /// and one ended frees a place; the loopback's clients are not limited (they share it).
+    #[test]
+    fn a_remote_peer_holds_at_most_its_share() {
+        let mut held = std::collections::HashMap::new();
+        let remote: std::net::IpAddr = "192.0.2.7".parse().unwrap();
+        let other: std::net::IpAddr = "192.0.2.8".parse().unwrap();
+        let local: std::net::IpAddr = "127.0.0.1".parse().unwrap();
+        for _ in 0..MAX_PER_PEER {
+            assert!(admit(&mut held, remote));
+        }
+        assert!(!admit(&mut held, remote));
+        assert!(admit(&mut held, other));
+        release(&mut held, remote);
+        assert!(admit(&mut held, remote));
+        for _ in 0..2 * MAX_PER_PEER {
+            assert!(admit(&mut held, local));
+        }
+        for _ in 0..MAX_PER_PEER {
+            release(&mut held, remote);
+        }
+        assert!(!held.contains_key(&remote));
     }
 }

@@ -619,7 +619,8 @@ fn boundaries_of_a_written_map() {
 /// `rattle boundaries PREFIX` checks the config inside the map's JSON as `rattle map` checks
 /// its own, and against the layers' shape, before computing anything (round 7 M5: the config is
 /// not covered by the layers' sums; an out-of-range range and a grid relabelled from 8 x 4 to
-/// 4 x 8 were accepted and blessed with fresh sums). Refused, nothing written.
+/// 4 x 8 were accepted and blessed with fresh sums), and against the sums of its keys the map
+/// recorded (round 8 M3). Refused, nothing written.
 #[test]
 fn boundaries_check_the_maps_config() {
     let d = scratch("boundaries-check");
@@ -653,7 +654,23 @@ fn boundaries_check_the_maps_config() {
         v["config"]["map"]["y_points"] = 8.into();
     });
     assert_ne!(code, Some(0), "{err}");
-    assert!(err.contains("does not hold the map's cells"), "{err}");
+    assert!(err.contains("map.x_points"), "{err}");
+    // Round 8 M3: an edit within range (eta 1.26 -> 1.3) was accepted and the boundaries of
+    // another system committed with fresh sums; the config's own sums name the key.
+    let (code, err) = edit(&|v| v["config"]["model"]["eta"] = 1.3.into());
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("model.eta") && err.contains("changed"),
+        "{err}"
+    );
+    let (code, err) = edit(&|v| {
+        v.as_object_mut().unwrap().remove("config_sums");
+    });
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("config_sums"), "{err}");
+    // The map as written is accepted.
+    std::fs::write(d.join("p.json"), &original).unwrap();
+    ok(rattle().arg("boundaries").arg(d.join("p")));
 }
 
 /// `rattle boundaries PREFIX` on what is not a map's set says so (round 7 L10): a FIFO in the

@@ -634,3 +634,46 @@ fn an_interrupt_during_an_export_leaves_nothing() {
     assert_eq!(status.code(), Some(130));
     assert!(left.is_empty(), "left in TMPDIR: {left:?}");
 }
+
+/// Clients that send a whole header and never the body no longer hold every slot (round 8 M1:
+/// 64 of them with `Content-Length: 100000`, `/api/base` unanswered in 120 s): a body that has
+/// not arrived within 5 s is answered 408 and its connection closed, so a request made after
+/// 64 such clients is answered.
+#[cfg(unix)]
+#[test]
+fn unfinished_bodies_do_not_stall_the_server() {
+    use std::io::{Read, Write};
+    let tmp = common::scratch("explore-bodies");
+    let (mut p, port) = start_server(&tmp);
+    let stalled: Vec<std::net::TcpStream> = (0..64)
+        .map(|_| {
+            let mut c = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+            let head = format!(
+                "POST /api/map HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\
+                 Content-Type: application/json\r\nContent-Length: 100000\r\n\r\n{{"
+            );
+            c.write_all(head.as_bytes()).unwrap();
+            c
+        })
+        .collect();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let head = format!("GET /api/base HTTP/1.1\r\nHost: 127.0.0.1:{port}");
+        let _ = tx.send(ask(port, &head, ""));
+    });
+    let answer = rx.recv_timeout(std::time::Duration::from_secs(30));
+    let timed_out = stalled
+        .into_iter()
+        .filter(|c| {
+            let mut c = c;
+            c.set_read_timeout(Some(std::time::Duration::from_secs(10)))
+                .unwrap();
+            let mut b = [0u8; 64];
+            matches!(c.read(&mut b), Ok(n) if b[..n].starts_with(b"HTTP/1.1 408"))
+        })
+        .count();
+    interrupt(&mut p);
+    let (code, text) = answer.expect("no answer within 30 s of 64 unfinished bodies");
+    assert_eq!(code, 200, "{text}");
+    assert_eq!(timed_out, 64, "every unfinished body is answered 408");
+}

@@ -170,6 +170,38 @@ struct MapJson<'a> {
     /// A volume's slices: each one's z value and class counts.
     #[serde(skip_serializing_if = "Option::is_none")]
     slices: Option<Vec<SliceReport>>,
+    /// Each key of `config` with the CRC-32 of its value as written ([`config_sums`]): the
+    /// layers' sums do not cover the config, these do (`rattle boundaries PREFIX` refuses an
+    /// edited one, naming the key).
+    config_sums: BTreeMap<String, String>,
+}
+
+/// Each leaf key of a config as JSON (`model.eta`, `map.x_points`, ...) with the CRC-32 of its
+/// value's JSON text, in hex.
+pub fn config_sums(config: &serde_json::Value) -> BTreeMap<String, String> {
+    fn walk(key: &str, v: &serde_json::Value, out: &mut BTreeMap<String, String>) {
+        match v {
+            serde_json::Value::Object(m) => {
+                for (k, x) in m {
+                    let sub = match key.is_empty() {
+                        true => k.clone(),
+                        false => format!("{key}.{k}"),
+                    };
+                    walk(&sub, x, out);
+                }
+            }
+            _ => {
+                let text = serde_json::to_string(v).unwrap_or_default();
+                out.insert(
+                    key.into(),
+                    format!("{:08x}", crc32fast::hash(text.as_bytes())),
+                );
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk("", config, &mut out);
+    out
 }
 
 /// One slice of a volume in its JSON.
@@ -713,6 +745,7 @@ pub fn write_outputs(
             },
         },
         slices: cfg.z_axis().map(|_| slice_reports(cfg, fields)),
+        config_sums: config_sums(&serde_json::to_value(cfg)?),
         layers: Fields::layer_list(&prefix.file_name().unwrap_or_default().to_string_lossy()),
     };
     // The comparison is committed after this set, as a set of its own.
@@ -826,6 +859,25 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
     }
     let cfg: Config = serde_json::from_value(v["config"].clone())
         .map_err(|_| not_a_map("not the JSON of a map (no map config)".into()))?;
+    // The config is the one the layers were computed with: every key as the map recorded it.
+    let recorded: BTreeMap<String, String> = v
+        .get("config_sums")
+        .and_then(|s| serde_json::from_value(s.clone()).ok())
+        .ok_or_else(|| {
+            not_a_map(
+                "it records no config_sums (written by an older rattle, or edited): run the map \
+                 again"
+                    .into(),
+            )
+        })?;
+    let now = config_sums(&v["config"]);
+    let keys: std::collections::BTreeSet<&String> = recorded.keys().chain(now.keys()).collect();
+    if let Some(key) = keys.into_iter().find(|k| recorded.get(*k) != now.get(*k)) {
+        return Err(not_a_map(format!(
+            "`{key}` in its config was changed after the map was written (its sum differs from \
+             the one the map recorded): the layers are not that config's; nothing written"
+        )));
+    }
     // The config is not covered by the layers' sums: checked as `rattle map` checks its own
     // (keys, ranges, the run's bounds) before anything is computed from it.
     cfg.check_command(crate::config::Command::Map)?;
