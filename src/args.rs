@@ -131,6 +131,11 @@ pub struct ExploreArgs {
     /// address can start computations on this machine).
     #[arg(long, default_value = "127.0.0.1")]
     pub host: std::net::IpAddr,
+    /// A name (without the port) the browser may reach the server by, besides its IP
+    /// addresses and `localhost`: a name a DNS server could point at this machine is refused
+    /// otherwise (DNS rebinding). Repeatable.
+    #[arg(long = "allow-host", value_name = "NAME", value_parser = host_name)]
+    pub allow_host: Vec<String>,
 }
 
 /// The arguments of `rattle map`.
@@ -342,4 +347,18 @@ pub fn said(l: Loaded) -> Config {
         log::warn!("{w}");
     }
     l.cfg
+}
+
+/// A host name for `--allow-host`: letters, digits, dots and hyphens, no port.
+fn host_name(s: &str) -> Result<String, String> {
+    let ok = !s.is_empty()
+        && s.len() <= 253
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '.' || c == '-');
+    match ok {
+        true => Ok(s.to_ascii_lowercase()),
+        false => Err(format!(
+            "`{s}` is not a host name (letters, digits, dots and hyphens, without the port)"
+        )),
+    }
 }

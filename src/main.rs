@@ -171,7 +171,7 @@ fn run(cli: Cli) -> Result<()> {
             let (explorer, loaded) =
                 rattle::explore::Explorer::new(a.common.request(&a.common.config))?;
             args::said(loaded);
-            serve::serve(explorer, (a.host, a.port))?;
+            serve::serve(explorer, (a.host, a.port), &a.allow_host)?;
             Vec::new()
         }
         Cmd::Basin { common, out } => {

@@ -582,23 +582,45 @@ async fn export(State(app): State<Arc<App>>, UrlPath(what): UrlPath<String>) -> 
 /// resolves to the loopback (DNS rebinding).
 #[derive(Clone)]
 struct Gate {
-    /// The Host values accepted; empty: any.
+    /// The port it listens on: every Host accepted names it.
+    port: u16,
+    /// The Host values accepted by name (the address, `localhost` on the loopback, the names
+    /// of `--allow-host`), each with the port.
     hosts: Arc<Vec<String>>,
+    /// Listening on every address: any IP literal with the port is accepted too (a name is
+    /// not, unless allowed: DNS rebinding points a foreign name at this machine).
+    any_ip: bool,
 }
 
 impl Gate {
-    fn new(at: std::net::SocketAddr) -> Self {
+    fn new(at: std::net::SocketAddr, allowed: &[String]) -> Self {
         let ip = at.ip();
         let mut hosts = Vec::new();
         if !ip.is_unspecified() {
             hosts.push(at.to_string());
-            if ip.is_loopback() {
-                hosts.push(format!("localhost:{}", at.port()));
-            }
         }
+        if ip.is_loopback() || ip.is_unspecified() {
+            hosts.push(format!("localhost:{}", at.port()));
+        }
+        hosts.extend(allowed.iter().map(|h| format!("{h}:{}", at.port())));
         Gate {
+            port: at.port(),
             hosts: Arc::new(hosts),
+            any_ip: ip.is_unspecified(),
         }
+    }
+
+    /// Whether a request's Host is this server's.
+    fn accepts(&self, host: &str) -> bool {
+        if self.hosts.iter().any(|h| h.eq_ignore_ascii_case(host)) {
+            return true;
+        }
+        // An IP literal with the port (`192.0.2.7:8750`, `[::1]:8750`) where it listens on
+        // every address.
+        self.any_ip
+            && host
+                .parse::<std::net::SocketAddr>()
+                .is_ok_and(|a| a.port() == self.port)
     }
 
     /// Why `headers` of a request with `method` are refused, if they are.
@@ -609,9 +631,15 @@ impl Gate {
     ) -> Option<Response> {
         let text = |h| headers.get(h).map(|v| v.to_str().unwrap_or("?"));
         let host = text(header::HOST).unwrap_or("");
-        if !self.hosts.is_empty() && !self.hosts.iter().any(|h| h == host) {
+        if !self.accepts(host) {
+            let ips = if self.any_ip {
+                ", or an IP address of this machine"
+            } else {
+                ""
+            };
             let why = format!(
-                "Host {host:?} is not this server's ({})",
+                "Host {host:?} is not this server's ({}{ips}, with the port; names given with \
+                 --allow-host)",
                 self.hosts.join(", ")
             );
             return Some(error(StatusCode::FORBIDDEN, why));
@@ -657,7 +685,7 @@ async fn gate(
 
 /// Serves `explorer` at `addr` until the process is interrupted (Ctrl-C ends it, as every
 /// command: nothing of the server's is half-written on disk).
-pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
+pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16), allowed: &[String]) -> Result<()> {
     let engine = Engine::open(explorer.cfg.method.backend)?;
     // A fresh directory of a random name, mode 0700, removed when the server ends (returns or
     // is interrupted). A predictable name (the process id) could be made first by another
@@ -713,9 +741,9 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16)) -> Result<()> {
             .with_context(|| format!("cannot listen on {}:{}", addr.0, addr.1))?;
         let at = listener.local_addr()?;
         // The gate first (refused requests' bodies are not read), then the body within its time.
-        let router = router
-            .layer(axum::middleware::from_fn(whole_body))
-            .layer(axum::middleware::from_fn_with_state(Gate::new(at), gate));
+        let router = router.layer(axum::middleware::from_fn(whole_body)).layer(
+            axum::middleware::from_fn_with_state(Gate::new(at, allowed), gate),
+        );
         if !at.ip().is_loopback() {
             eprintln!(
                 "warning: rattle explore listens on {}: anyone who can reach that address can \

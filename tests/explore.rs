@@ -264,8 +264,10 @@ fn body(reply: &[u8]) -> &[u8] {
 /// The port in the first line a server printed.
 #[cfg(unix)]
 fn port_of(line: &str) -> u16 {
-    line.split("http://127.0.0.1:")
+    line.split("http://")
         .nth(1)
+        .and_then(|r| r.rsplit_once(':'))
+        .map(|(_, r)| r)
         .and_then(|r| r.split('/').next())
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("no address printed: {line:?}"))
@@ -676,4 +678,39 @@ fn unfinished_bodies_do_not_stall_the_server() {
     let (code, text) = answer.expect("no answer within 30 s of 64 unfinished bodies");
     assert_eq!(code, 200, "{text}");
     assert_eq!(timed_out, 64, "every unfinished body is answered 408");
+}
+
+/// Listening on every address, the server answered any Host (round 8 L1: a DNS-rebound name,
+/// `rebind.attacker.example:PORT`, got 200 with the map): only IP literals and `localhost` with
+/// the port, and names given with `--allow-host`, are answered.
+#[cfg(unix)]
+#[test]
+fn listening_everywhere_answers_ip_literals_and_allowed_names_only() {
+    let tmp = common::scratch("explore-rebind");
+    let (mut p, line) = spawn_server(&tmp, &["--host", "0.0.0.0", "--allow-host", "lab-pc.local"]);
+    let port = port_of(&line);
+    let code = |host: &str| ask(port, &format!("GET /api/base HTTP/1.1\r\nHost: {host}"), "").0;
+    let codes = [
+        code(&format!("rebind.attacker.example:{port}")),
+        code(&format!("127.0.0.1:{port}")),
+        code(&format!("[::1]:{port}")),
+        code(&format!("localhost:{port}")),
+        code(&format!("LAB-PC.local:{port}")),
+        code("127.0.0.1:1"),
+        code("lab-pc.local"),
+    ];
+    interrupt(&mut p);
+    assert_eq!(codes, [403, 200, 200, 200, 200, 403, 403]);
+    let out = common::rattle()
+        .args(["explore", "--config"])
+        .arg(tmp.join("map.toml"))
+        .args(["--allow-host", "evil:80"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
