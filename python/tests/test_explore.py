@@ -315,3 +315,29 @@ def test_bad_requests_get_the_command_lines_message_and_the_server_stays_up(serv
     assert rss() < before + 64
     st, _ = get(url + "api/base")
     assert st == 200
+
+
+def test_progress_names_its_phase_and_never_claims_100_percent_early(server, browser):
+    # Round 8 L5 and L6: the full map's progress was labelled "coarse picture: N%" (the coarse
+    # picture's watcher went on polling), and it read 100% while the long look and the
+    # recurrence search still ran. Every status the page shows during a load is recorded.
+    b = browser
+    b.get(server["url"])
+    settled(b)
+    b.execute_script(
+        "window.seen = [];"
+        "new MutationObserver(() => window.seen.push(document.getElementById('status').textContent))"
+        ".observe(document.getElementById('status'), {childList: true, characterData: true, subtree: true});"
+        "history.pushState(null, '', '#x_from=0.51&x_to=0.69&y_from=0.004&y_to=0.096');"
+        "window.dispatchEvent(new PopStateEvent('popstate'));"
+    )
+    t0 = time.time()
+    while not any(s.startswith("done") for s in b.execute_script("return window.seen")):
+        assert time.time() - t0 < 300, b.execute_script("return window.seen")
+        time.sleep(0.2)
+    seen = b.execute_script("return window.seen")
+    full = next(i for i, s in enumerate(seen) if re.match(r"\d+ x \d+ map", s))
+    assert not any(s.startswith("coarse picture:") for s in seen[full:]), seen
+    assert not any("100%" in s for s in seen), seen
+    # The map takes long enough here for the page to have shown its progress at least once.
+    assert any(re.search(r"map: (\d+%|looking)", s) for s in seen), seen

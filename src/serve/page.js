@@ -297,13 +297,18 @@ function showNearest(p) {
   if (t) t.after(div);
 }
 
-// Progress while a computation runs.
-async function watch(label, token) {
-  while (state.loads === token && state.busy) {
+// Progress while a computation runs: of this load's phase only (a phase's watcher stops when
+// the next phase starts). The count covers the configured periods; past it the long look and
+// the recurrence search go on for the cells still undecided, which the bar says, not "100%".
+async function watch(label, token, phase) {
+  const current = () => state.loads === token && state.phase === phase && state.busy;
+  while (current()) {
     try {
       const p = await call("/api/progress");
-      if (p.busy && p.total > 0 && state.loads === token) {
-        status(`${label}: ${Math.min(100, Math.round((100 * p.done) / p.total))}%`);
+      if (p.busy && p.total > 0 && current()) {
+        status(p.done >= p.total
+          ? `${label}: looking further at the cells still undecided (long look, recurrence search)...`
+          : `${label}: ${Math.floor((100 * p.done) / p.total)}%`);
       }
     } catch (e) { /* the next poll tells */ }
     await new Promise((r) => setTimeout(r, 250));
@@ -319,8 +324,10 @@ async function load(view, push) {
   try {
     for (const coarse of [true, false]) {
       const label = coarse ? "coarse picture" : `${state.base.nx} x ${state.base.ny} map`;
+      const phase = (state.phase || 0) + 1;
+      state.phase = phase;
       status(`${label}...`);
-      watch(label, token);
+      watch(label, token, phase);
       const m = await call("/api/map", { view, coarse });
       if (state.loads !== token) return;
       state.map = m;
