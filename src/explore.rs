@@ -138,25 +138,30 @@ impl Explorer {
         Ok(self.request(view, &sets).load(Command::Point)?.cfg)
     }
 
-    /// The command line that computes `view` as `rattle map` does, its files at `out`.
-    pub fn command_line(&self, view: &View, out: &str) -> String {
-        let r = self.request(view, &[]);
-        let mut args = vec!["rattle".to_string(), "map".into()];
-        if let Some(p) = &self.config_path {
-            args.extend(["--config".into(), p.display().to_string()]);
-        }
-        for (flag, value) in crate::request::flag_args(&r.flags) {
-            args.extend([flag.to_string(), value]);
-        }
-        for s in &r.sets {
-            args.extend(["--set".into(), s.clone()]);
-        }
-        args.extend(["--out".into(), out.to_string()]);
-        args.iter()
-            .map(|a| shell_word(a))
-            .collect::<Vec<_>>()
-            .join(" ")
+    /// The shell commands that compute `view` as `rattle map` does, its files at `out`
+    /// ([`command_for`]): they carry the served configuration itself, so that they reproduce
+    /// the view whatever becomes of the file the server was started with.
+    pub fn command_line(&self, view: &View, out: &str) -> crate::Result<String> {
+        Ok(command_for(&self.map_config(view)?, out))
     }
+}
+
+/// Shell commands that write `cfg` as `OUT.toml` (a here-document) and run `rattle map` on it,
+/// its files at `out`: the configuration a map was computed with, carried whole (a command
+/// naming the server's config file computed another map once the file was edited).
+pub fn command_for(cfg: &Config, out: &str) -> String {
+    let toml = toml::to_string(cfg).unwrap_or_default();
+    let mut end = "RATTLE_CONFIG".to_string();
+    while toml.lines().any(|l| l == end) {
+        end.push('_');
+    }
+    let path = format!("{out}.toml");
+    format!(
+        "cat > {p} <<'{end}'\n{toml}{nl}{end}\nrattle map --config {p} --out {o}\n",
+        p = shell_word(&path),
+        o = shell_word(out),
+        nl = if toml.ends_with('\n') { "" } else { "\n" },
+    )
 }
 
 /// `a` as one word of a POSIX shell.

@@ -288,7 +288,8 @@ impl App {
         let view = View::of(&m.cfg);
         let text = |s: String| Ok(("text/plain; charset=utf-8", String::new(), s.into_bytes()));
         match what {
-            "command" => return text(self.explorer.command_line(&view, "view")),
+            // The served map's own configuration, carried whole.
+            "command" => return text(rattle::explore::command_for(&m.cfg, "view")),
             "toml" => {
                 let t = toml::to_string(&m.cfg).map_err(internal)?;
                 return Ok(("application/toml", "view.toml".into(), t.into_bytes()));

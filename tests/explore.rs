@@ -59,21 +59,26 @@ fn the_exported_command_line_computes_that_view() {
         y_from: 0.01,
         y_to: 0.0375,
     };
-    let line = e.command_line(&v, "out dir/view");
-    assert!(line.starts_with("rattle map --config "), "{line}");
-    assert!(line.ends_with("--out 'out dir/view'"), "{line}");
-    // Read back as the shell would, the command's configuration is the view's.
-    let words: Vec<String> = line
-        .split(" --set ")
-        .skip(1)
-        .map(|w| w.split(" --out").next().unwrap().to_string())
-        .collect();
-    let mut r = Request::new(e.base.source.clone(), words);
-    r.flags = e.base.flags;
-    assert!(same(
-        &r.load(Command::Map).unwrap().cfg,
-        &e.map_config(&v).unwrap()
-    ));
+    let line = e.command_line(&v, "out dir/view").unwrap();
+    // The served configuration itself, in a here-document, then the map on it.
+    assert!(
+        line.starts_with("cat > 'out dir/view.toml' <<'RATTLE_CONFIG'\n"),
+        "{line}"
+    );
+    assert!(
+        line.ends_with(
+            "RATTLE_CONFIG\nrattle map --config 'out dir/view.toml' --out 'out dir/view'\n"
+        ),
+        "{line}"
+    );
+    assert!(same(&carried(&line), &e.map_config(&v).unwrap()));
+}
+
+/// The configuration an exported command carries (its here-document), as `rattle map` reads it.
+fn carried(line: &str) -> rattle::config::Config {
+    let body = line.split_once('\n').unwrap().1;
+    let toml = body.split("\nRATTLE_CONFIG\n").next().unwrap();
+    rattle::config::Config::from_toml(toml, &[]).unwrap()
 }
 
 #[test]
@@ -138,15 +143,16 @@ fn a_base_with_ranges_set_takes_the_views_ranges() {
     assert_eq!(View::of(&cfg), v);
     let p = e.point_config(&v, (0.61, 0.015)).unwrap();
     assert_eq!((p.model.restitution, p.model.lambda), (0.61, 0.015));
-    let line = e.command_line(&v, "view");
-    assert_eq!(line.matches("map.x_from=").count(), 1, "{line}");
-    assert!(line.contains("map.x_from=0.6 "), "{line}");
+    let line = e.command_line(&v, "view").unwrap();
+    assert_eq!(line.matches("x_from = ").count(), 1, "{line}");
+    assert_eq!(View::of(&carried(&line)), v, "{line}");
 }
 
 /// The configuration file is read once, at the start (round 7 M4: every request read it
 /// again, so an edit while serving changed the maps, even their axis, and a deleted file failed
 /// every request): after the file is rewritten with another axis and then deleted, a view is
-/// still of the configuration read at the start, and the exported command still names the file.
+/// still of the configuration read at the start, and the exported command carries that
+/// configuration.
 #[test]
 fn the_configuration_is_read_once() {
     let d = common::scratch("explore-once");
@@ -162,11 +168,11 @@ fn the_configuration_is_read_once() {
     let cfg = e.map_config(&v).unwrap();
     assert!(same(&cfg, &e.cfg));
     assert!(e.point_config(&v, (0.6, 0.05)).is_ok());
-    let line = e.command_line(&v, "view");
-    assert!(
-        line.contains(&format!("--config {}", path.display())),
-        "{line}"
-    );
+    // The exported command carries the configuration read at the start (round 8 L4: it named
+    // the file, so after the edit it computed another map).
+    let line = e.command_line(&v, "view").unwrap();
+    assert!(!line.contains(&path.display().to_string()), "{line}");
+    assert!(same(&carried(&line), &e.cfg), "{line}");
 }
 
 /// A small map's server started with TMPDIR `tmp` on any free port: the process and its port.

@@ -82,7 +82,10 @@ fn the_point_figures_and_their_numbers_are_their_commands() {
         "reports: period-1, leading Floquet multiplier modulus 0.812; ",
     );
     assert_eq!(impacts, shown["impacts"].as_f64().unwrap());
-    assert_eq!(after(periodic, "periods shown ("), shown["impacts_pos"].as_f64().unwrap());
+    assert_eq!(
+        after(periodic, "periods shown ("),
+        shown["impacts_pos"].as_f64().unwrap()
+    );
     assert_eq!(
         after(periodic, "at +r, "),
         shown["impacts_neg"].as_f64().unwrap()
