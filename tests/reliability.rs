@@ -783,7 +783,9 @@ fn set_names(json: &std::path::Path) -> Vec<String> {
 }
 
 /// Round 8 H1: a set was written through links planted at its predictable staging names (the
-/// victim got the JSON, the set's files became links to it). Every command that writes a set:
+/// victim got the JSON, the set's files became links to it). Every command that writes a set
+/// (map, boundaries, point --plot, bifurcation, merge, basin, sensitivity, figure paper; accuracy
+/// writes through the same staging):
 /// staged files are created exclusively under names nobody predicts, never opened through a
 /// link, and only regular files are renamed into place.
 #[test]
@@ -841,6 +843,52 @@ fn no_set_is_written_through_a_planted_link() {
         a.extend(["--shard".into(), format!("{i}/2")]);
         a
     };
+    let own = |a: &[&str]| -> Vec<String> { a.iter().map(|s| s.to_string()).collect() };
+    let basin_cfg = config("basin.toml");
+    let basin = own(&[
+        "basin",
+        "--backend",
+        "cpu",
+        "--config",
+        basin_cfg.to_str().unwrap(),
+        "--set",
+        "basin.x_points=4",
+        "--set",
+        "basin.y_points=4",
+        "--set",
+        "run.transient_periods=5",
+        "--set",
+        "run.sample_periods=4",
+        "--out",
+        "bs",
+    ]);
+    let sens = own(&[
+        "sensitivity",
+        "--backend",
+        "cpu",
+        "--config",
+        cfg,
+        "--uncertain",
+        "R=0.60+-0.02",
+        "--samples",
+        "16",
+        "--set",
+        "run.transient_periods=5",
+        "--set",
+        "run.sample_periods=4",
+        "--out",
+        "se",
+    ]);
+    let paper = own(&[
+        "figure",
+        "paper",
+        "--points",
+        "4",
+        "--backend",
+        "cpu",
+        "--out",
+        "paper.png",
+    ]);
     // (what runs first, unplanted; the planted command; its set's JSON)
     type Case<'a> = (Vec<Vec<String>>, Vec<String>, &'a str);
     let cases: Vec<Case> = vec![
@@ -865,6 +913,9 @@ fn no_set_is_written_through_a_planted_link() {
             .to_vec(),
             "m.json",
         ),
+        (vec![], basin, "bs.json"),
+        (vec![], sens, "se.json"),
+        (vec![], paper, "paper.json"),
     ];
     for (before, args, json) in cases {
         let run_in = |d: &std::path::Path, a: &[String]| {
