@@ -526,27 +526,63 @@ pub fn scalar_map_png(path: &Path, map: &ScalarMap) -> Result<(), RenderError> {
         let yr = draw_grid_map(&left, map.title, labels, ranges, dims, &l, (color, &[]))?;
 
         // Colour bar whose plotting area spans the same rows as the map.
-        let mut bar = ChartBuilder::on(&right)
-            .margin_top(yr.start.max(0) as u32)
-            .margin_bottom((map.height as i32 - yr.end).max(0) as u32)
-            .margin_left(l.margin / 2)
-            .margin_right(l.margin)
-            .right_y_label_area_size(labels_w)
-            .build_cartesian_2d(0.0..1.0, vmin..vmax)
-            .map_err(draw_err)?;
-        paint(&bar, |_, r, _, h| {
-            Some(cmap(vmax - (r as f64 + 0.5) / h as f64 * (vmax - vmin)))
-        })?;
-        bar.configure_mesh()
-            .disable_mesh()
-            .disable_x_axis()
-            .y_desc(map.colorbar_label)
-            .label_style((FONT, l.tick))
-            .axis_desc_style((FONT, l.label))
-            .y_label_formatter(&|v| fmt_tick(*v, vmax - vmin))
-            .draw()
-            .map_err(draw_err)
+        color_bar(
+            &right,
+            ColorBar {
+                margins: [
+                    yr.start.max(0) as u32,
+                    (map.height as i32 - yr.end).max(0) as u32,
+                    l.margin / 2,
+                    l.margin,
+                ],
+                labels_w,
+                range: (vmin, vmax),
+                label: (map.colorbar_label, l.label),
+                tick_px: l.tick,
+            },
+            &cmap,
+        )
     })
+}
+
+/// Where and how a colour bar is drawn: margins (top, bottom, left, right), the width of its
+/// tick labels and label, the values it spans, its label with its font size, the ticks' size.
+pub(super) struct ColorBar<'a> {
+    pub margins: [u32; 4],
+    pub labels_w: u32,
+    pub range: (f64, f64),
+    pub label: (&'a str, f64),
+    pub tick_px: f64,
+}
+
+/// A vertical colour bar of `cmap` on `area` (a scalar map's, a volume's panels').
+pub(super) fn color_bar(
+    area: &super::Area<'_>,
+    b: ColorBar,
+    cmap: &dyn Fn(f64) -> RGBColor,
+) -> Result<(), RenderError> {
+    let (vmin, vmax) = b.range;
+    let [top, bottom, left, right] = b.margins;
+    let mut bar = ChartBuilder::on(area)
+        .margin_top(top)
+        .margin_bottom(bottom)
+        .margin_left(left)
+        .margin_right(right)
+        .right_y_label_area_size(b.labels_w)
+        .build_cartesian_2d(0.0..1.0, vmin..vmax)
+        .map_err(draw_err)?;
+    paint(&bar, |_, r, _, h| {
+        Some(cmap(vmax - (r as f64 + 0.5) / h as f64 * (vmax - vmin)))
+    })?;
+    bar.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_desc(b.label.0)
+        .label_style((FONT, b.tick_px))
+        .axis_desc_style((FONT, b.label.1))
+        .y_label_formatter(&|v| fmt_tick(*v, vmax - vmin))
+        .draw()
+        .map_err(draw_err)
 }
 
 #[cfg(test)]

@@ -7,7 +7,9 @@ use std::path::Path;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::maps::{CategoryMap, Curve, Legend, MISSING_GREY, Marker, color_scale, mark, rgb};
+use super::maps::{
+    CategoryMap, ColorBar, Curve, Legend, MISSING_GREY, Marker, color_bar, color_scale, mark, rgb,
+};
 use super::{
     Area, FONT, RenderError, check_grid, check_range, draw_err, ensure_font, fmt_tick, invalid,
     paint, render_png,
@@ -529,25 +531,22 @@ pub fn scalar_panels_png(path: &Path, p: &ScalarPanels) -> Result<(), RenderErro
             LABEL_PX,
             (g.grid_y.1 - g.grid_y.0) * 9 / 10,
         )?;
-        let mut bar = ChartBuilder::on(&right)
-            .margin_top(g.grid_y.0 as u32)
-            .margin_bottom((g.height as i32 - g.grid_y.1).max(0) as u32)
-            .margin_right(MARGIN as u32)
-            .right_y_label_area_size(labels_w)
-            .build_cartesian_2d(0.0..1.0, vmin..vmax)
-            .map_err(draw_err)?;
-        paint(&bar, |_, r, _, h| {
-            Some(cmap(vmax - (r as f64 + 0.5) / h as f64 * (vmax - vmin)))
-        })?;
-        bar.configure_mesh()
-            .disable_mesh()
-            .disable_x_axis()
-            .y_desc(desc)
-            .label_style((FONT, TICK_PX))
-            .axis_desc_style((FONT, desc_px))
-            .y_label_formatter(&|v| fmt_tick(*v, vmax - vmin))
-            .draw()
-            .map_err(draw_err)
+        color_bar(
+            &right,
+            ColorBar {
+                margins: [
+                    g.grid_y.0 as u32,
+                    (g.height as i32 - g.grid_y.1).max(0) as u32,
+                    0,
+                    MARGIN as u32,
+                ],
+                labels_w,
+                range: (vmin, vmax),
+                label: (&desc, desc_px),
+                tick_px: TICK_PX,
+            },
+            &cmap,
+        )
     })
 }
 
