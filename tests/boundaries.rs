@@ -220,6 +220,7 @@ fn a_newton_failure_from_afar_is_not_the_cycles_end() {
             from,
             cycle: &cycle,
             to,
+            bisections: rattle::stability::BISECTIONS,
         }],
     );
     assert!(matches!(found[0], Found::StableThere), "{:?}", found[0]);
@@ -271,6 +272,7 @@ fn end_along_r(
             from,
             cycle: &cycle,
             to,
+            bisections: rattle::stability::BISECTIONS,
         }],
     );
     let Found::Located(b) = &found[0] else {

@@ -79,6 +79,27 @@ fn class_palette_is_distinct() {
     assert_eq!(next, 65);
 }
 
+/// The drawn boundary types' colours stand apart from every colour of the class map beneath
+/// them and from each other.
+#[test]
+fn boundary_types_stand_apart_from_the_classes() {
+    use rattle::map::boundaries::Type;
+    let drawn: Vec<Type> = Type::ALL
+        .into_iter()
+        .filter(|t| !matches!(t, Type::Coexistence | Type::Undetermined))
+        .collect();
+    for (i, t) in drawn.iter().enumerate() {
+        for s in Shown::all() {
+            let d = delta_e(t.rgb(), color(s));
+            assert!(d >= 40.0, "{t:?} and {s:?}: delta-E {d:.1} < 40");
+        }
+        for u in &drawn[i + 1..] {
+            let d = delta_e(t.rgb(), u.rgb());
+            assert!(d >= 50.0, "{t:?} and {u:?}: delta-E {d:.1} < 50");
+        }
+    }
+}
+
 #[test]
 fn attractor_palette_is_distinct() {
     // Attractor colours of a basin map, the failed cells' magenta and the "other" grey.

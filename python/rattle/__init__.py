@@ -258,8 +258,9 @@ class Map:
 
     def boundaries(self) -> dict:
         """The typed boundaries between the classes (`rattle map --boundaries`, docs/maps.md):
-        `points` as arrays (`x`, `y`, `type`, `class_a`, `class_b`, `uncertainty`, `located`,
-        `period`, `reason`: why an `undetermined` point is not typed; a volume's with `z`),
+        `points` as arrays (`x`, `y`, `type`, `class_a`, `class_b`, `before`, `after`: the class
+        just before and just after the change, `uncertainty`, `located`, `period`, `reason`: why
+        an `undetermined` point is not typed; a volume's with `z`),
         `curves` as a list of dicts with `type`, `classes` (a volume's with `z`) and `points` (an array of
         shape (k, 2) in parameter values), and the counts (`edges`, `trials`,
         `continuations`, `claims`, `continuation_s`, `coexistence_s`, `seconds`)."""
@@ -271,6 +272,8 @@ class Map:
             "type": np.asarray([p["type"] for p in pts], dtype=str),
             "class_a": np.asarray([p["classes"][0] for p in pts], dtype=str),
             "class_b": np.asarray([p["classes"][1] for p in pts], dtype=str),
+            "before": np.asarray([p["change"][0] for p in pts], dtype=str),
+            "after": np.asarray([p["change"][1] for p in pts], dtype=str),
             "uncertainty": np.asarray([p["uncertainty"] for p in pts], dtype=float),
             "located": np.asarray([p["located"] for p in pts], dtype=bool),
             "period": np.asarray([p["period"] for p in pts], dtype=int),

@@ -19,7 +19,9 @@ use crate::cycles::{Cycle, Refine};
 use crate::engine::Decider;
 use crate::method::{Integrator, PointState};
 use crate::model::{Mode, Params};
-use crate::stability::{BifurcationPoint, Change, Found, Grazed, Kind, locate_changes};
+use crate::stability::{
+    BifurcationPoint, Change, Found, Grazed, Kind, SWITCH_AT, branch_switch, locate_changes,
+};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 
@@ -94,9 +96,8 @@ impl Type {
         }
     }
 
-    /// The curve's second mark: the types whose hue is close to another's or to a class's
-    /// beneath (grazing's brown to fold's yellow and period 2's orange, stick loss's green to
-    /// quasi-periodic's, stick onset's purple to the long periods') carry one.
+    /// The curve's second mark, so that a type is told without its hue (colour-vision
+    /// deficiencies): drawn once a curve.
     pub fn marker(self) -> crate::render::Marker {
         use crate::render::Marker;
         match self {
@@ -107,15 +108,17 @@ impl Type {
         }
     }
 
-    /// The curve's colour over the class map.
+    /// The curve's colour over the class map: saturated hues that no class swatch has (CIE76
+    /// delta-E >= 40 from every class and period colour, >= 50 between the drawn types;
+    /// `tests/figures.rs`).
     pub fn rgb(self) -> [u8; 3] {
         match self {
-            Type::PeriodDoubling => [230, 25, 75],
-            Type::Fold => [255, 225, 25],
-            Type::NeimarkSacker => [0, 200, 255],
-            Type::Grazing => [170, 110, 40],
-            Type::StickOnset => [145, 30, 180],
-            Type::StickLoss => [60, 180, 75],
+            Type::PeriodDoubling => [255, 0, 0],
+            Type::Fold => [0, 255, 0],
+            Type::NeimarkSacker => [0, 0, 255],
+            Type::Grazing => [255, 0, 150],
+            Type::StickOnset => [165, 105, 255],
+            Type::StickLoss => [0, 255, 165],
             Type::Coexistence => [255, 255, 255],
             Type::Undetermined => [150, 150, 150],
         }
@@ -131,6 +134,10 @@ pub struct Point {
     pub ty: Type,
     /// The class names of `a` and `b`.
     pub classes: [String; 2],
+    /// The class just before the change (the cycle that changes, from the side it was
+    /// continued from) and just after it (the branch that follows, the other cell's class, or
+    /// `unresolved`); the cells' classes where nothing was located.
+    pub change: [String; 2],
     /// Half the width of the interval that holds the change along the edge (half the edge
     /// where it is not located: coexistence, undetermined).
     pub uncertainty: f64,
@@ -148,6 +155,9 @@ pub struct Point {
     /// Why an `undetermined` point is not typed (empty otherwise).
     #[serde(skip_serializing_if = "str::is_empty")]
     pub reason: &'static str,
+    /// The index of the point's edge among the map's edges between classes.
+    #[serde(skip)]
+    pub edge: usize,
 }
 
 /// A polyline through the points of one type on neighbouring edges (edges of one grid square)
@@ -347,9 +357,35 @@ struct Grid<'a> {
 /// An edge between cells `a < b` whose classes differ, and whether it runs along x.
 type Edge = (usize, usize, bool);
 
-/// What the continuations along one edge found: (what, the cycle's period, the cell it was
-/// continued from).
-type EdgeFound = Vec<(Found, u32, usize)>;
+/// What one continuation along an edge found.
+#[derive(Clone, Debug)]
+struct Link {
+    found: Found,
+    /// The period of the cycle continued.
+    period: u32,
+    /// The cell it was continued from.
+    from: usize,
+    /// Branch switches before it: 0 for the cell's own cycle, k for the cycle that follows
+    /// the k-th located change from that cell.
+    step: u32,
+}
+
+/// What the continuations along one edge found, from both sides.
+type EdgeFound = Vec<Link>;
+
+/// The bracket of a multiplier's crossing on a map's edge shrinks to 2^-12 of the edge
+/// (1/4096 of a cell, well within the 1/64 of a cell a point claims, at 8 fewer Newton solves
+/// than a sweep's 2^-20); an end without a crossing is still bracketed to 2^-20, where its
+/// approach types it.
+const EDGE_BISECTIONS: u32 = 12;
+
+/// A continuation to run: (edge, from cell, the value continued from, the cycle, switches
+/// before it, the value of the change it follows).
+type Pending = (usize, usize, f64, Cycle, u32, Option<f64>);
+
+/// Branch switches followed along one edge from one side at most (a cascade of doublings
+/// to 32 times the cell's period).
+const MAX_SWITCHES: u32 = 5;
 
 /// Whether each side's cycle coexists across its edge: keyed by (a, b, the cycle's cell).
 type Verdicts = HashMap<(usize, usize, usize), Result<(), &'static str>>;
@@ -452,7 +488,13 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
         .iter()
         .zip(&per_edge)
         .enumerate()
-        .map(|(k, (&e, f))| edge_point(&grid, cells, e, f, &coexists, free.get(&k)))
+        .flat_map(|(k, (&e, f))| {
+            let mut ps = edge_points(&grid, cells, e, f, &coexists, free.get(&k));
+            for p in &mut ps {
+                p.edge = k;
+            }
+            ps
+        })
         .collect();
     let curves = curves(&points, &edges, grid.nx);
     Boundaries {
@@ -510,8 +552,10 @@ fn side_cycles(
 }
 
 /// A continuation from each side with a stable cycle towards the other side, unless the map's
-/// carry already found that cycle stable at the other side's parameters: what each edge's
-/// continuations found, and how many ran.
+/// carry already found that cycle stable at the other side's parameters; where it locates a
+/// period doubling, the branch that follows ([`crate::stability::branch_switch`]) is continued
+/// on towards the other side, in rounds, so that each change along the edge is located in
+/// order. What each edge's continuations found, and how many ran.
 fn continuations(
     grid: &Grid,
     settings: &crate::method::Settings,
@@ -519,9 +563,11 @@ fn continuations(
     edges: &[Edge],
     cycles: &HashMap<usize, Cycle>,
 ) -> (Vec<EdgeFound>, usize) {
+    use rayon::prelude::*;
     let m = &grid.cfg.map;
-    let mut changes = Vec::new();
-    let mut owner = Vec::new();
+    // (edge, from cell, the value continued from, the cycle, switches before it, the value of
+    // the change it follows).
+    let mut pending: Vec<Pending> = Vec::new();
     for (k, &(a, b, along_x)) in edges.iter().enumerate() {
         for (from, to) in [(a, b), (b, a)] {
             let Some(cycle) = cycles.get(&from) else {
@@ -530,22 +576,70 @@ fn continuations(
             if cells.coexist[to] == cells.class[from] {
                 continue;
             }
-            changes.push(Change {
-                base: grid.params(from),
-                param: if along_x { m.x } else { m.y },
-                from: grid.along(from, along_x),
-                cycle,
-                to: grid.along(to, along_x),
-            });
-            owner.push((k, from));
+            pending.push((k, from, grid.along(from, along_x), cycle.clone(), 0, None));
         }
     }
-    let found = locate_changes(settings, &changes);
     let mut per_edge: Vec<EdgeFound> = vec![Vec::new(); edges.len()];
-    for ((&(k, from), f), c) in owner.iter().zip(found).zip(&changes) {
-        per_edge[k].push((f, c.cycle.period, from));
+    let mut ran = 0;
+    while !pending.is_empty() {
+        let to = |k: usize, from: usize| {
+            let (a, b, along_x) = edges[k];
+            grid.along(if from == a { b } else { a }, along_x)
+        };
+        let param = |k: usize| if edges[k].2 { m.x } else { m.y };
+        let changes: Vec<Change> = pending
+            .iter()
+            .map(|(k, from, v, cycle, _, _)| {
+                let mut base = grid.params(*from);
+                param(*k).set(&mut base, *v);
+                Change {
+                    base,
+                    param: param(*k),
+                    from: *v,
+                    cycle,
+                    to: to(*k, *from),
+                    bisections: EDGE_BISECTIONS,
+                }
+            })
+            .collect();
+        let found = locate_changes(settings, &changes);
+        ran += changes.len();
+        let next: Vec<Pending> = pending
+            .par_iter()
+            .zip(&found)
+            .zip(&changes)
+            .filter_map(|((&(k, from, _, ref cycle, step, prev), f), c)| {
+                let Found::Located(p) = f else {
+                    return None;
+                };
+                if p.kind != Kind::PeriodDoubling || step >= MAX_SWITCHES {
+                    return None;
+                }
+                let edge = c.to - c.from;
+                let dir = edge.signum();
+                // In a cascade the next doubling comes about 4.7 times closer than the last
+                // spacing (Feigenbaum's ratio): the switch starts at a tenth of it.
+                let room = prev.map_or(f64::INFINITY, |v: f64| 0.1 * (p.value - v).abs());
+                let at =
+                    p.value + dir * (SWITCH_AT * edge.abs()).min(room).max(4.0 * p.uncertainty);
+                if (c.to - at) * dir <= 0.0 {
+                    return None;
+                }
+                let daughter = branch_switch(&c.base, c.param, settings, p, cycle.mode, at)?;
+                Some((k, from, at, daughter, step + 1, Some(p.value)))
+            })
+            .collect();
+        for ((k, from, _, cycle, step, _), f) in pending.into_iter().zip(found) {
+            per_edge[k].push(Link {
+                found: f,
+                period: cycle.period,
+                from,
+                step,
+            });
+        }
+        pending = next;
     }
-    (per_edge, changes.len())
+    (per_edge, ran)
 }
 
 /// Where a `no_impact` cell neighbours one that impacts, and nothing else was located on the
@@ -571,7 +665,7 @@ fn impact_free_grazings(
         .filter(|(k, _)| {
             !per_edge[*k]
                 .iter()
-                .any(|f| matches!(f.0, Found::Located(_)))
+                .any(|l| matches!(l.found, Found::Located(_)))
         })
         .filter_map(|(k, &(a, b, along_x))| {
             match (cells.class[a] == free, cells.class[b] == free) {
@@ -599,7 +693,12 @@ fn impact_free_grazings(
     let mut both_sides = HashMap::new();
     for (k, good, bad, g) in found {
         match g {
-            Grazed::At(p) => per_edge[k].push((Found::Located(p), 1, good)),
+            Grazed::At(p) => per_edge[k].push(Link {
+                found: Found::Located(p),
+                period: 1,
+                from: good,
+                step: 0,
+            }),
             Grazed::FreeThere => {
                 both_sides.insert(k, bad);
             }
@@ -655,7 +754,7 @@ fn coexistences(
             };
             let continued = found
                 .iter()
-                .any(|(f, _, c)| *c == from && matches!(f, Found::StableThere));
+                .any(|l| l.from == from && l.step == 0 && matches!(l.found, Found::StableThere));
             if cells.coexist[to] == cells.class[from] || continued {
                 claims.push((a, b, from, to, cycle));
             }
@@ -690,61 +789,59 @@ fn type_of(p: &BifurcationPoint) -> (Type, &'static str) {
     }
 }
 
-/// The change an edge holds: a multiplier's crossing first, then a named end, then an unnamed
-/// one; between the two sides' changes of one rank, the one continued from the side of the
-/// smaller parameter value (the same point whichever way the axes run). Its uncertainty covers
-/// the other side's change of that rank, where both located one (the two continuations differ
-/// by the method's error, more than the bisection's). (point, period, cell, uncertainty).
-fn chosen<'f>(
-    grid: &Grid,
-    along_x: bool,
-    found: &'f EdgeFound,
-) -> Option<(&'f BifurcationPoint, u32, usize, f64)> {
-    let rank = |k: Kind| match k {
-        Kind::PeriodDoubling | Kind::Fold | Kind::NeimarkSacker => 0,
-        Kind::NonSmooth => 2,
-        _ => 1,
-    };
-    let candidates: Vec<(&BifurcationPoint, u32, usize)> = found
-        .iter()
-        .filter_map(|(f, n, from)| match f {
-            Found::Located(p) => Some((p, *n, *from)),
-            _ => None,
-        })
-        .collect();
-    let key = |x: &(&BifurcationPoint, u32, usize)| (rank(x.0.kind), grid.along(x.2, along_x));
-    let &(p, n, from) = candidates.iter().min_by(|x, y| {
-        key(x)
-            .partial_cmp(&key(y))
-            .unwrap_or(std::cmp::Ordering::Equal)
-    })?;
-    let other = candidates
-        .iter()
-        .find(|o| o.2 != from && rank(o.0.kind) == rank(p.kind));
-    let uncertainty = other.map_or(p.uncertainty, |o| {
-        p.uncertainty
-            .max((o.0.value - p.value).abs() + o.0.uncertainty)
-    });
-    Some((p, n, from, uncertainty))
+/// Located changes of two continuations closer than this fraction of their edge are one
+/// change seen from both sides (the continuations differ by the method's error).
+const SAME_CHANGE: f64 = 1.0 / 64.0;
+
+/// The class name of the motion after a change where the evidence does not name it.
+const UNRESOLVED: &str = "unresolved";
+
+/// The located changes of one side's continuations in order from that side: (the point, the
+/// period of the cycle that changes, what follows the last one: the period of the branch that
+/// was continued beyond it (`Some(n)`, possibly reaching the other cell) or nothing found).
+fn chain(links: &EdgeFound, from: usize) -> (Vec<(&BifurcationPoint, u32)>, Option<u32>) {
+    let mut mine: Vec<&Link> = links.iter().filter(|l| l.from == from).collect();
+    mine.sort_by_key(|l| l.step);
+    let mut out = Vec::new();
+    let mut beyond = None;
+    for l in mine {
+        match &l.found {
+            Found::Located(p) => out.push((p, l.period)),
+            Found::StableThere => {
+                // The branch that followed the last change reaches the other cell.
+                beyond = Some(l.period);
+                break;
+            }
+            Found::Nothing => break,
+        }
+    }
+    (out, beyond)
 }
 
-/// The point of one edge from what its continuations found and the coexistence verdicts.
-fn edge_point(
+/// The points of one edge: each located change in order from the side of the smaller
+/// parameter value (the same points whichever way the axes run), then the other side's
+/// changes that are not the same change seen from there; each with the class just before it
+/// (the cycle that changes) and just after it (the branch continued beyond it, the other
+/// cell's class where nothing else lies between, else `unresolved`). Without a located change,
+/// one point at the edge's midpoint: a coexistence or `undetermined` with its reason.
+fn edge_points(
     grid: &Grid,
     cells: &Cells,
     (a, b, along_x): Edge,
     found: &EdgeFound,
     coexists: &Verdicts,
     impact_free: Option<&&'static str>,
-) -> Point {
+) -> Vec<Point> {
     let (mx, my) = grid.midpoint(a, b);
     let half = 0.5 * (grid.along(b, along_x) - grid.along(a, along_x)).abs();
     let name = |c: usize| Class::from_code(cells.class[c]).name().to_string();
+    let period_name = |n: u32| Class::Periodic(n).name();
     let unlocated = |ty: Type, reason: &'static str| Point {
         x: mx,
         y: my,
         ty,
         classes: [name(a), name(b)],
+        change: [name(a), name(b)],
         uncertainty: half,
         located: false,
         period: 0,
@@ -752,28 +849,120 @@ fn edge_point(
         from: None,
         section: None,
         reason,
+        edge: 0,
     };
-    if let Some((p, n, c, uncertainty)) = chosen(grid, along_x, found) {
-        let (ty, reason) = type_of(p);
-        let (x, y) = if along_x {
-            (p.value, my)
+    let mut sides = [a, b];
+    sides.sort_by(|p, q| grid.along(*p, along_x).total_cmp(&grid.along(*q, along_x)));
+    let (first, second) = {
+        let (lo, hi) = (chain(found, sides[0]), chain(found, sides[1]));
+        if lo.0.is_empty() {
+            ((sides[1], hi), (sides[0], lo))
         } else {
-            (mx, p.value)
+            ((sides[0], lo), (sides[1], hi))
+        }
+    };
+    if !first.1.0.is_empty() {
+        let (near, (ref steps, beyond)) = first;
+        let (far, (ref others, _)) = second;
+        let toward = |v: f64| (v - grid.along(near, along_x)).abs();
+        let tol = SAME_CHANGE * 2.0 * half;
+        // The other side's changes that are not one of this side's seen from there.
+        let apart: Vec<&(&BifurcationPoint, u32)> = others
+            .iter()
+            .filter(|(q, _)| steps.iter().all(|(p, _)| (p.value - q.value).abs() > tol))
+            .collect();
+        // What follows this side's last change: the other cell's class unless one of the other
+        // side's own changes lies beyond it (a gap between the two cycles' ends: unresolved).
+        let last_v = steps.last().map_or(0.0, |s| toward(s.0.value));
+        let gap = apart.iter().any(|(q, _)| toward(q.value) > last_v);
+        let mut out = Vec::new();
+        let mut emit = |p: &BifurcationPoint,
+                        n: u32,
+                        from: usize,
+                        after: String,
+                        others: &[(&BifurcationPoint, u32)]| {
+            let (ty, reason) = type_of(p);
+            // The same change seen from the other side widens the interval to cover it.
+            let uncertainty = others
+                .iter()
+                .filter(|(q, _)| (q.value - p.value).abs() <= tol && rank(q.kind) == rank(p.kind))
+                .fold(p.uncertainty, |u, (q, _)| {
+                    u.max((q.value - p.value).abs() + q.uncertainty)
+                });
+            let (x, y) = if along_x {
+                (p.value, my)
+            } else {
+                (mx, p.value)
+            };
+            out.push(Point {
+                x,
+                y,
+                ty,
+                classes: [name(a), name(b)],
+                change: [period_name(n), after],
+                uncertainty,
+                located: true,
+                period: n,
+                cells: [a, b],
+                from: Some(from),
+                section: Some(p.section),
+                reason,
+                edge: 0,
+            });
         };
-        return Point {
-            x,
-            y,
-            ty,
-            classes: [name(a), name(b)],
-            uncertainty,
-            located: true,
-            period: n,
-            cells: [a, b],
-            from: Some(c),
-            section: Some(p.section),
-            reason,
-        };
+        for (i, &(p, n)) in steps.iter().enumerate() {
+            let after = match (steps.get(i + 1), beyond) {
+                (Some(next), _) => period_name(next.1),
+                (None, Some(m)) => period_name(m),
+                (None, None) if p.kind == Kind::PeriodDoubling => UNRESOLVED.to_string(),
+                (None, None) if gap => UNRESOLVED.to_string(),
+                (None, None) => name(far),
+            };
+            emit(p, n, near, after, others);
+        }
+        for &&(q, n) in &apart {
+            // Between the far cell and this change the far side's cycle is stable; just
+            // beyond it (towards the near side) the near side's cycle where it still exists
+            // there (the two overlap), else unresolved.
+            let after = if toward(q.value) < toward(steps[0].0.value) {
+                name(near)
+            } else {
+                UNRESOLVED.to_string()
+            };
+            emit(q, n, far, after, &[]);
+        }
+        return out;
     }
+    vec![edge_unlocated(
+        grid,
+        cells,
+        (a, b, along_x),
+        found,
+        coexists,
+        impact_free,
+        unlocated,
+    )]
+}
+
+/// The rank of a located change's kind: a multiplier's crossing, a named end, an unnamed one.
+fn rank(k: Kind) -> u8 {
+    match k {
+        Kind::PeriodDoubling | Kind::Fold | Kind::NeimarkSacker => 0,
+        Kind::NonSmooth => 2,
+        _ => 1,
+    }
+}
+
+/// The one point of an edge where nothing was located.
+fn edge_unlocated(
+    grid: &Grid,
+    cells: &Cells,
+    (a, b, along_x): Edge,
+    found: &EdgeFound,
+    coexists: &Verdicts,
+    impact_free: Option<&&'static str>,
+    unlocated: impl Fn(Type, &'static str) -> Point,
+) -> Point {
     if cells.inferred[a] != 0 || cells.inferred[b] != 0 {
         return unlocated(Type::Undetermined, INFERRED);
     }
@@ -781,7 +970,7 @@ fn edge_point(
         || (cells.class[b] > 0 && cells.coexist[a] == cells.class[b]);
     let stable_there = found
         .iter()
-        .any(|(f, _, _)| matches!(f, Found::StableThere));
+        .any(|l| l.step == 0 && matches!(l.found, Found::StableThere));
     if !(carried || stable_there) {
         // Impact-free motion on both sides: a crisis of the other side's attractor.
         return unlocated(Type::Undetermined, impact_free.map_or(NO_CYCLE, |why| why));
@@ -858,7 +1047,7 @@ fn persists(
 
 /// The class of the cycle whose change `p` located (`None` where nothing was located).
 fn changing(p: &Point) -> Option<&String> {
-    p.from.map(|f| &p.classes[usize::from(f == p.cells[1])])
+    p.located.then_some(&p.change[0])
 }
 
 /// Joins the points into polylines: two points are neighbours where their edges belong to
@@ -900,8 +1089,8 @@ fn curves(points: &[Point], edges: &[(usize, usize, bool)], nx: usize) -> Vec<Cu
     };
     // Ordered, so that the curves are the same from run to run.
     let mut by_square: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
-    for (i, e) in edges.iter().enumerate() {
-        for s in squares(e) {
+    for (i, p) in points.iter().enumerate() {
+        for s in squares(&edges[p.edge]) {
             by_square.entry(s).or_default().push(i);
         }
     }

@@ -1020,11 +1020,20 @@ fn stage_boundaries(
             (label, t.rgb(), t.marker())
         })
         .collect();
+    // Located undetermined ends (a cycle's end whose kind is not told) and edges where nothing
+    // was located are different findings: counted apart.
+    let undetermined = |located: bool| {
+        points()
+            .filter(|p| p.ty == Type::Undetermined && p.located == located)
+            .count()
+    };
     let note = format!(
-        "{} edges between classes:\ncoexistence {}, undetermined {}",
+        "{} edges between classes:\ncoexistence {}, undetermined: {} ends located,\n{} edges \
+         not located",
         grouped(slices.iter().map(|b| b.edges).sum()),
         grouped(count(Type::Coexistence)),
-        grouped(count(Type::Undetermined))
+        grouped(undetermined(true)),
+        grouped(undetermined(false))
     );
     let ordered = |a: f64, b: f64| (a.min(b), a.max(b));
     let (nx, ny) = (m.x_points as usize, m.y_points as usize);
@@ -1080,7 +1089,7 @@ fn stage_boundaries(
     // A volume's points carry their slice's z first.
     let zs = cfg.z_axis().map(|z| (z.param, z.values()));
     let mut csv = format!(
-        "{}{},{},type,class_a,class_b,uncertainty,located,period,reason\n",
+        "{}{},{},type,class_a,class_b,before,after,uncertainty,located,period,reason\n",
         zs.as_ref()
             .map_or(String::new(), |(p, _)| format!("{},", p.name())),
         m.x.name(),
@@ -1092,12 +1101,14 @@ fn stage_boundaries(
             .map_or(String::new(), |(_, v)| format!("{},", v[k]));
         for p in &b.points {
             csv.push_str(&format!(
-                "{z}{},{},{},{},{},{},{},{},\"{}\"\n",
+                "{z}{},{},{},{},{},{},{},{},{},{},\"{}\"\n",
                 p.x,
                 p.y,
                 p.ty.name(),
                 p.classes[0],
                 p.classes[1],
+                p.change[0],
+                p.change[1],
                 p.uncertainty,
                 p.located,
                 p.period,
@@ -1166,9 +1177,13 @@ fn caption_of_boundaries(cfg: &Config, edges: usize, located: usize) -> String {
          cells of different classes, typed. Where a side landed on a stable cycle, Newton's \
          method continues that cycle from its own cell towards the other cell's parameters \
          (a step that fails is shortened, never taken for the cycle's end) and locates where \
-         it stops being stable to 2^-20 of the edge ({located} points located). A crossing \
-         seen (the cycle beyond converged, a multiplier outside the circle) is a period \
-         doubling (through -1), a fold (+1) or a Neimark-Sacker point (a complex pair); a \
+         it stops being stable, a crossing to 2^-12 of the edge, an end to 2^-20 ({located} \
+         points located). A crossing seen (the cycle beyond converged, a multiplier outside \
+         the circle) is a period doubling (through -1), a fold (+1) or a Neimark-Sacker point \
+         (a complex pair); beyond a period doubling the branch that follows (the doubled \
+         cycle, from the critical eigenvector; or the half a doubled cycle merged into) is \
+         continued on, so that an edge holds each change in order, each point with the \
+         class just before and just after it (unresolved where nothing names it); a \
          cycle that ends without one is a fold where 1 - mu shrinks like the square root of \
          the distance, a grazing where an impact's speed or a free flight's clearance to a \
          stop (where the relative velocity passes zero) vanishes, a stick onset or loss where a slip's speed or a stick phase vanishes, \

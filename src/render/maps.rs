@@ -100,29 +100,31 @@ fn draw_grid_map(
     draw_axes(&mut chart, l, labels, (&fx, &fy), false)?;
     for (pts, c, marker) in curves {
         let style = rgb(*c).stroke_width(2);
-        if *marker != Marker::None {
+        // The marker once a curve, at its middle point: markers at every point of many short
+        // curves pile into blobs.
+        if *marker != Marker::None && !pts.is_empty() {
             let area = chart.plotting_area();
-            for p in pts.iter() {
-                let at = area.map_coordinate(&(p[0], p[1]));
-                let shift = area.get_base_pixel();
-                mark(
-                    &area.strip_coord_spec(),
-                    *marker,
-                    (at.0 - shift.0, at.1 - shift.1),
-                    3,
-                    rgb(*c),
-                )?;
-            }
+            let p = pts[pts.len() / 2];
+            let at = area.map_coordinate(&(p[0], p[1]));
+            let shift = area.get_base_pixel();
+            mark(
+                &area.strip_coord_spec(),
+                *marker,
+                (at.0 - shift.0, at.1 - shift.1),
+                3,
+                rgb(*c),
+            )?;
             if pts.len() == 1 {
                 continue;
             }
         }
         if pts.len() == 1 {
+            // A curve of one point: a speck, not a ring.
             chart
                 .draw_series(std::iter::once(Circle::new(
                     (pts[0][0], pts[0][1]),
                     2,
-                    style,
+                    rgb(*c).filled(),
                 )))
                 .map_err(draw_err)?;
         } else {

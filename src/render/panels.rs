@@ -335,12 +335,14 @@ fn draw_curves(
             let px: Vec<_> = run.iter().map(|&p| to_pixel(p, at, s, a)).collect();
             root.draw(&PathElement::new(px, style)).map_err(draw_err)?;
         }
-        for &p in pts.iter().filter(|&&p| inside(p, a)) {
+        // The marker once a curve, at its middle point; a curve of one point is a speck.
+        if let Some(&p) = pts.get(pts.len() / 2).filter(|&&p| inside(p, a)) {
             let px = to_pixel(p, at, s, a);
             if *marker != Marker::None {
                 mark(root, *marker, px, 3, col)?;
             } else if pts.len() == 1 {
-                root.draw(&Circle::new(px, 2, style)).map_err(draw_err)?;
+                root.draw(&Circle::new(px, 2, col.filled()))
+                    .map_err(draw_err)?;
             }
         }
     }

@@ -61,7 +61,7 @@ pub struct BifurcationPoint {
 
 /// Bisection steps locating a stability change: the interval (a sweep spacing, 5e-4 in the
 /// paper's figures) shrinks 2^-20 times, to below the method's own error of the located value.
-const BISECTIONS: u32 = 20;
+pub const BISECTIONS: u32 = 20;
 /// A leading multiplier this close to the unit circle names the kind of the loss; farther
 /// inside, the branch ended without a multiplier crossing (non-smooth).
 const CRITICAL: f64 = 0.05;
@@ -132,6 +132,7 @@ pub fn bifurcation_points(
                 from: from.value,
                 cycle: stable(from).expect("a pair's first side is stable"),
                 to: to.value,
+                bisections: BISECTIONS,
             }
         })
         .collect();
@@ -165,6 +166,9 @@ pub struct Change<'a> {
     pub from: f64,
     pub cycle: &'a Cycle,
     pub to: f64,
+    /// The bracket's final width is 2^-bisections of the interval ([`BISECTIONS`] for a
+    /// sweep's landmarks; a map's edges need less).
+    pub bisections: u32,
 }
 
 /// What the continuation of a [`Change`] found.
@@ -194,7 +198,7 @@ pub fn locate_changes(settings: &Settings, changes: &[Change]) -> Vec<Found> {
                 impact_free: None,
                 impacts: true,
             };
-            Locate::new(&c.base, c.param, settings, &from, c.to, i)
+            Locate::new(&c.base, c.param, settings, &from, c.to, i, c.bisections)
         })
         .collect();
     let mut out = vec![Found::Nothing; changes.len()];
@@ -344,6 +348,8 @@ struct Locate<'a> {
     pair: usize,
     start: Cycle,
     to: f64,
+    /// The smallest bracket is 2^-bisections of the interval.
+    bisections: u32,
     /// Whether the march is over (then the bracket [good, bad] is bisected).
     bisecting: bool,
     /// The march's signed step.
@@ -380,6 +386,7 @@ impl<'a> Locate<'a> {
         from: &Branch,
         to: f64,
         pair: usize,
+        bisections: u32,
     ) -> Option<Locate<'a>> {
         let start = from.cycle?.clone();
         let newton = Self::at(base, param, settings, to, &start);
@@ -389,6 +396,7 @@ impl<'a> Locate<'a> {
             settings,
             pair,
             to,
+            bisections,
             bisecting: false,
             step_size: to - from.value,
             step: 0,
@@ -423,9 +431,17 @@ impl<'a> Locate<'a> {
         Integrator::<f64>::new(&p, self.settings)
     }
 
-    /// The smallest bracket, 2^-20 of the edge.
+    /// The smallest bracket: 2^-bisections of the edge where the bracket's far end holds the
+    /// cycle unstable (a crossing, typed by its multipliers wherever it is bisected to), 2^-20
+    /// where it holds no cycle (an end, typed by how the cycle approaches it: that needs the
+    /// cycle close to it).
     fn resolution(&self) -> f64 {
-        (self.to - self.start_value()).abs() / f64::from(1u32 << BISECTIONS)
+        let bisections = if self.beyond.is_some() {
+            self.bisections
+        } else {
+            BISECTIONS
+        };
+        (self.to - self.start_value()).abs() / f64::from(1u32 << bisections)
     }
 
     fn start_value(&self) -> f64 {
@@ -718,4 +734,89 @@ impl FlowTask for Locate<'_> {
             self.solved(c);
         }
     }
+}
+
+/// Where a branch switch starts beyond a located change: this fraction of the change's edge
+/// past the point (and at least four times its uncertainty). Near a period doubling the
+/// daughter's amplitude grows like the square root of the distance, so that at 1/64 of the
+/// edge it is well apart from its mother while a further change within the edge stays ahead.
+pub const SWITCH_AT: f64 = 1.0 / 64.0;
+
+/// The stable cycle that follows a located period doubling `p` at the parameter value `at`
+/// just beyond it (the other parameters `base`'s), without a run: seen from the mother's side,
+/// the doubled cycle, from Newton for period 2n started off the unstable mother along the
+/// eigenvector of its multiplier beyond -1; seen from the doubled side (a cycle of period 2m
+/// merged into its half), the stable cycle of period m. `None` where Newton finds no stable
+/// cycle of that period (a subcritical doubling: nothing stable nearby follows).
+pub fn branch_switch(
+    base: &Params<f64>,
+    param: Param,
+    settings: &Settings,
+    p: &BifurcationPoint,
+    mode: crate::model::Mode,
+    at: f64,
+) -> Option<Cycle> {
+    let mut q = *base;
+    param.set(&mut q, at);
+    let it = Integrator::<f64>::new(&q, settings);
+    let start = PointState {
+        y: p.section,
+        mode,
+        diag: Default::default(),
+    };
+    let n = p.period;
+    let scale = p.section.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+    let apart = |c: &Cycle| {
+        let (mut st, half) = (c.state(), c.period / 2);
+        for _ in 0..half {
+            it.period(&mut st);
+        }
+        (0..4).any(|i| (st.y[i] - c.point[i]).abs() > DOUBLED * scale)
+    };
+    // From the doubled side: the half the cycle merged into.
+    if n.is_multiple_of(2) {
+        let mut st = start;
+        for _ in 0..n / 2 {
+            it.period(&mut st);
+        }
+        if (0..4).all(|i| (st.y[i] - p.section[i]).abs() < 0.1 * scale) {
+            let half = crate::cycles::refine(&it, &start, n / 2);
+            if half.is_stable() && half.period == n / 2 {
+                return Some(half);
+            }
+        }
+    }
+    let mother = crate::cycles::refine(&it, &start, n);
+    let at_mother = if mother.converged && mother.period == n {
+        mother.state()
+    } else {
+        start
+    };
+    let (_, tan) = crate::cycles::flow(&it, &at_mother, n);
+    let m = tan.matrix();
+    let lambda = crate::cycles::eigenvalues(&m)
+        .into_iter()
+        .filter(|e| e[1] == 0.0 && e[0] < 0.0)
+        .min_by(|a, b| (a[0] + 1.0).abs().total_cmp(&(b[0] + 1.0).abs()))?[0];
+    // The eigenvector: the right singular vector of M - lambda I of the least singular value.
+    let shifted = m - nalgebra::Matrix4::identity() * lambda;
+    let svd = shifted.svd(false, true);
+    let vt = svd.v_t?;
+    let k = (0..4)
+        .min_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]))
+        .unwrap_or(3);
+    let v: [f64; 4] = std::array::from_fn(|i| vt[(k, i)]);
+    for eps in [1e-2, 3e-2, 3e-3, 1e-1, 1e-3] {
+        for sign in [1.0, -1.0] {
+            let mut st = at_mother;
+            for (y, d) in st.y.iter_mut().zip(v) {
+                *y += sign * eps * scale * d;
+            }
+            let c = crate::cycles::refine(&it, &st, 2 * n);
+            if c.is_stable() && c.period == 2 * n && apart(&c) {
+                return Some(c);
+            }
+        }
+    }
+    None
 }
