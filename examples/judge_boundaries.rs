@@ -23,6 +23,13 @@
 //!   extrapolated from 1/64 and 1/512 of a cell before the point, within 1e-3 of a cell of it
 //!   (`stick_onset` and `undetermined`: the end only);
 //!
+//! and the class after the point (the JSON's `change[1]`) is what the reference's motion
+//! reaches 1/32 of a cell past it (or half the way to the edge's next point), run 3,156 periods
+//! from the point's own cycle or from the far cell's final state: `period-m` where Newton
+//! there finds a stable cycle of least period m; `no_impact` where the last 256 periods hold no
+//! impact; any other class where the motion repeats at no lag up to 128 (a check of "not
+//! periodic", weaker than the class's own claim); `unresolved` is never wrong.
+//!
 //! `coexistence` points: at the edge's midpoint the reference's Newton from the `from` cell's
 //! final state finds a stable cycle of the cell's period, and the other cell's final state,
 //! run there for 10^4 periods, is not on it. A side the reference cannot start (a section at
@@ -163,10 +170,27 @@ fn main() -> anyhow::Result<()> {
             }
         };
         let v_point = if along_x { x } else { y };
-        let Some(r0) = here(cf) else {
+        let v_before = v_point - delta;
+        let own = class[from] == n as i32;
+        // A point on a branch that followed an earlier change on the edge (a doubled cycle):
+        // the reference's cycle from the point's section (a start only) 1/64 of a cell before
+        // it; the cell's own cycle is continued from the cell.
+        let (v0, start) = if own {
+            (cf, cell_state(from))
+        } else {
+            let s: Vec<f64> = p["section"]
+                .as_array()
+                .map(|a| a.iter().filter_map(|v| v.as_f64()).collect())
+                .unwrap_or_default();
+            let Ok(s) = <[f64; 4]>::try_from(s) else {
+                return (Verdict::CannotTell, "no section".into());
+            };
+            (v_before, s)
+        };
+        let Some(r0) = here(v0) else {
             return (Verdict::CannotTell, "no reference".into());
         };
-        let Some(mut before) = r0.cycle(cell_state(from), n) else {
+        let Some(mut before) = r0.cycle(start, n) else {
             return (
                 Verdict::CannotTell,
                 "no cycle at the cell (reference)".into(),
@@ -182,8 +206,7 @@ fn main() -> anyhow::Result<()> {
                 ),
             );
         }
-        let v_before = v_point - delta;
-        for k in 1..=16 {
+        for k in (1..=16).filter(|_| own) {
             let v = cf + (v_before - cf) * f64::from(k) / 16.0;
             let Some(r) = here(v) else {
                 return (Verdict::CannotTell, "no reference".into());
@@ -289,7 +312,42 @@ fn main() -> anyhow::Result<()> {
                 (_, None) => true,
                 (_, Some(c)) => !(c.stable() && c.period == n),
             };
-        (if ok { Verdict::Right } else { Verdict::Wrong }, desc)
+        if !ok {
+            return (Verdict::Wrong, desc);
+        }
+        // The class after the point (MODEL.md's full claim): what the motion reaches just
+        // beyond it, 1/32 of a cell on (or half the way to the edge's next point), from the
+        // point's own cycle and from the far cell's final state.
+        let next = b["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|q| q["cells"] == p["cells"] && q["located"] == true)
+            .map(|q| {
+                let v = if along_x {
+                    q["x"].as_f64().unwrap()
+                } else {
+                    q["y"].as_f64().unwrap()
+                };
+                (v - v_point) * (co - cf).signum()
+            })
+            .filter(|&g| g > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        let step = (delta.abs() / 2.0).min(0.5 * next) * (co - cf).signum();
+        let claim = p["change"][1].as_str().unwrap_or("unresolved");
+        let (right, why) = match here(v_point + step) {
+            Some(r) => reaches(&r, claim, &[before.point, cell_state(other)]),
+            None => (false, "no reference after".into()),
+        };
+        let desc = format!("{desc}; after {claim}: {why}");
+        (
+            if right {
+                Verdict::Right
+            } else {
+                Verdict::Wrong
+            },
+            desc,
+        )
     };
     let verdicts: Vec<_> = {
         use rayon::prelude::*;
@@ -361,4 +419,49 @@ fn features(r: &DryReference, c: &rattle::reference::dry::RefCycle, n: u32) -> [
         }
     }
     out
+}
+
+/// Whether the reference's motion from one of `starts`, run 3,156 periods, reaches the class
+/// named `claim` (see the module's comment), and what it reached.
+fn reaches(r: &DryReference, claim: &str, starts: &[[f64; 4]]) -> (bool, String) {
+    if claim == "unresolved" {
+        return (true, "unresolved is never wrong".into());
+    }
+    let mut seen = Vec::new();
+    for &y in starts {
+        if y.iter().any(|v| !v.is_finite()) {
+            continue;
+        }
+        let mut st = r.start(y);
+        if r.run(&mut st, 2900, None).is_err() {
+            continue;
+        }
+        let mut log = Vec::new();
+        let Ok(s) = r.run(&mut st, 256, Some(&mut log)) else {
+            continue;
+        };
+        let end = s[s.len() - 1];
+        let scale = end.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        let lag = (1..=128).find(|&n| {
+            (n..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() < 1e-6 * scale))
+        });
+        let impacts = log.iter().any(|e| e.kind.starts_with("impact"));
+        let right = match claim.strip_prefix("period-") {
+            Some(m) => {
+                let m: u32 = m.parse().unwrap_or(0);
+                r.cycle(end, m).is_some_and(|c| c.stable() && c.period == m)
+            }
+            None if claim == "no_impact" => !impacts,
+            None => lag.is_none(),
+        };
+        seen.push(match lag {
+            Some(n) => format!("lag {n}"),
+            None if !impacts => "no impact".into(),
+            None => "no lag <= 128".into(),
+        });
+        if right {
+            return (true, seen.join(", "));
+        }
+    }
+    (false, format!("reached {}", seen.join(", ")))
 }

@@ -780,3 +780,125 @@ fn boundaries_of_a_map_replaced_meanwhile_are_not_committed() {
     // The newer map's set is whole: its own boundaries are added to it.
     ok(rattle().arg("boundaries").arg(d.join("p")));
 }
+
+/// An edge that holds two changes holds two points, in order from the side continued, each
+/// with the classes just before and after it: between cell (103, 15) (chaotic) and cell
+/// (104, 15) (period-13) of tests/data/r_lambda_128.toml (lambda 0.012109375), the period-13
+/// cycle doubles towards smaller R and the doubled cycle ends before the chaotic cell (it said
+/// one point, a period doubling into chaos). The cells' layers are the map's (the period-13
+/// cell's final state, as lavapipe's map left it: a start only). The judge, the reference
+/// (exact motion between events, its own Newton and multipliers): the period-13 cycle stable
+/// 1/64 of a cell before the first point and unstable through -1 between the points, the
+/// motion from it reaching a stable period-26 cycle between them, and after the second point no stable period-26 cycle and a
+/// motion that repeats at no lag up to 128 after 4,000 periods.
+#[test]
+fn an_edge_with_a_doubling_then_chaos_holds_both_changes() {
+    use rattle::map::boundaries::{Cells, Type, locate};
+    let d = scratch("doubling_then_chaos");
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml"),
+    )
+    .unwrap();
+    let model = text.split("[map]").next().unwrap();
+    // Two cells whose centres are those of cells 103 and 104 of the 128 x 128 grid.
+    let path = d.join("edge.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "{model}[map]\nx = \"R\"\nx_from = {}\nx_to = {}\nx_points = 2\ny = \"lambda\"\n\
+             y_from = {}\ny_to = {}\ny_points = 1\n",
+            0.5 + 0.2 * 103.0 / 128.0,
+            0.5 + 0.2 * 105.0 / 128.0,
+            0.1 * 15.0 / 128.0,
+            0.1 * 16.0 / 128.0
+        ),
+    )
+    .unwrap();
+    let cfg = Config::load(&path, &[]).unwrap();
+    let mut state = vec![f64::NAN; 4];
+    state.extend([
+        -0.20033179223537445,
+        0.7233232855796814,
+        -0.28210800886154175,
+        -0.6059635877609253,
+    ]);
+    let b = locate(
+        &cfg,
+        &Cells {
+            class: &[-4, 13],
+            coexist: &[0, 0],
+            state: &state,
+            mode: &[0, 0],
+            inferred: &[0, 0],
+        },
+    );
+    for p in &b.points {
+        eprintln!(
+            "{:?} at R {:.7} ({:.1e}): {:?}, from {:?}",
+            p.ty, p.x, p.uncertainty, p.change, p.from
+        );
+    }
+    assert_eq!(b.points.len(), 2, "{:?}", b.points);
+    let (first, second) = (&b.points[0], &b.points[1]);
+    assert_eq!(first.ty, Type::PeriodDoubling);
+    assert_eq!(first.change, ["period-13", "period-26"]);
+    assert_eq!(second.change, ["period-26", "chaotic"]);
+    assert!(first.from == Some(1) && second.from == Some(1));
+    assert!(first.located && second.located);
+    // In order from the period-13 cell (the larger R).
+    assert!(first.x > second.x, "{} {}", first.x, second.x);
+    let cell = 0.2 / 128.0;
+    assert!(first.uncertainty <= cell / 64.0 && second.uncertainty <= cell / 64.0);
+
+    let settings = cfg.settings();
+    let at = |v: f64| {
+        let mut q = cfg.params();
+        cfg.map.x.set(&mut q, v);
+        cfg.map.y.set(&mut q, 0.1 * 15.5 / 128.0);
+        DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
+    };
+    let before = at(first.x + cell / 64.0)
+        .cycle(first.section.unwrap(), 13)
+        .expect("the period-13 cycle before the doubling");
+    assert!(
+        before.stable() && before.period == 13,
+        "{:?}",
+        before.lead()
+    );
+    let mid = 0.5 * (first.x + second.x);
+    let r = at(mid);
+    let mother = r
+        .cycle(before.point, 13)
+        .expect("the mother between the points");
+    assert!(
+        mother.lead()[1] == 0.0 && mother.lead()[0] < -1.0,
+        "{:?}",
+        mother.lead()
+    );
+    // What the motion from the mother reaches there: the daughter.
+    let mut st = r.start(before.point);
+    r.run(&mut st, 3000, None).unwrap();
+    let end = *r.run(&mut st, 1, None).unwrap().last().unwrap();
+    let daughter = r.cycle(end, 26).expect("the daughter between the points");
+    eprintln!(
+        "between: period-13 lead {:?}, period-{} lead {:?}",
+        mother.lead(),
+        daughter.period,
+        daughter.lead()
+    );
+    assert!(daughter.stable() && daughter.period == 26);
+    let beyond = at(second.x - cell / 32.0);
+    let after = beyond.cycle(daughter.point, 26);
+    assert!(
+        after.as_ref().is_none_or(|c| !c.stable()),
+        "a stable period-26 cycle after the second point"
+    );
+    let mut st = beyond.start(daughter.point);
+    beyond.run(&mut st, 4000, None).unwrap();
+    let s = beyond.run(&mut st, 256, None).unwrap();
+    let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
+    let lag = (1..=128).find(|&n| {
+        (n..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() < 1e-6 * scale))
+    });
+    assert_eq!(lag, None, "the motion after the second point repeats");
+}
