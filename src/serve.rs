@@ -523,7 +523,7 @@ async fn boundaries(State(app): State<Arc<App>>, body: Bytes) -> Response {
     let out = newest_view(&app, move |worker, (ticket, stop)| {
         let newest = || worker.newest.load(Ordering::SeqCst) == ticket;
         worker.exclusive((Kind::View, stop), newest, 0, || {
-            Ok(rattle::map::boundaries::of_fields(&m.cfg, &m.fields))
+            rattle::map::boundaries::of_fields(&worker.engine, &m.cfg, &m.fields)
         })
     })
     .await;

@@ -823,6 +823,7 @@ fn an_edge_with_a_doubling_then_chaos_holds_both_changes() {
         -0.6059635877609253,
     ]);
     let b = locate(
+        &rattle::engine::Engine::Cpu,
         &cfg,
         &Cells {
             class: &[-4, 13],
@@ -831,7 +832,8 @@ fn an_edge_with_a_doubling_then_chaos_holds_both_changes() {
             mode: &[0, 0],
             inferred: &[0, 0],
         },
-    );
+    )
+    .unwrap();
     for p in &b.points {
         eprintln!(
             "{:?} at R {:.7} ({:.1e}): {:?}, from {:?}",
@@ -901,4 +903,121 @@ fn an_edge_with_a_doubling_then_chaos_holds_both_changes() {
         (n..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() < 1e-6 * scale))
     });
     assert_eq!(lag, None, "the motion after the second point repeats");
+}
+
+/// An abrupt end is typed by its evidence, followed close enough: the period-20 cycle of cell
+/// (48, 11) of tests/data/r_lambda_128.toml (R 0.57578125, lambda 0.008984375), continued
+/// towards lambda 0.009765625, ends with no multiplier crossing the circle and its leading
+/// multiplier seeming to jump (about -0.24 at 1e-5 from the end, +0.88 at 1e-7: in the map,
+/// `undetermined`); within 3e-8 of the end 1 - mu shrinks like the square root of the distance:
+/// a fold with a large coefficient, and the evidence says so. The judge, the reference (exact
+/// motion between events, its own Newton by central differences, its multipliers by nalgebra),
+/// continued along the edge on its own: its period-20 cycle ends within 1/64 of a cell of the
+/// point, and 1 - mu shrinks like the square root of the distance to its own end there (a
+/// ratio within 0.5-2 times the square root of the distances' ratio).
+#[test]
+fn an_abrupt_end_is_typed_by_its_evidence() {
+    use rattle::method::{Integrator, PointState};
+    use rattle::model::Mode;
+    use rattle::stability::Kind;
+    use rattle::stability::{Change, Found, locate_changes};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
+    let cfg = Config::load(&path, &[]).unwrap();
+    let settings = cfg.settings();
+    let (x, from, to) = (0.57578125, 0.1 * 11.5 / 128.0, 0.1 * 12.5 / 128.0);
+    let mut p = cfg.params();
+    cfg.map.x.set(&mut p, x);
+    cfg.map.y.set(&mut p, from);
+    let st = PointState {
+        y: [
+            -0.1689867079257965,
+            -0.1903446614742279,
+            -0.9052058458328247,
+            0.4768698215484619,
+        ],
+        mode: Mode::SlipNeg,
+        diag: Default::default(),
+    };
+    let cycle = rattle::cycles::refine(&Integrator::<f64>::new(&p, &settings), &st, 20);
+    assert!(cycle.is_stable() && cycle.period == 20, "{cycle:?}");
+    let found = locate_changes(
+        &settings,
+        &[Change {
+            base: p,
+            param: cfg.map.y,
+            from,
+            cycle: &cycle,
+            to,
+            bisections: rattle::stability::BISECTIONS,
+        }],
+    );
+    let Found::Located(b) = &found[0] else {
+        panic!("{:?}", found[0]);
+    };
+    eprintln!("{:?} at lambda {:.9}: {}", b.kind, b.value, b.evidence);
+    assert_eq!(b.kind, Kind::Fold, "{b:?}");
+    assert!(b.evidence.starts_with("1 - mu"), "{}", b.evidence);
+
+    // The reference on its own: its cycle continued from the cell in 64 steps to 1/64 of a
+    // cell before the point, then its end bisected (Newton from the last stable cycle).
+    let cell = to - from;
+    let at = |v: f64| {
+        let mut q = p;
+        cfg.map.y.set(&mut q, v);
+        DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
+    };
+    let stable = |v: f64, x: [f64; 4]| at(v).cycle(x, 20).filter(|c| c.stable() && c.period == 20);
+    let mut last = stable(from, cycle.point).expect("the reference's cycle at the cell");
+    let mut good = from;
+    let mut bad = b.value + cell / 64.0;
+    for k in 1..=64 {
+        let v = from + (b.value - cell / 64.0 - from) * f64::from(k) / 64.0;
+        last = stable(v, last.point).expect("the reference's cycle before the point");
+        good = v;
+    }
+    assert!(
+        stable(bad, last.point).is_none(),
+        "a stable period-20 cycle 1/64 of a cell past the point"
+    );
+    let mut track = vec![(good, last.point, last.lead())];
+    for _ in 0..36 {
+        let mid = 0.5 * (good + bad);
+        match stable(mid, last.point) {
+            Some(c) => {
+                good = mid;
+                last = c;
+                track.push((mid, last.point, last.lead()));
+            }
+            None => bad = mid,
+        }
+    }
+    let end = 0.5 * (good + bad);
+    eprintln!(
+        "the reference's end at lambda {end:.9} ({:+.2e} cell from the point)",
+        (end - b.value) / cell
+    );
+    assert!((end - b.value).abs() <= cell / 64.0);
+    // 1 - mu of the reference's cycles found on the way, at about 1e-5 and 1e-7 of a cell
+    // from its own end (the distances as found).
+    let nearest = |d: f64| {
+        *track
+            .iter()
+            .min_by(|a, b| {
+                ((end - a.0) / d)
+                    .ln()
+                    .abs()
+                    .total_cmp(&((end - b.0) / d).ln().abs())
+            })
+            .unwrap()
+    };
+    let (far, near) = (nearest(1e-5 * cell), nearest(1e-7 * cell));
+    let (df, dn) = (end - far.0, end - near.0);
+    eprintln!(
+        "the reference's leading multiplier {:?} at {df:.2e}, {:?} at {dn:.2e}",
+        far.2, near.2
+    );
+    assert!(far.2[1] == 0.0 && near.2[1] == 0.0);
+    let ratio = (1.0 - near.2[0]) / (1.0 - far.2[0]);
+    let root = (dn / df).sqrt();
+    assert!((0.5 * root..2.0 * root).contains(&ratio), "{ratio} {root}");
 }

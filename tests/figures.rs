@@ -95,7 +95,7 @@ fn boundary_types_stand_apart_from_the_classes() {
         }
         for u in &drawn[i + 1..] {
             let d = delta_e(t.rgb(), u.rgb());
-            assert!(d >= 50.0, "{t:?} and {u:?}: delta-E {d:.1} < 50");
+            assert!(d >= 40.0, "{t:?} and {u:?}: delta-E {d:.1} < 40");
         }
     }
 }

@@ -260,7 +260,8 @@ class Map:
         """The typed boundaries between the classes (`rattle map --boundaries`, docs/maps.md):
         `points` as arrays (`x`, `y`, `type`, `class_a`, `class_b`, `before`, `after`: the class
         just before and just after the change, `uncertainty`, `located`, `period`, `reason`: why
-        an `undetermined` point is not typed; a volume's with `z`),
+        an `undetermined` point is not typed, `evidence`: what typed a located end; a volume's
+        with `z`),
         `curves` as a list of dicts with `type`, `classes` (a volume's with `z`) and `points` (an array of
         shape (k, 2) in parameter values), and the counts (`edges`, `trials`,
         `continuations`, `claims`, `continuation_s`, `coexistence_s`, `seconds`)."""
@@ -278,6 +279,7 @@ class Map:
             "located": np.asarray([p["located"] for p in pts], dtype=bool),
             "period": np.asarray([p["period"] for p in pts], dtype=int),
             "reason": np.asarray([p.get("reason", "") for p in pts], dtype=str),
+            "evidence": np.asarray([p.get("evidence", "") for p in pts], dtype=str),
         }
         if self.z_param is not None:
             # A volume's slices: each point and curve with its slice's z value.

@@ -352,7 +352,9 @@ impl MapData {
         let (cfg, f) = (self.result.cfg.clone(), self.result.fields.clone());
         let b = detached(py, 1, None, move |_| {
             use rattle::map::boundaries::{VolumeBoundaries, of_slices};
-            let slices = of_slices(&cfg, &f);
+            // The sides' motions at the edges' midpoints run on the map's engine.
+            let (engine, _) = engine(&cfg)?;
+            let slices = of_slices(&engine, &cfg, &f)?;
             // A volume's points and curves carry their slice's z.
             Ok(match (cfg.z_axis(), &slices[..]) {
                 (None, [b]) => serde_json::to_string(b)?,

@@ -123,6 +123,7 @@ pub(super) fn marks_sentence(bifurcations: &[Vec<BifurcationPoint>]) -> String {
             Kind::Fold => "fold",
             Kind::NeimarkSacker => "Neimark-Sacker",
             Kind::NonSmooth => "non-smooth",
+            Kind::BorderCollision => "border collision",
             Kind::Grazing => "grazing",
             Kind::StickOnset => "stick onset",
             Kind::StickLoss => "stick loss",
@@ -178,7 +179,8 @@ pub(super) fn marks(points: &[BifurcationPoint]) -> Vec<Mark> {
                 Kind::PeriodDoubling => 0,
                 Kind::Fold => 1,
                 Kind::NeimarkSacker => 2,
-                Kind::NonSmooth => 3,
+                // A border collision is marked as the non-smooth ends are.
+                Kind::NonSmooth | Kind::BorderCollision => 3,
                 Kind::Grazing => 4,
                 Kind::StickOnset => 5,
                 Kind::StickLoss => 6,

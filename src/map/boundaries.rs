@@ -16,7 +16,7 @@
 use crate::class::Class;
 use crate::config::Config;
 use crate::cycles::{Cycle, Refine};
-use crate::engine::Decider;
+use crate::engine::{Decider, Engine};
 use crate::method::{Integrator, PointState};
 use crate::model::{Mode, Params};
 use crate::stability::{
@@ -36,8 +36,8 @@ const ENDS_AT_JUMP: &str = "Newton stalls beyond the end at a residual below 1e-
 const NOT_STABLE_AT_MIDPOINT: &str = "the cycle that would coexist is not stable at the \
      edge's midpoint";
 const OTHER_ENDS_ON_CYCLE: &str = "the other side's attractor does not persist at the edge's \
-     midpoint: run there from its own state for the map's periods with its look, it ends on the \
-     cycle";
+     midpoint: run there from its own state for twice the map's periods with its look, it \
+     ends on the cycle";
 /// Why an edge beside a cell `--refine` inferred is `undetermined` where nothing was located.
 const INFERRED: &str = "a side is a cell inferred by --refine, not computed: it has no state \
      to continue a cycle from or to check a coexistence with";
@@ -45,17 +45,18 @@ const INFERRED: &str = "a side is a cell inferred by --refine, not computed: it 
 const NO_CYCLE: &str = "no stable cycle on either side to continue";
 /// Why an edge between impact-free motion and an impacting attractor is `undetermined` where
 /// the impact-free motion does not graze between the cells: the impacting side's motion at the
-/// edge's midpoint, run from its own state for the map's periods, still impacts (the first) or
+/// edge's midpoint, run from its own state for twice the map's periods with its look,
+/// still impacts in its last period (the first) or
 /// ends impact-free (the second). Near such a crisis chaotic transients outlast any fixed look
 /// (the reference finds some that end impact-free after thousands of periods), so neither is
 /// called a coexistence.
 const CRISIS_IMPACTS: &str = "the impact-free motion exists on both sides (no grazing between \
-     the cells) and the impacting side's motion still impacts at the edge's midpoint after the \
-     map's periods: its attractor ends between the cells in a crisis, or it is a transient \
-     longer than the look; not located";
+     the cells) and the impacting side's motion still impacts at the edge's midpoint after twice \
+     the map's periods: its attractor ends between the cells in a crisis, or it is a \
+     transient longer than that; not located";
 const CRISIS_ENDS: &str = "the impact-free motion exists on both sides (no grazing between the \
-     cells) and the impacting side's motion ends impact-free at the edge's midpoint within the \
-     map's periods: its attractor ends between the cells in a crisis; not located";
+     cells) and the impacting side's motion ends impact-free at the edge's midpoint within twice \
+     the map's periods: its attractor ends between the cells in a crisis; not located";
 
 /// The type of a boundary point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -67,18 +68,20 @@ pub enum Type {
     Grazing,
     StickOnset,
     StickLoss,
+    BorderCollision,
     Coexistence,
     Undetermined,
 }
 
 impl Type {
-    pub const ALL: [Type; 8] = [
+    pub const ALL: [Type; 9] = [
         Type::PeriodDoubling,
         Type::Fold,
         Type::NeimarkSacker,
         Type::Grazing,
         Type::StickOnset,
         Type::StickLoss,
+        Type::BorderCollision,
         Type::Coexistence,
         Type::Undetermined,
     ];
@@ -91,6 +94,7 @@ impl Type {
             Type::Grazing => "grazing",
             Type::StickOnset => "stick_onset",
             Type::StickLoss => "stick_loss",
+            Type::BorderCollision => "border_collision",
             Type::Coexistence => "coexistence",
             Type::Undetermined => "undetermined",
         }
@@ -104,12 +108,13 @@ impl Type {
             Type::Grazing => Marker::Square,
             Type::StickLoss => Marker::Triangle,
             Type::StickOnset => Marker::Cross,
+            Type::BorderCollision => Marker::Diamond,
             _ => Marker::None,
         }
     }
 
     /// The curve's colour over the class map: saturated hues that no class swatch has (CIE76
-    /// delta-E >= 40 from every class and period colour, >= 50 between the drawn types;
+    /// delta-E >= 40 from every class and period colour and between the drawn types;
     /// `tests/figures.rs`).
     pub fn rgb(self) -> [u8; 3] {
         match self {
@@ -119,6 +124,7 @@ impl Type {
             Type::Grazing => [255, 0, 150],
             Type::StickOnset => [165, 105, 255],
             Type::StickLoss => [0, 255, 165],
+            Type::BorderCollision => [135, 0, 120],
             Type::Coexistence => [255, 255, 255],
             Type::Undetermined => [150, 150, 150],
         }
@@ -155,6 +161,11 @@ pub struct Point {
     /// Why an `undetermined` point is not typed (empty otherwise).
     #[serde(skip_serializing_if = "str::is_empty")]
     pub reason: &'static str,
+    /// What was measured to type a located end without a crossing (the vanishing feature and
+    /// its zero, the events and multipliers across a switching surface, or what did not
+    /// name the end).
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub evidence: String,
     /// The index of the point's edge among the map's edges between classes.
     #[serde(skip)]
     pub edge: usize,
@@ -208,9 +219,10 @@ pub struct Cells<'a> {
 
 /// The boundaries of a whole map in memory (`rattle map --boundaries`, Python's
 /// `Map.boundaries()`): [`locate`] from its layers, the one path of both.
-pub fn of_fields(cfg: &Config, f: &super::Fields) -> Boundaries {
+pub fn of_fields(engine: &Engine, cfg: &Config, f: &super::Fields) -> crate::Result<Boundaries> {
     let state: Vec<f64> = f.state.iter().map(|v| v.unwrap_or(f64::NAN)).collect();
     locate(
+        engine,
         cfg,
         &Cells {
             class: &f.class,
@@ -224,12 +236,16 @@ pub fn of_fields(cfg: &Config, f: &super::Fields) -> Boundaries {
 
 /// The boundaries of each slice of a map in memory: the plane's own for a plane; for a volume
 /// each slice's, located in its own plane as `rattle map --boundaries` at that z locates them.
-pub fn of_slices(cfg: &Config, f: &super::Fields) -> Vec<Boundaries> {
+pub fn of_slices(
+    engine: &Engine,
+    cfg: &Config,
+    f: &super::Fields,
+) -> crate::Result<Vec<Boundaries>> {
     let per = super::plane_cells(cfg);
     match cfg.z_axis() {
-        None => vec![of_fields(cfg, f)],
+        None => Ok(vec![of_fields(engine, cfg, f)?]),
         Some(z) => (0..z.points as usize)
-            .map(|k| of_fields(&cfg.slice(k), &f.range(k * per..(k + 1) * per)))
+            .map(|k| of_fields(engine, &cfg.slice(k), &f.range(k * per..(k + 1) * per)))
             .collect(),
     }
 }
@@ -379,6 +395,10 @@ type EdgeFound = Vec<Link>;
 /// approach types it.
 const EDGE_BISECTIONS: u32 = 12;
 
+/// Where a side's motion at an edge's midpoint ended, and whether its last period held an
+/// impact ([`Grid::settle`]).
+type Settled = ([f64; 4], bool);
+
 /// A continuation to run: (edge, from cell, the value continued from, the cycle, switches
 /// before it, the value of the change it follows).
 type Pending = (usize, usize, f64, Cycle, u32, Option<f64>);
@@ -435,11 +455,61 @@ impl<'a> Grid<'a> {
         p
     }
 
-    /// Periods a side's motion is run for at an edge's midpoint: as long as the map's own
-    /// look, what the map would call this motion's attractor.
+    /// Periods a side's motion is run for at an edge's midpoint: twice the map's own look
+    /// (chaotic transients that end on a coexisting cycle outlast the look itself; on the
+    /// map's engine, without the exponent, all of them together cost what the look alone did
+    /// one by one on the host).
     fn look(&self) -> u32 {
         let run = &self.cfg.run;
-        (run.transient_periods + run.sample_periods).max(run.look)
+        2 * (run.transient_periods + run.sample_periods).max(run.look)
+    }
+
+    /// Runs each side's motion from its state at its edge's midpoint for [`Grid::look`]
+    /// periods on the map's engine, all at once: where it ends, and whether its last period
+    /// held an impact (`None`: it left the finite range).
+    fn settle(
+        &self,
+        engine: &Engine,
+        runs: &[((usize, usize), PointState<f64>)],
+    ) -> crate::Result<Vec<Option<Settled>>> {
+        if runs.is_empty() {
+            return Ok(Vec::new());
+        }
+        let mut spec = crate::spec::RunSpec::new(self.cfg);
+        let periods = self.look();
+        spec.transient = periods - 1;
+        spec.samples = 1;
+        spec.settings.lyapunov = false;
+        let m = &self.cfg.map;
+        let vary = [m.x, m.y];
+        let values: Vec<f64> = runs
+            .iter()
+            .flat_map(|&((a, b), _)| {
+                let (x, y) = self.midpoint(a, b);
+                [x, y]
+            })
+            .collect();
+        let y0s: Vec<[f64; 4]> = runs.iter().map(|(_, s)| s.y).collect();
+        let modes: Vec<Mode> = runs.iter().map(|(_, s)| s.mode).collect();
+        let points = crate::spec::Points {
+            vary: &vary,
+            values: &values,
+            y0s: Some(&y0s),
+            modes: Some(&modes),
+        };
+        let mut out = vec![None; runs.len()];
+        engine.run_lean(
+            &spec,
+            &points,
+            &crate::progress::Silent,
+            &mut |start, rs| {
+                for (k, r) in rs.into_iter().enumerate() {
+                    out[start + k] =
+                        (!r.diag.nonfinite).then_some((r.final_y, r.sample_impacts > 0));
+                }
+            },
+        )?;
+        Ok(out)
     }
 
     /// The edges whose cells' classes differ.
@@ -461,8 +531,9 @@ impl<'a> Grid<'a> {
     }
 }
 
-/// Locates and types the boundaries of the map of `cfg` from its cells' layers.
-pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
+/// Locates and types the boundaries of the map of `cfg` from its cells' layers; the sides'
+/// motions at the edges' midpoints run on `engine` (the map's).
+pub fn locate(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Boundaries> {
     let t0 = std::time::Instant::now();
     let grid = Grid::new(cfg);
     let settings = cfg.settings();
@@ -473,16 +544,16 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
     let both_sides = impact_free_grazings(&grid, &settings, cells, &edges, &mut per_edge);
     let continuation_s = t1.elapsed().as_secs_f64();
     let t2 = std::time::Instant::now();
-    let (coexists, claims) = coexistences(&grid, &settings, cells, &edges, &cycles, &per_edge);
-    let free: HashMap<usize, &str> = {
-        use rayon::prelude::*;
-        both_sides
-            .par_iter()
-            .filter_map(|(&k, &other)| {
-                crisis(&grid, &settings, cells, edges[k], other).map(|why| (k, why))
-            })
-            .collect()
-    };
+    let (coexists, claims, free) = coexistences(
+        engine,
+        &grid,
+        &settings,
+        cells,
+        &edges,
+        &cycles,
+        &per_edge,
+        &both_sides,
+    )?;
     let coexistence_s = t2.elapsed().as_secs_f64();
     let points: Vec<Point> = edges
         .iter()
@@ -497,7 +568,7 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
         })
         .collect();
     let curves = curves(&points, &edges, grid.nx);
-    Boundaries {
+    Ok(Boundaries {
         x_param: cfg.map.x.name(),
         y_param: cfg.map.y.name(),
         edges: edges.len(),
@@ -505,11 +576,11 @@ pub fn locate(cfg: &Config, cells: &Cells) -> Boundaries {
         points,
         trials,
         continuations,
-        claims: claims + both_sides.len(),
+        claims,
         continuation_s,
         coexistence_s,
         seconds: t0.elapsed().as_secs_f64(),
-    }
+    })
 }
 
 /// The stable cycle of every periodic cell on an edge, refined from its final state (cells
@@ -708,44 +779,24 @@ fn impact_free_grazings(
     both_sides
 }
 
-/// The impacting side `other` of an edge whose impact-free motion exists on both sides: run
-/// at the edge's midpoint from its own state for the map's periods, it still impacts in its
-/// last one, or ends impact-free; the reason of the `undetermined` edge (`None`: not followed).
-fn crisis(
-    grid: &Grid,
-    settings: &crate::method::Settings,
-    cells: &Cells,
-    (a, b, _): Edge,
-    other: usize,
-) -> Option<&'static str> {
-    let mut st = cell_state(cells, other)?;
-    let it = Integrator::<f64>::new(&grid.midpoint_params(a, b), settings);
-    for _ in 0..grid.look() {
-        crate::progress::poll();
-        it.period(&mut st);
-        if st.diag.nonfinite {
-            return None;
-        }
-    }
-    let before = st.diag.impacts;
-    it.period(&mut st);
-    Some(if st.diag.impacts > before {
-        CRISIS_IMPACTS
-    } else {
-        CRISIS_ENDS
-    })
-}
-
 /// Which side's cycle coexists across each edge (the carry's or the continuation's), and
-/// whether both attractors persist at the edge's midpoint; and the claims checked.
+/// whether both attractors persist at the edge's midpoint; the claims checked; and for each
+/// edge whose impact-free motion exists on both sides (`both_sides`: edge -> the impacting
+/// cell), whether the impacting side's motion still impacts at the midpoint (a crisis, or a
+/// transient), the reason of the `undetermined` edge. The sides' motions at the midpoints run
+/// together on the map's engine ([`Grid::settle`]); each cycle's Newton there on the host.
+#[allow(clippy::too_many_arguments)]
 fn coexistences(
+    engine: &Engine,
     grid: &Grid,
     settings: &crate::method::Settings,
     cells: &Cells,
     edges: &[Edge],
     cycles: &HashMap<usize, Cycle>,
     per_edge: &[EdgeFound],
-) -> (Verdicts, usize) {
+    both_sides: &HashMap<usize, usize>,
+) -> crate::Result<(Verdicts, usize, HashMap<usize, &'static str>)> {
+    use rayon::prelude::*;
     let mut claims = Vec::new();
     for (&(a, b, _), found) in edges.iter().zip(per_edge) {
         for (from, to) in [(a, b), (b, a)] {
@@ -760,17 +811,86 @@ fn coexistences(
             }
         }
     }
-    let periods = grid.look();
-    use rayon::prelude::*;
-    let verdicts = claims
+    // The cycle at the midpoint, and its section points there (to tell a motion on it).
+    type Here = Result<(Cycle, Vec<[f64; 4]>), &'static str>;
+    let here: Vec<Here> = claims
         .par_iter()
-        .map(|&(a, b, from, to, cycle)| {
-            let own = cell_state(cells, to);
-            let v = persists(&grid.midpoint_params(a, b), settings, cycle, own, periods);
+        .map(|&(a, b, _, _, cycle)| {
+            crate::progress::poll();
+            let it = Integrator::<f64>::new(&grid.midpoint_params(a, b), settings);
+            let c = crate::cycles::refine(&it, &cycle.state(), cycle.period);
+            if !(c.is_stable() && c.period == cycle.period) {
+                return Err(NOT_STABLE_AT_MIDPOINT);
+            }
+            let mut orbit = Vec::with_capacity(c.period as usize);
+            let mut on = c.state();
+            for _ in 0..c.period {
+                orbit.push(on.y);
+                it.period(&mut on);
+            }
+            Ok((c, orbit))
+        })
+        .collect();
+    // The other side's motion at the midpoint (where the cycle is stable there and the other
+    // side has a state), then the impacting sides of the edges without a grazing.
+    let mut runs = Vec::new();
+    let mut whose = Vec::new();
+    for (i, (&(a, b, _, to, _), h)) in claims.iter().zip(&here).enumerate() {
+        if let (Ok(_), Some(st)) = (h, cell_state(cells, to)) {
+            runs.push(((a, b), st));
+            whose.push(Some(i));
+        }
+    }
+    let mut crises: Vec<(&usize, &usize)> = both_sides.iter().collect();
+    crises.sort_unstable();
+    for &(&k, &other) in &crises {
+        if let Some(st) = cell_state(cells, other) {
+            let (a, b, _) = edges[k];
+            runs.push(((a, b), st));
+            whose.push(None);
+        }
+    }
+    let settled = grid.settle(engine, &runs)?;
+    let mut ends: HashMap<usize, Option<Settled>> = HashMap::new();
+    let mut crisis_ends = Vec::new();
+    for (w, s) in whose.into_iter().zip(settled) {
+        match w {
+            Some(i) => {
+                ends.insert(i, s);
+            }
+            None => crisis_ends.push(s),
+        }
+    }
+    let verdicts = claims
+        .iter()
+        .zip(here)
+        .enumerate()
+        .map(|(i, (&(a, b, from, _, _), h))| {
+            let v = h.and_then(|(c, orbit)| match ends.get(&i) {
+                Some(Some((y, _))) => {
+                    let scale = c.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+                    let on = orbit
+                        .iter()
+                        .any(|q| (0..4).all(|j| (q[j] - y[j]).abs() < 1e-4 * scale));
+                    if on { Err(OTHER_ENDS_ON_CYCLE) } else { Ok(()) }
+                }
+                // No state of the other side, or its motion left the finite range.
+                _ => Ok(()),
+            });
             ((a, b, from), v)
         })
         .collect();
-    (verdicts, claims.len())
+    let mut free = HashMap::new();
+    let mut ended = crisis_ends.into_iter();
+    for &(&k, &other) in &crises {
+        if cell_state(cells, other).is_none() {
+            continue;
+        }
+        if let Some(Some((_, impacts))) = ended.next() {
+            free.insert(k, if impacts { CRISIS_IMPACTS } else { CRISIS_ENDS });
+        }
+    }
+    Ok((verdicts, claims.len() + both_sides.len(), free))
 }
 
 /// The type of a located change and, where `undetermined`, why.
@@ -782,6 +902,7 @@ fn type_of(p: &BifurcationPoint) -> (Type, &'static str) {
         Kind::Grazing => (Type::Grazing, ""),
         Kind::StickOnset => (Type::StickOnset, ""),
         Kind::StickLoss => (Type::StickLoss, ""),
+        Kind::BorderCollision => (Type::BorderCollision, ""),
         Kind::NonSmooth if p.stall <= crate::stability::JUMP_RESIDUAL => {
             (Type::Undetermined, ENDS_AT_JUMP)
         }
@@ -849,6 +970,7 @@ fn edge_points(
         from: None,
         section: None,
         reason,
+        evidence: String::new(),
         edge: 0,
     };
     let mut sides = [a, b];
@@ -907,6 +1029,7 @@ fn edge_points(
                 from: Some(from),
                 section: Some(p.section),
                 reason,
+                evidence: p.evidence.clone(),
                 edge: 0,
             });
         };
@@ -996,53 +1119,6 @@ fn cell_state(cells: &Cells, c: usize) -> Option<PointState<f64>> {
         mode: Mode::from_u32(u32::from(cells.mode[c])),
         diag: Default::default(),
     })
-}
-
-/// Whether a stable `cycle` (of one side) and the other side's attractor (run from that
-/// cell's final state `other`) both persist at the parameters `p` (an edge's midpoint): the
-/// cycle, continued by Newton, is stable there, and the other motion, after `periods`
-/// periods (the map's run with its look), is not on it. A coexistence needs both.
-fn persists(
-    p: &Params<f64>,
-    settings: &crate::method::Settings,
-    cycle: &Cycle,
-    other: Option<PointState<f64>>,
-    periods: u32,
-) -> Result<(), &'static str> {
-    let it = Integrator::<f64>::new(p, settings);
-    let start = cycle.state();
-    let here = crate::cycles::refine(&it, &start, cycle.period);
-    if !(here.is_stable() && here.period == cycle.period) {
-        return Err(NOT_STABLE_AT_MIDPOINT);
-    }
-    let Some(mut st) = other else {
-        return Ok(());
-    };
-    // On the cycle: within 1e-4 of one of its section points (checked every 100 periods, so
-    // that a motion that falls onto the cycle early stops early).
-    let mut orbit = Vec::with_capacity(here.period as usize);
-    let mut on = here.state();
-    for _ in 0..here.period {
-        orbit.push(on.y);
-        it.period(&mut on);
-    }
-    let scale = here.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-    let on_cycle = |y: &[f64; 4]| {
-        orbit
-            .iter()
-            .any(|q| (0..4).all(|i| (q[i] - y[i]).abs() < 1e-4 * scale))
-    };
-    for k in 1..=periods {
-        crate::progress::poll();
-        it.period(&mut st);
-        if st.diag.nonfinite {
-            return Ok(());
-        }
-        if (k % 100 == 0 || k == periods) && on_cycle(&st.y) {
-            return Err(OTHER_ENDS_ON_CYCLE);
-        }
-    }
-    Ok(())
 }
 
 /// The class of the cycle whose change `p` located (`None` where nothing was located).

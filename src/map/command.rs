@@ -496,7 +496,8 @@ pub fn run(
     let t_files = std::time::Instant::now();
     let b = o
         .boundaries
-        .then(|| super::boundaries::of_slices(&cfg, &fields));
+        .then(|| super::boundaries::of_slices(engine, &cfg, &fields))
+        .transpose()?;
     summary
         .files
         .extend(write_outputs(out, &cfg, &fields, &report, b.as_deref())?);
@@ -648,7 +649,8 @@ pub fn run_shared(
     };
     let b = o
         .boundaries
-        .then(|| super::boundaries::of_slices(&cfg, &fields));
+        .then(|| super::boundaries::of_slices(&engines[0], &cfg, &fields))
+        .transpose()?;
     let files = write_outputs(out, &cfg, &fields, &report, b.as_deref())?;
     let boundaries = b.as_ref().map(|b| super::boundaries::summary_of(&cfg, b));
     Ok(MapSummary {

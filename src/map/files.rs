@@ -914,10 +914,13 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
         values(&layer("attractors")?, n, &dims).ok_or_else(|| bad("attractors"))?;
     // Each slice of a volume in its own plane, as `rattle map --boundaries` locates them.
     let per = super::plane_cells(&cfg);
+    // The sides' motions at the edges' midpoints run on the engine the map's config names.
+    let engine = crate::engine::Engine::open(cfg.method.backend)?;
     let b: Vec<super::boundaries::Boundaries> = (0..cfg.z_count())
         .map(|k| {
             let r = k * per..(k + 1) * per;
             super::boundaries::locate(
+                &engine,
                 &cfg.slice(k),
                 &super::boundaries::Cells {
                     class: &class[r.clone()],
@@ -928,7 +931,7 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
                 },
             )
         })
-        .collect();
+        .collect::<crate::Result<_>>()?;
     let mut st = Staged::new();
     stage_boundaries(&mut st, prefix, &cfg, &class, &attractors, &b)?;
     // The map's own files stay as they are, listed (with their sums) beside the new ones.
@@ -1089,7 +1092,7 @@ fn stage_boundaries(
     // A volume's points carry their slice's z first.
     let zs = cfg.z_axis().map(|z| (z.param, z.values()));
     let mut csv = format!(
-        "{}{},{},type,class_a,class_b,before,after,uncertainty,located,period,reason\n",
+        "{}{},{},type,class_a,class_b,before,after,uncertainty,located,period,reason,evidence\n",
         zs.as_ref()
             .map_or(String::new(), |(p, _)| format!("{},", p.name())),
         m.x.name(),
@@ -1101,7 +1104,7 @@ fn stage_boundaries(
             .map_or(String::new(), |(_, v)| format!("{},", v[k]));
         for p in &b.points {
             csv.push_str(&format!(
-                "{z}{},{},{},{},{},{},{},{},{},{},\"{}\"\n",
+                "{z}{},{},{},{},{},{},{},{},{},{},\"{}\",\"{}\"\n",
                 p.x,
                 p.y,
                 p.ty.name(),
@@ -1112,7 +1115,8 @@ fn stage_boundaries(
                 p.uncertainty,
                 p.located,
                 p.period,
-                p.reason
+                p.reason,
+                p.evidence
             ));
         }
     }
@@ -1190,7 +1194,8 @@ fn caption_of_boundaries(cfg: &Config, edges: usize, located: usize) -> String {
          else undetermined with its reason. Where the cycle is still stable at the other \
          cell's parameters, the two attractors coexist (a basin boundary: coexistence) if \
          both persist at the edge's midpoint (the cycle by Newton, the other side's motion \
-         run there from its own state for the configured periods); edges without a stable \
+         run there from its own state for twice the configured periods, all at once on the \
+         map's engine); edges without a stable \
          cycle on either side are undetermined and not located. Curves join the points of \
          one type on edges of one grid square with one pair of classes, or whose changing \
          cycle is of one class (the class beyond may change along a curve); coexistence and \

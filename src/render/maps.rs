@@ -36,6 +36,7 @@ pub enum Marker {
     Square,
     Triangle,
     Cross,
+    Diamond,
 }
 
 /// Draws `marker` of half-size `r` pixels centred at pixel `(x, y)` of `area`.
@@ -55,6 +56,17 @@ pub(super) fn mark<DB: DrawingBackend>(
         Marker::Triangle => area
             .draw(&Polygon::new(
                 vec![(x, y - r), (x + r, y + r), (x - r, y + r)],
+                c.filled(),
+            ))
+            .map_err(draw_err),
+        Marker::Diamond => area
+            .draw(&Polygon::new(
+                vec![
+                    (x, y - r - 1),
+                    (x + r + 1, y),
+                    (x, y + r + 1),
+                    (x - r - 1, y),
+                ],
                 c.filled(),
             ))
             .map_err(draw_err),

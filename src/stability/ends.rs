@@ -27,10 +27,22 @@ pub struct Structure {
     pub stick: f64,
     /// Least |v| of a slip's closest approach to v = 0 without reversing.
     pub slip_speed: f64,
+    /// The cycle's events over one cycle: impacts, reversals, stick or lock phases begun. A
+    /// cycle whose events change between two parameter values has met a switching surface
+    /// (a stop or the friction law's) between them.
+    pub events: [u32; 3],
 }
 
 impl Structure {
-    fn values(&self) -> [(f64, Kind); 4] {
+    /// The vanishing candidates' names, in the order of [`Structure::values`].
+    pub const NAMES: [&'static str; 4] = [
+        "impact speed",
+        "clearance at a closest approach",
+        "stick phase",
+        "slip speed at a closest approach to v = 0",
+    ];
+
+    pub fn values(&self) -> [(f64, Kind); 4] {
         [
             (self.impact_speed, Kind::Grazing),
             (self.gap, Kind::Grazing),
@@ -55,6 +67,7 @@ pub fn structure(it: &Integrator<f64>, c: &Cycle) -> Structure {
             gap: f64::INFINITY,
             stick: f64::INFINITY,
             slip_speed: f64::INFINITY,
+            events: [0; 3],
         },
     };
     let mut st = c.state();
@@ -74,15 +87,38 @@ pub fn structure(it: &Integrator<f64>, c: &Cycle) -> Structure {
 /// distances' ratio near/far, at most 1/16) and the feature at `near` is small against its
 /// scale at `far`.
 pub fn vanishing(near: &Structure, far: &Structure, contrast: f64) -> Option<Kind> {
+    vanishing_feature(near, far, contrast).map(|(k, _)| k)
+}
+
+/// [`vanishing`] with the index of the feature that vanishes (in [`Structure::values`]).
+pub fn vanishing_feature(
+    near: &Structure,
+    far: &Structure,
+    contrast: f64,
+) -> Option<(Kind, usize)> {
     let bound = 2.0 * contrast.sqrt();
     near.values()
         .iter()
         .zip(far.values())
-        .filter(|((n, _), (f, _))| n.is_finite() && f.is_finite() && *f > 0.0)
-        .map(|((n, k), (f, _))| (n / f, *k))
-        .filter(|(ratio, _)| *ratio < bound)
+        .enumerate()
+        .filter(|(_, ((n, _), (f, _)))| n.is_finite() && f.is_finite() && *f > 0.0)
+        .map(|(i, ((n, k), (f, _)))| (n / f, *k, i))
+        .filter(|(ratio, _, _)| *ratio < bound)
         .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, k)| k)
+        .map(|(_, k, i)| (k, i))
+}
+
+/// Where the feature `i` of [`Structure::values`] reaches zero, from its values `near` and
+/// `far` at distances `d_near` and `d_far` from the end: its distance from the end towards
+/// the cycle's side (negative: beyond the end). A clearance, a stick's length or a slip's
+/// least speed shrinks linearly with the distance, an impact's speed like its square root.
+pub fn zero_distance(i: usize, (near, d_near): (f64, f64), (far, d_far): (f64, f64)) -> f64 {
+    let (a, b) = if i == 0 {
+        (far * far, near * near)
+    } else {
+        (far, near)
+    };
+    d_near - b * (d_far - d_near) / (a - b)
 }
 
 /// A sample of a slip: time, the relative velocity v = y2 - y4 and its derivative.
@@ -188,6 +224,10 @@ impl StepObserver<f64> for Observer {
         if (e.ev == EV_IMPACT_POS || e.ev == EV_IMPACT_NEG) && counts {
             let speed = (e.before[3] - e.before[1]).abs();
             self.out.impact_speed = self.out.impact_speed.min(speed);
+            self.out.events[0] += 1;
+        }
+        if e.ev == EV_REVERSAL && counts {
+            self.out.events[1] += 1;
         }
         // z' = -v: the clearance r - |z| has its local minima where v passes zero, at a
         // reversal or a stick's start, never inside a slip. Where |z| peaks there (z > 0 after
@@ -204,7 +244,10 @@ impl StepObserver<f64> for Observer {
         }
         let held = |m: Mode| matches!(m, Mode::Stick | Mode::LockPos | Mode::LockNeg);
         match (held(e.mode_before), held(e.after.mode)) {
-            (false, true) => self.stick_from = Some(self.t),
+            (false, true) => {
+                self.stick_from = Some(self.t);
+                self.out.events[2] += u32::from(counts);
+            }
             (true, false) => {
                 if let (Some(s), true) = (self.stick_from.take(), counts) {
                     self.out.stick = self.out.stick.min(self.t - s);

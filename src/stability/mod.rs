@@ -35,6 +35,12 @@ pub enum Kind {
     StickOnset,
     /// A cycle ends where one of its stick phases shrinks to nothing.
     StickLoss,
+    /// A cycle ends abruptly, without a multiplier crossing, a square-root fold or a vanishing
+    /// feature, after its events changed between two distances from the end: it met a
+    /// switching surface of the stops or of the friction law (a border collision of the
+    /// piecewise-smooth system). (A leading multiplier that seems to jump near an end is not
+    /// taken for one: close enough, such ends have shown the square root of a fold.)
+    BorderCollision,
 }
 
 /// A located bifurcation point.
@@ -57,6 +63,11 @@ pub struct BifurcationPoint {
     /// the exact system's end.
     #[serde(skip_serializing_if = "nan")]
     pub stall: f64,
+    /// What was measured to type an end without a crossing: the vanishing feature and where
+    /// it reaches zero, or the events and multipliers on both sides of a switching surface, or
+    /// why nothing names the end (empty for a crossing).
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub evidence: String,
 }
 
 /// Bisection steps locating a stability change: the interval (a sweep spacing, 5e-4 in the
@@ -330,6 +341,7 @@ pub fn graze(
         multipliers: crate::cycles::eigenvalues(&tan.matrix()),
         section: last.y,
         stall: f64::NAN,
+        evidence: String::new(),
     })
 }
 
@@ -608,24 +620,35 @@ impl<'a> Locate<'a> {
         let (good, bad, last) = (self.good, self.bad, &self.last);
         let lead = last.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
         let near = 1.0 - modulus(&lead) <= CRITICAL;
-        let kind = match &self.beyond {
-            Some(b) if near && b.period < last.period => Kind::PeriodDoubling,
+        let crossing = |kind| (kind, None, String::new());
+        let (kind, zero, evidence) = match &self.beyond {
+            Some(b) if near && b.period < last.period => crossing(Kind::PeriodDoubling),
             Some(b) if near => {
                 let out = b.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
-                if out[1].abs() > 1e-6 {
+                crossing(if out[1].abs() > 1e-6 {
                     Kind::NeimarkSacker
                 } else if out[0] < 0.0 || self.halves(last) {
                     Kind::PeriodDoubling
                 } else {
                     Kind::Fold
-                }
+                })
             }
             _ => self.end(),
         };
+        let (mut value, mut uncertainty) = (0.5 * (good + bad), 0.5 * (good - bad).abs());
+        if let Some(z) = zero {
+            // A vanishing feature's zero, where it lies within a sixty-fourth of the edge of
+            // the bracket: the point, its uncertainty covering the bracket.
+            let edge = (self.to - self.start_value()).abs();
+            if (z - value).abs() <= edge / 64.0 {
+                uncertainty = uncertainty.max((z - value).abs());
+                value = z;
+            }
+        }
         BifurcationPoint {
             kind,
-            value: 0.5 * (good + bad),
-            uncertainty: 0.5 * (good - bad).abs(),
+            value,
+            uncertainty,
             period: self.start.period,
             multipliers: last.multipliers.clone(),
             section: last.point,
@@ -634,6 +657,7 @@ impl<'a> Locate<'a> {
             } else {
                 f64::NAN
             },
+            evidence,
         }
     }
 
@@ -642,15 +666,19 @@ impl<'a> Locate<'a> {
     /// bracket's width from the end), and `near` 2^-9 of the edge (`far` at most the whole way
     /// followed, and at least 16 x `near`). A fold where 1 - mu (mu the leading multiplier,
     /// real, near +1) shrinks like the square root of the distance; a grazing or a stick
-    /// onset/loss where an event feature vanishes ([`ends::vanishing`]); else `non_smooth`
-    /// (unnamed).
-    fn end(&self) -> Kind {
+    /// onset/loss where an event feature vanishes ([`ends::vanishing`]: with the value where
+    /// it reaches zero, extrapolated); a border collision where the cycle's events differ
+    /// between `far` and `near` (a switching surface met); else `non_smooth` (unnamed). With
+    /// what was measured.
+    fn end(&self) -> (Kind, Option<f64>, String) {
         let e = 0.5 * (self.good + self.bad);
         let edge = self.to - self.start_value();
         let followed = (e - self.start_value()).abs();
         let w = (self.bad - self.good).abs().max(f64::MIN_POSITIVE);
         let scales = [(w, 64.0 * w), (edge.abs() / 512.0, edge.abs() / 8.0)];
         let lead = |c: &Cycle| c.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
+        let mut measured = String::new();
+        let mut switched = None;
         for (k, (d_near, d_far)) in scales.into_iter().enumerate() {
             let d_far = d_far.min(followed);
             if d_far < 16.0 * d_near {
@@ -667,25 +695,69 @@ impl<'a> Locate<'a> {
             let Some(far) = self.cycle_near(e, d_far, 16.0 * (e - near.0).abs()) else {
                 continue;
             };
-            let contrast = (e - near.0).abs() / (e - far.0).abs();
+            let (dn, df) = ((e - near.0).abs(), (e - far.0).abs());
+            let contrast = dn / df;
             let (ln, lf) = (lead(&near.1), lead(&far.1));
             if ln[1] == 0.0 && lf[1] == 0.0 && ln[0] > 0.0 && 1.0 - ln[0] <= CRITICAL {
                 let ratio = (1.0 - ln[0]) / (1.0 - lf[0]);
                 if ratio > 0.0 && ratio < 2.0 * contrast.sqrt() {
-                    return if self.halves(&self.last) {
+                    let kind = if self.halves(&self.last) {
                         Kind::PeriodDoubling
                     } else {
                         Kind::Fold
                     };
+                    return (
+                        kind,
+                        None,
+                        format!(
+                            "1 - mu {:.3e} at {df:.3e} from the end, {:.3e} at {dn:.3e} (ratio \
+                             {ratio:.3}, the distances' square root {:.3})",
+                            1.0 - lf[0],
+                            1.0 - ln[0],
+                            contrast.sqrt()
+                        ),
+                    );
                 }
             }
             let sn = ends::structure(&self.integrator(near.0), &near.1);
             let sf = ends::structure(&self.integrator(far.0), &far.1);
-            if let Some(kind) = ends::vanishing(&sn, &sf, contrast) {
-                return kind;
+            if let Some((kind, i)) = ends::vanishing_feature(&sn, &sf, contrast) {
+                let (n, f) = (sn.values()[i].0, sf.values()[i].0);
+                let d0 = ends::zero_distance(i, (n, dn), (f, df));
+                // The zero's parameter value: d0 before the end, towards the cycle's side.
+                let toward = (self.start_value() - e).signum();
+                return (
+                    kind,
+                    Some(e + toward * d0),
+                    format!(
+                        "{} {f:.3e} at {df:.3e} from the end, {n:.3e} at {dn:.3e} (ratio {:.3}); \
+                         its zero {:+.3e} from the end",
+                        ends::Structure::NAMES[i],
+                        n / f,
+                        d0
+                    ),
+                );
+            }
+            if sn.events != sf.events && switched.is_none() {
+                switched = Some(format!(
+                    "the cycle's events change between {df:.3e} and {dn:.3e} from the end \
+                     (impacts, reversals, stick phases: {:?} -> {:?}), its leading multiplier \
+                     {:.4?} -> {:.4?}: it meets a switching surface; no multiplier crossing, no \
+                     square-root fold, no feature vanishing",
+                    sf.events, sn.events, lf, ln
+                ));
+            } else if measured.is_empty() {
+                measured = format!(
+                    "events unchanged {:?} between {df:.3e} and {dn:.3e} from the end, leading \
+                     multiplier {:.4?} -> {:.4?}, no square-root fold, no feature vanishing",
+                    sn.events, lf, ln
+                );
             }
         }
-        Kind::NonSmooth
+        match switched {
+            Some(why) => (Kind::BorderCollision, None, why),
+            None => (Kind::NonSmooth, None, measured),
+        }
     }
 
     /// A stable cycle about `d` from the end `e`, at least `least` from it: the one found on
