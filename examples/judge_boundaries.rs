@@ -10,7 +10,7 @@
 //!
 //! A located point says: the cycle of period n (`period`) continued from the cell `from`
 //! stops being stable here, of `type`. The judge continues its own cycle: Newton at the cell
-//! from the cell's final state (the map's `state` layer: a start only), then 16 steps to 1/64
+//! from the cell's final state (the map's `state` layer: a start only), then 64 steps to 1/64
 //! of a cell before the point. Right where that cycle stays stable up to there, and after the
 //! point (Newton from it):
 //! - `period_doubling`: the continued cycle is unstable through -1 (a real multiplier below
@@ -161,7 +161,7 @@ fn main() -> anyhow::Result<()> {
             return (Verdict::CannotTell, "no reference".into());
         };
         // The reference's own continuation from the `from` cell's attractor: Newton at the
-        // cell from its final state, then 16 steps to 1/64 of a cell before the point.
+        // cell from its final state, then 64 steps to 1/64 of a cell before the point.
         let here = |v: f64| {
             if along_x {
                 reference(v, y)
@@ -170,7 +170,13 @@ fn main() -> anyhow::Result<()> {
             }
         };
         let v_point = if along_x { x } else { y };
-        let v_before = v_point - delta;
+        // 1/64 of a cell before the point, or half way from the cell where the point lies
+        // closer to the cell's centre than that.
+        let v_before = if (v_point - cf).abs() > delta.abs() {
+            v_point - delta
+        } else {
+            0.5 * (v_point + cf)
+        };
         let own = class[from] == n as i32;
         // A point on a branch that followed an earlier change on the edge (a doubled cycle):
         // the reference's cycle from the point's section (a start only) 1/64 of a cell before
@@ -206,8 +212,8 @@ fn main() -> anyhow::Result<()> {
                 ),
             );
         }
-        for k in (1..=16).filter(|_| own) {
-            let v = cf + (v_before - cf) * f64::from(k) / 16.0;
+        for k in (1..=STEPS).filter(|_| own) {
+            let v = cf + (v_before - cf) * f64::from(k) / f64::from(STEPS);
             let Some(r) = here(v) else {
                 return (Verdict::CannotTell, "no reference".into());
             };
@@ -248,7 +254,7 @@ fn main() -> anyhow::Result<()> {
         // from there (linearly for a clearance or a stick's length, in its square for an impact
         // speed) within 1e-3 of a cell of the point.
         let vanishes = |kinds: &[usize]| -> (bool, String) {
-            let v_near = v_point - delta / 8.0;
+            let v_near = v_point - (v_point - v_before) / 8.0;
             let Some(r512) = here(v_near) else {
                 return (false, "no reference 1/512 before".into());
             };
@@ -263,7 +269,8 @@ fn main() -> anyhow::Result<()> {
             };
             let (f8, f64_) = (features(&r64, &before, n), features(&r512, &near, n));
             let cell = (co - cf).abs();
-            let (d1, d2) = (delta.abs(), delta.abs() / 8.0);
+            let d1 = (v_point - v_before).abs();
+            let d2 = d1 / 8.0;
             let best = kinds
                 .iter()
                 .filter(|&&k| f8[k].is_finite() && f64_[k].is_finite() && f8[k] > 0.0)
@@ -382,6 +389,9 @@ fn main() -> anyhow::Result<()> {
 }
 
 /// The names of [`features`]'s values.
+/// Steps of the reference's own continuation from the cell to the point.
+const STEPS: u32 = 64;
+
 const FEATURES: [&str; 3] = ["impact speed", "clearance", "stick length"];
 
 /// The vanishing candidates of the reference's cycle `c` of period `n` over one cycle (after

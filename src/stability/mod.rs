@@ -701,7 +701,12 @@ impl<'a> Locate<'a> {
             if ln[1] == 0.0 && lf[1] == 0.0 && ln[0] > 0.0 && 1.0 - ln[0] <= CRITICAL {
                 let ratio = (1.0 - ln[0]) / (1.0 - lf[0]);
                 if ratio > 0.0 && ratio < 2.0 * contrast.sqrt() {
-                    let kind = if self.halves(&self.last) {
+                    // 1 - mu ~ distance^power: 1/2 at a fold; 1 where a doubled cycle merges
+                    // into its half (its multiplier is the square of the half's, which leaves
+                    // -1 linearly), also where its points have not yet come within DOUBLED.
+                    let power = ratio.ln() / contrast.ln();
+                    let merging = power > 0.75 && self.start.period.is_multiple_of(2);
+                    let kind = if merging || self.halves(&self.last) {
                         Kind::PeriodDoubling
                     } else {
                         Kind::Fold
@@ -711,10 +716,9 @@ impl<'a> Locate<'a> {
                         None,
                         format!(
                             "1 - mu {:.3e} at {df:.3e} from the end, {:.3e} at {dn:.3e} (ratio \
-                             {ratio:.3}, the distances' square root {:.3})",
+                             {ratio:.3}: the distance to the power {power:.2})",
                             1.0 - lf[0],
                             1.0 - ln[0],
-                            contrast.sqrt()
                         ),
                     );
                 }
