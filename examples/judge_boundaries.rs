@@ -16,7 +16,8 @@
 //! - `period_doubling`: the continued cycle is unstable through -1 (a real multiplier below
 //!   -1), or, seen from the doubled side, it has merged into its half (its least period n/2);
 //! - `neimark_sacker`: unstable through a complex pair (modulus above 1);
-//! - `fold`: no cycle of period n is found from the last one, or it is unstable through +1;
+//! - `fold`: no cycle of period n is found from the last one (none, or Newton lands on a cycle
+//!   of another period), or it is unstable through +1;
 //! - `grazing`, `stick_onset`, `stick_loss`, `undetermined` (located ends): no stable cycle of
 //!   period n continues, and for `grazing` (`stick_loss`) the reference's cycle has an impact
 //!   speed or a clearance at a reversal (a stick's length) that vanishes at the point: its zero,
@@ -314,6 +315,9 @@ fn main() -> anyhow::Result<()> {
                 }
                 ("neimark_sacker", Some(c)) => !c.stable() && c.lead()[1] != 0.0,
                 ("fold", None) => true,
+                // Newton from the last cycle lands on another cycle of another period: the
+                // period-n cycle is gone.
+                ("fold", Some(c)) if c.period != n => true,
                 ("fold", Some(c)) => !c.stable() && c.lead()[1] == 0.0 && c.lead()[0] > 1.0,
                 ("period_doubling" | "neimark_sacker", None) => false,
                 (_, None) => true,

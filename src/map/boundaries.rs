@@ -389,11 +389,11 @@ struct Link {
 /// What the continuations along one edge found, from both sides.
 type EdgeFound = Vec<Link>;
 
-/// The bracket of a multiplier's crossing on a map's edge shrinks to 2^-12 of the edge
-/// (1/4096 of a cell, well within the 1/64 of a cell a point claims, at 8 fewer Newton solves
-/// than a sweep's 2^-20); an end without a crossing is still bracketed to 2^-20, where its
-/// approach types it.
-const EDGE_BISECTIONS: u32 = 12;
+/// The bracket of a change on a map's edge shrinks to 2^-20 of the edge, as a sweep's: a
+/// coarser one (2^-12 tried) lets a crossing's far end, solved again from within it, fail as
+/// an end does, and ends bracketed that wide are not typed by their approach (eta x lambda:
+/// 117 located ends undetermined against 65).
+const EDGE_BISECTIONS: u32 = crate::stability::BISECTIONS;
 
 /// Where a side's motion at an edge's midpoint ended, and whether its last period held an
 /// impact ([`Grid::settle`]).

@@ -443,17 +443,9 @@ impl<'a> Locate<'a> {
         Integrator::<f64>::new(&p, self.settings)
     }
 
-    /// The smallest bracket: 2^-bisections of the edge where the bracket's far end holds the
-    /// cycle unstable (a crossing, typed by its multipliers wherever it is bisected to), 2^-20
-    /// where it holds no cycle (an end, typed by how the cycle approaches it: that needs the
-    /// cycle close to it).
+    /// The smallest bracket, 2^-bisections of the edge.
     fn resolution(&self) -> f64 {
-        let bisections = if self.beyond.is_some() {
-            self.bisections
-        } else {
-            BISECTIONS
-        };
-        (self.to - self.start_value()).abs() / f64::from(1u32 << bisections)
+        (self.to - self.start_value()).abs() / f64::from(1u32 << self.bisections)
     }
 
     fn start_value(&self) -> f64 {
