@@ -1181,8 +1181,7 @@ fn caption_of_boundaries(cfg: &Config, edges: usize, located: usize) -> String {
          cells of different classes, typed. Where a side landed on a stable cycle, Newton's \
          method continues that cycle from its own cell towards the other cell's parameters \
          (a step that fails is shortened, never taken for the cycle's end) and locates where \
-         it stops being stable, a crossing to 2^-12 of the edge, an end to 2^-20 ({located} \
-         points located). A crossing seen (the cycle beyond converged, a multiplier outside \
+         it stops being stable to 2^-20 of the edge ({located} points located). A crossing seen (the cycle beyond converged, a multiplier outside \
          the circle) is a period doubling (through -1), a fold (+1) or a Neimark-Sacker point \
          (a complex pair); beyond a period doubling the branch that follows (the doubled \
          cycle, from the critical eigenvector; or the half a doubled cycle merged into) is \
