@@ -169,6 +169,10 @@ pub struct Point {
     /// The index of the point's edge among the map's edges between classes.
     #[serde(skip)]
     pub edge: usize,
+    /// `after` is the far cell's class by default (nothing else located between): checked by
+    /// a run just past the point ([`check_after`]).
+    #[serde(skip)]
+    pub after_by_default: bool,
 }
 
 /// A polyline through the points of one type on neighbouring edges (edges of one grid square)
@@ -555,7 +559,7 @@ pub fn locate(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Bou
         &both_sides,
     )?;
     let coexistence_s = t2.elapsed().as_secs_f64();
-    let points: Vec<Point> = edges
+    let mut points: Vec<Point> = edges
         .iter()
         .zip(&per_edge)
         .enumerate()
@@ -567,6 +571,7 @@ pub fn locate(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Bou
             ps
         })
         .collect();
+    check_after(engine, &grid, &settings, cells, &edges, &mut points)?;
     let curves = curves(&points, &edges, grid.nx);
     Ok(Boundaries {
         x_param: cfg.map.x.name(),
@@ -972,6 +977,7 @@ fn edge_points(
         reason,
         evidence: String::new(),
         edge: 0,
+        after_by_default: false,
     };
     let mut sides = [a, b];
     sides.sort_by(|p, q| grid.along(*p, along_x).total_cmp(&grid.along(*q, along_x)));
@@ -1001,7 +1007,7 @@ fn edge_points(
         let mut emit = |p: &BifurcationPoint,
                         n: u32,
                         from: usize,
-                        after: String,
+                        (after, by_default): (String, bool),
                         others: &[(&BifurcationPoint, u32)]| {
             let (ty, reason) = type_of(p);
             // The same change seen from the other side widens the interval to cover it.
@@ -1031,15 +1037,16 @@ fn edge_points(
                 reason,
                 evidence: p.evidence.clone(),
                 edge: 0,
+                after_by_default: by_default,
             });
         };
         for (i, &(p, n)) in steps.iter().enumerate() {
             let after = match (steps.get(i + 1), beyond) {
-                (Some(next), _) => period_name(next.1),
-                (None, Some(m)) => period_name(m),
-                (None, None) if p.kind == Kind::PeriodDoubling => UNRESOLVED.to_string(),
-                (None, None) if gap => UNRESOLVED.to_string(),
-                (None, None) => name(far),
+                (Some(next), _) => (period_name(next.1), false),
+                (None, Some(m)) => (period_name(m), false),
+                (None, None) if p.kind == Kind::PeriodDoubling => (UNRESOLVED.to_string(), false),
+                (None, None) if gap => (UNRESOLVED.to_string(), false),
+                (None, None) => (name(far), true),
             };
             emit(p, n, near, after, others);
         }
@@ -1052,7 +1059,7 @@ fn edge_points(
             } else {
                 UNRESOLVED.to_string()
             };
-            emit(q, n, far, after, &[]);
+            emit(q, n, far, (after, false), &[]);
         }
         return out;
     }
@@ -1065,6 +1072,121 @@ fn edge_points(
         impact_free,
         unlocated,
     )]
+}
+
+/// Samples read past a point by [`check_after`]: recurrences up to half as many periods.
+const AFTER_SAMPLES: u32 = 128;
+
+/// Where a point's `after` is the far cell's class by default (nothing else was located
+/// between), what the motion reaches just past the point: run on the map's engine from the
+/// point's last stable cycle, 1/64 of the edge past it, for the map's periods with its look,
+/// then [`AFTER_SAMPLES`] periods read. A periodic far class must recur at its period; a chaotic or
+/// quasi-periodic one at no lag up to half the samples; `no_impact` without an impact. Where
+/// the motion recurs instead at a lag Newton confirms as a stable cycle there, `after` names
+/// that cycle (a window between the point and the far cell); otherwise it is `unresolved`.
+fn check_after(
+    engine: &Engine,
+    grid: &Grid,
+    settings: &crate::method::Settings,
+    cells: &Cells,
+    edges: &[Edge],
+    points: &mut [Point],
+) -> crate::Result<()> {
+    use rayon::prelude::*;
+    let todo: Vec<usize> = (0..points.len())
+        .filter(|&i| points[i].after_by_default && points[i].section.is_some())
+        .collect();
+    if todo.is_empty() {
+        return Ok(());
+    }
+    let m = &grid.cfg.map;
+    // Each point's parameters just past it, its start and the far cell's class.
+    let past: Vec<((f64, f64), [f64; 4], Class)> = todo
+        .iter()
+        .map(|&i| {
+            let p = &points[i];
+            let (a, b, along_x) = edges[p.edge];
+            let from = p.from.unwrap_or(a);
+            let far = if from == a { b } else { a };
+            let step = (grid.along(far, along_x) - grid.along(from, along_x)) / 64.0;
+            let xy = if along_x {
+                (p.x + step, p.y)
+            } else {
+                (p.x, p.y + step)
+            };
+            (
+                xy,
+                p.section.unwrap_or_default(),
+                Class::from_code(cells.class[far]),
+            )
+        })
+        .collect();
+    let mut spec = crate::spec::RunSpec::new(grid.cfg);
+    // The map's own look: what the map would have called the motion there.
+    spec.transient = grid.look() / 2;
+    spec.samples = AFTER_SAMPLES;
+    spec.settings.lyapunov = false;
+    let vary = [m.x, m.y];
+    let values: Vec<f64> = past.iter().flat_map(|((x, y), _, _)| [*x, *y]).collect();
+    let y0s: Vec<[f64; 4]> = past.iter().map(|(_, y, _)| *y).collect();
+    let points_run = crate::spec::Points {
+        vary: &vary,
+        values: &values,
+        y0s: Some(&y0s),
+        modes: None,
+    };
+    let (results, _) = engine.run(&spec, &points_run, &crate::progress::Silent)?;
+    // The least lag (up to half the samples) at which the samples recur.
+    let lag = |s: &[[f64; 4]]| {
+        let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
+        (1..=s.len() / 2).find(|&n| {
+            (n..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() < 1e-4 * scale))
+        })
+    };
+    let verdicts: Vec<Option<String>> = results
+        .par_iter()
+        .zip(&past)
+        .map(|(r, ((x, y), _, claim))| {
+            crate::progress::poll();
+            if r.diag.nonfinite || r.samples.is_empty() {
+                return Some(UNRESOLVED.to_string());
+            }
+            let claim = *claim;
+            let found = lag(&r.samples);
+            let holds = match claim {
+                Class::Periodic(n) if n as usize > r.samples.len() / 2 => true,
+                Class::Periodic(n) => found == Some(n as usize),
+                Class::Chaotic | Class::QuasiPeriodic => found.is_none(),
+                Class::NoImpact => r.sample_impacts == 0,
+                _ => true,
+            };
+            if holds {
+                return None;
+            }
+            // A recurrence Newton confirms: the cycle that follows (a window).
+            let named = found.and_then(|k| {
+                let mut q = grid.cfg.params();
+                m.x.set(&mut q, *x);
+                m.y.set(&mut q, *y);
+                let it = Integrator::<f64>::new(&q, settings);
+                let last = *r.samples.last()?;
+                let st = PointState {
+                    y: last,
+                    mode: r.final_mode,
+                    diag: Default::default(),
+                };
+                let c = crate::cycles::refine(&it, &st, k as u32);
+                (c.is_stable() && c.period == k as u32).then(|| Class::Periodic(c.period).name())
+            });
+            Some(named.unwrap_or_else(|| UNRESOLVED.to_string()))
+        })
+        .collect();
+    for (&i, v) in todo.iter().zip(verdicts) {
+        if let Some(after) = v {
+            points[i].change[1] = after;
+        }
+    }
+    Ok(())
 }
 
 /// The rank of a located change's kind: a multiplier's crossing, a named end, an unnamed one.
