@@ -248,15 +248,35 @@ fn end_along_r(
     rattle::model::Params<f64>,
     rattle::stability::BifurcationPoint,
 ) {
+    end_along(true, (from, to), lambda, start, n)
+}
+
+/// [`end_along_r`] along R (`along_x`) or along lambda (the other parameter at `fixed`).
+fn end_along(
+    along_x: bool,
+    (from, to): (f64, f64),
+    fixed: f64,
+    start: ([f64; 4], rattle::model::Mode),
+    n: u32,
+) -> (
+    Config,
+    rattle::model::Params<f64>,
+    rattle::stability::BifurcationPoint,
+) {
     use rattle::cycles::refine;
     use rattle::method::{Integrator, PointState};
     use rattle::stability::{Change, Found, locate_changes};
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
     let cfg = Config::load(&path, &[]).unwrap();
     let settings = cfg.settings();
+    let (param, other) = if along_x {
+        (cfg.map.x, cfg.map.y)
+    } else {
+        (cfg.map.y, cfg.map.x)
+    };
     let mut p = cfg.params();
-    cfg.map.x.set(&mut p, from);
-    cfg.map.y.set(&mut p, lambda);
+    param.set(&mut p, from);
+    other.set(&mut p, fixed);
     let st = PointState {
         y: start.0,
         mode: start.1,
@@ -268,7 +288,7 @@ fn end_along_r(
         &settings,
         &[Change {
             base: p,
-            param: cfg.map.x,
+            param,
             from,
             cycle: &cycle,
             to,
@@ -917,43 +937,17 @@ fn an_edge_with_a_doubling_then_chaos_holds_both_changes() {
 /// ratio within 0.5-2 times the square root of the distances' ratio).
 #[test]
 fn an_abrupt_end_is_typed_by_its_evidence() {
-    use rattle::method::{Integrator, PointState};
     use rattle::model::Mode;
     use rattle::stability::Kind;
-    use rattle::stability::{Change, Found, locate_changes};
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
-    let cfg = Config::load(&path, &[]).unwrap();
-    let settings = cfg.settings();
     let (x, from, to) = (0.57578125, 0.1 * 11.5 / 128.0, 0.1 * 12.5 / 128.0);
-    let mut p = cfg.params();
-    cfg.map.x.set(&mut p, x);
-    cfg.map.y.set(&mut p, from);
-    let st = PointState {
-        y: [
-            -0.1689867079257965,
-            -0.1903446614742279,
-            -0.9052058458328247,
-            0.4768698215484619,
-        ],
-        mode: Mode::SlipNeg,
-        diag: Default::default(),
-    };
-    let cycle = rattle::cycles::refine(&Integrator::<f64>::new(&p, &settings), &st, 20);
-    assert!(cycle.is_stable() && cycle.period == 20, "{cycle:?}");
-    let found = locate_changes(
-        &settings,
-        &[Change {
-            base: p,
-            param: cfg.map.y,
-            from,
-            cycle: &cycle,
-            to,
-            bisections: rattle::stability::BISECTIONS,
-        }],
-    );
-    let Found::Located(b) = &found[0] else {
-        panic!("{:?}", found[0]);
-    };
+    let y = [
+        -0.1689867079257965,
+        -0.1903446614742279,
+        -0.9052058458328247,
+        0.4768698215484619,
+    ];
+    let (cfg, p, b) = end_along(false, (from, to), x, (y, Mode::SlipNeg), 20);
+    let settings = cfg.settings();
     eprintln!("{:?} at lambda {:.9}: {}", b.kind, b.value, b.evidence);
     assert_eq!(b.kind, Kind::Fold, "{b:?}");
     assert!(b.evidence.starts_with("1 - mu"), "{}", b.evidence);
@@ -967,7 +961,7 @@ fn an_abrupt_end_is_typed_by_its_evidence() {
         DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
     };
     let stable = |v: f64, x: [f64; 4]| at(v).cycle(x, 20).filter(|c| c.stable() && c.period == 20);
-    let mut last = stable(from, cycle.point).expect("the reference's cycle at the cell");
+    let mut last = stable(from, y).expect("the reference's cycle at the cell");
     let mut good = from;
     let mut bad = b.value + cell / 64.0;
     for k in 1..=64 {

@@ -293,26 +293,8 @@ impl<'a> VolumeBoundaries<'a> {
             y_param: cfg.map.y.name(),
             z_param: cfg.z_axis().map_or("", |z| z.param.name()),
             edges: count(&|b| b.edges),
-            curves: slices
-                .iter()
-                .enumerate()
-                .flat_map(|(k, b)| {
-                    b.curves.iter().map(move |c| InSlice {
-                        z: each(k),
-                        item: c,
-                    })
-                })
-                .collect(),
-            points: slices
-                .iter()
-                .enumerate()
-                .flat_map(|(k, b)| {
-                    b.points.iter().map(move |p| InSlice {
-                        z: each(k),
-                        item: p,
-                    })
-                })
-                .collect(),
+            curves: in_slices(slices, &each, |b| &b.curves),
+            points: in_slices(slices, &each, |b| &b.points),
             trials: count(&|b| b.trials),
             continuations: count(&|b| b.continuations),
             claims: count(&|b| b.claims),
@@ -321,6 +303,20 @@ impl<'a> VolumeBoundaries<'a> {
             seconds: sum(&|b| b.seconds),
         }
     }
+}
+
+/// Every item of every slice (`items` picks them from a slice's boundaries) with its slice's
+/// z value (`z` of the slice's index).
+fn in_slices<'a, T: Serialize>(
+    slices: &'a [Boundaries],
+    z: &dyn Fn(usize) -> f64,
+    items: fn(&'a Boundaries) -> &'a [T],
+) -> Vec<InSlice<'a, T>> {
+    slices
+        .iter()
+        .enumerate()
+        .flat_map(|(k, b)| items(b).iter().map(move |item| InSlice { z: z(k), item }))
+        .collect()
 }
 
 /// The terminal's line of a map's boundaries ([`of_slices`]): a plane's, or a volume's sums.
