@@ -235,23 +235,10 @@ fn a_newton_failure_from_afar_is_not_the_cycles_end() {
     assert_eq!(lag, Some(14));
 }
 
-/// The change located when the stable period-`n` cycle of tests/data/r_lambda_128.toml at R
-/// `from`, lambda `lambda`, refined from the map's final state `start`, is continued towards R
-/// `to`: the config, the parameters at `from` and the located point.
-fn end_along_r(
-    (from, to): (f64, f64),
-    lambda: f64,
-    start: ([f64; 4], rattle::model::Mode),
-    n: u32,
-) -> (
-    Config,
-    rattle::model::Params<f64>,
-    rattle::stability::BifurcationPoint,
-) {
-    end_along(true, (from, to), lambda, start, n)
-}
-
-/// [`end_along_r`] along R (`along_x`) or along lambda (the other parameter at `fixed`).
+/// The change located when the stable period-`n` cycle of tests/data/r_lambda_128.toml at
+/// `from`, refined from the map's final state `start`, is continued towards `to`, along R
+/// (`along_x`, lambda at `fixed`) or along lambda (R at `fixed`): the config, the parameters at
+/// `from` and the located point.
 fn end_along(
     along_x: bool,
     (from, to): (f64, f64),
@@ -321,7 +308,7 @@ fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
         0.4920041561126709,
     ];
     let (from, to) = (0.52421875, 0.52265625);
-    let (cfg, p, b) = end_along_r((from, to), 0.048828125, (y, Mode::SlipNeg), 15);
+    let (cfg, p, b) = end_along(true, (from, to), 0.048828125, (y, Mode::SlipNeg), 15);
     let settings = cfg.settings();
     assert_eq!(b.kind, Kind::Fold, "{b:?}");
     // The reference's Newton on either side of the point: before it, 1 - mu shrinks like the
@@ -371,7 +358,7 @@ fn a_grazing_end_is_named_where_the_exact_system_grazes() {
         -0.4069114029407501,
     ];
     let (from, to) = (0.51015625, 0.51171875);
-    let (cfg, p, b) = end_along_r((from, to), 0.001171875, (y, Mode::SlipPos), 7);
+    let (cfg, p, b) = end_along(true, (from, to), 0.001171875, (y, Mode::SlipPos), 7);
     let settings = cfg.settings();
     assert_eq!(b.kind, Kind::Grazing, "{b:?}");
     let edge = to - from;
