@@ -221,6 +221,7 @@ fn a_newton_failure_from_afar_is_not_the_cycles_end() {
             cycle: &cycle,
             to,
             bisections: rattle::stability::BISECTIONS,
+            crossing_bisections: rattle::stability::BISECTIONS,
         }],
     );
     assert!(matches!(found[0], Found::StableThere), "{:?}", found[0]);
@@ -280,6 +281,7 @@ fn end_along(
             cycle: &cycle,
             to,
             bisections: rattle::stability::BISECTIONS,
+            crossing_bisections: rattle::stability::BISECTIONS,
         }],
     );
     let Found::Located(b) = &found[0] else {

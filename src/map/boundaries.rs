@@ -3,8 +3,9 @@
 //!
 //! A side that landed on a stable cycle is continued by Newton's method from its own cycle
 //! towards the other cell's parameters (the search of the sweeps' stability changes,
-//! [`crate::stability::locate_changes`], to 2^-20 of the edge, its failed steps shortened, never
-//! taken for an end), so that each side starts from its own attractor. A crossing seen types
+//! [`crate::stability::locate_changes`], an end to 2^-20 of the edge and a crossing to 2^-10,
+//! a failure from afar never taken for an end), so that each side starts from its own
+//! attractor. A crossing seen types
 //! the change by the multiplier that crossed: through -1 a period doubling, through +1 a fold,
 //! a complex pair a Neimark-Sacker point; a cycle that ends without one is typed from how it
 //! approaches the end ([`crate::stability::ends`]: fold, grazing, stick onset or loss), else
@@ -15,12 +16,12 @@
 
 use crate::class::Class;
 use crate::config::Config;
-use crate::cycles::{Cycle, Refine};
+use crate::cycles::{Cycle, Refine, run_parallel};
 use crate::engine::{Decider, Engine};
 use crate::method::{Integrator, PointState};
 use crate::model::{Mode, Params};
 use crate::stability::{
-    BifurcationPoint, Change, Found, Grazed, Kind, SWITCH_AT, branch_switch, locate_changes,
+    BifurcationPoint, Change, Found, Grazed, Kind, SWITCH_AT, Switch, locate_changes,
 };
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
@@ -389,11 +390,15 @@ struct Link {
 /// What the continuations along one edge found, from both sides.
 type EdgeFound = Vec<Link>;
 
-/// The bracket of a change on a map's edge shrinks to 2^-20 of the edge, as a sweep's: a
-/// coarser one (2^-12 tried) lets a crossing's far end, solved again from within it, fail as
-/// an end does, and ends bracketed that wide are not typed by their approach (eta x lambda:
-/// 117 located ends undetermined against 65).
+/// The bracket of an end on a map's edge shrinks to 2^-20 of the edge, as a sweep's: ends
+/// bracketed wider are not typed by their approach (2^-12 tried: eta x lambda, 117 located
+/// ends undetermined against 65).
 const EDGE_BISECTIONS: u32 = crate::stability::BISECTIONS;
+/// The same for a crossing that names its kind (a multiplier seen beyond -1 or a complex pair
+/// outside the circle): 2^-10 of the edge, well within the 1/64 of a cell a point's location
+/// needs, with no approach to type (a crossing's far end that fails when solved again from
+/// within it is bracketed on as an end).
+const EDGE_CROSSING_BISECTIONS: u32 = 10;
 
 /// Where a side's motion at an edge's midpoint ended, and whether its last period held an
 /// impact ([`Grid::settle`]).
@@ -625,7 +630,7 @@ fn side_cycles(
 
 /// A continuation from each side with a stable cycle towards the other side, unless the map's
 /// carry already found that cycle stable at the other side's parameters; where it locates a
-/// period doubling, the branch that follows ([`crate::stability::branch_switch`]) is continued
+/// period doubling, the branch that follows ([`Switch`], batched on the host's lanes) is continued
 /// on towards the other side, in rounds, so that each change along the edge is located in
 /// order. What each edge's continuations found, and how many ran.
 fn continuations(
@@ -635,25 +640,71 @@ fn continuations(
     edges: &[Edge],
     cycles: &HashMap<usize, Cycle>,
 ) -> (Vec<EdgeFound>, usize) {
-    use rayon::prelude::*;
     let m = &grid.cfg.map;
     // (edge, from cell, the value continued from, the cycle, switches before it, the value of
     // the change it follows).
-    let mut pending: Vec<Pending> = Vec::new();
-    for (k, &(a, b, along_x)) in edges.iter().enumerate() {
-        for (from, to) in [(a, b), (b, a)] {
-            let Some(cycle) = cycles.get(&from) else {
-                continue;
-            };
-            if cells.coexist[to] == cells.class[from] {
-                continue;
-            }
-            pending.push((k, from, grid.along(from, along_x), cycle.clone(), 0, None));
+    let start = |k: usize, from: usize, to: usize| -> Option<Pending> {
+        let cycle = cycles.get(&from)?;
+        if cells.coexist[to] == cells.class[from] {
+            return None;
         }
-    }
+        Some((
+            k,
+            from,
+            grid.along(from, edges[k].2),
+            cycle.clone(),
+            0,
+            None,
+        ))
+    };
+    // The side of the smaller parameter value first (the side whose chain the edge reports),
+    // the other where it has a cycle of its own and none was continued first.
+    let first = |(a, b, along_x): Edge| {
+        if grid.along(a, along_x) <= grid.along(b, along_x) {
+            [(a, b), (b, a)]
+        } else {
+            [(b, a), (a, b)]
+        }
+    };
+    let mut pending: Vec<Pending> = edges
+        .iter()
+        .enumerate()
+        .filter_map(|(k, &e)| {
+            let [one, two] = first(e);
+            start(k, one.0, one.1).or_else(|| start(k, two.0, two.1))
+        })
+        .collect();
     let mut per_edge: Vec<EdgeFound> = vec![Vec::new(); edges.len()];
     let mut ran = 0;
-    while !pending.is_empty() {
+    let mut second_sides = true;
+    loop {
+        if pending.is_empty() && std::mem::take(&mut second_sides) {
+            // The other side's cycle, unless the first side's chain reached it: a branch of
+            // its period continued stable all the way to its cell after a located change
+            // (the same doubling seen from the doubled side, at the cost of another search).
+            pending = edges
+                .iter()
+                .enumerate()
+                .filter_map(|(k, &e)| {
+                    let links = &per_edge[k];
+                    let (one, two) = match links.first() {
+                        Some(l) if l.from == e.0 => ((e.0, e.1), (e.1, e.0)),
+                        Some(_) => ((e.1, e.0), (e.0, e.1)),
+                        None => return None,
+                    };
+                    let reached = links.iter().any(|l| {
+                        l.from == one.0
+                            && l.step >= 1
+                            && matches!(l.found, Found::StableThere)
+                            && i64::from(l.period) == i64::from(cells.class[one.1])
+                    });
+                    (!reached).then(|| start(k, two.0, two.1)).flatten()
+                })
+                .collect();
+        }
+        if pending.is_empty() {
+            break;
+        }
         let to = |k: usize, from: usize| {
             let (a, b, along_x) = edges[k];
             grid.along(if from == a { b } else { a }, along_x)
@@ -671,16 +722,19 @@ fn continuations(
                     cycle,
                     to: to(*k, *from),
                     bisections: EDGE_BISECTIONS,
+                    crossing_bisections: EDGE_CROSSING_BISECTIONS,
                 }
             })
             .collect();
         let found = locate_changes(settings, &changes);
         ran += changes.len();
-        let next: Vec<Pending> = pending
-            .par_iter()
+        // The branch switches after this round's doublings, all at once on the host's lanes.
+        let switches: Vec<(usize, f64, Switch)> = pending
+            .iter()
             .zip(&found)
             .zip(&changes)
-            .filter_map(|((&(k, from, _, ref cycle, step, prev), f), c)| {
+            .enumerate()
+            .filter_map(|(i, ((&(_, _, _, ref cycle, step, prev), f), c))| {
                 let Found::Located(p) = f else {
                     return None;
                 };
@@ -697,8 +751,24 @@ fn continuations(
                 if (c.to - at) * dir <= 0.0 {
                     return None;
                 }
-                let daughter = branch_switch(&c.base, c.param, settings, p, cycle.mode, at)?;
-                Some((k, from, at, daughter, step + 1, Some(p.value)))
+                Some((
+                    i,
+                    at,
+                    Switch::new(&c.base, c.param, settings, p, cycle.mode, at),
+                ))
+            })
+            .collect();
+        let (placed, tasks): (Vec<(usize, f64)>, Vec<Switch>) =
+            switches.into_iter().map(|(i, at, t)| ((i, at), t)).unzip();
+        let next: Vec<Pending> = placed
+            .into_iter()
+            .zip(run_parallel(tasks, |t| u64::from(t.period())))
+            .filter_map(|((i, at), t)| {
+                let (k, from, _, _, step, _) = pending[i];
+                let Found::Located(p) = &found[i] else {
+                    return None;
+                };
+                Some((k, from, at, t.out?, step + 1, Some(p.value)))
             })
             .collect();
         for ((k, from, _, cycle, step, _), f) in pending.into_iter().zip(found) {
@@ -814,15 +884,24 @@ fn coexistences(
     }
     // The cycle at the midpoint, and its section points there (to tell a motion on it).
     type Here = Result<(Cycle, Vec<[f64; 4]>), &'static str>;
+    let tasks: Vec<Refine> = claims
+        .iter()
+        .map(|&(a, b, _, _, cycle)| {
+            let it = Integrator::<f64>::new(&grid.midpoint_params(a, b), settings);
+            Refine::new(it, &cycle.state(), cycle.period)
+        })
+        .collect();
+    let refined = Decider::Host.refine(settings, tasks);
     let here: Vec<Here> = claims
         .par_iter()
-        .map(|&(a, b, _, _, cycle)| {
+        .zip(refined)
+        .map(|(&(a, b, _, _, cycle), r)| {
             crate::progress::poll();
-            let it = Integrator::<f64>::new(&grid.midpoint_params(a, b), settings);
-            let c = crate::cycles::refine(&it, &cycle.state(), cycle.period);
+            let c = r.cycle();
             if !(c.is_stable() && c.period == cycle.period) {
                 return Err(NOT_STABLE_AT_MIDPOINT);
             }
+            let it = Integrator::<f64>::new(&grid.midpoint_params(a, b), settings);
             let mut orbit = Vec::with_capacity(c.period as usize);
             let mut on = c.state();
             for _ in 0..c.period {

@@ -1180,8 +1180,9 @@ fn caption_of_boundaries(cfg: &Config, edges: usize, located: usize) -> String {
         "Boundaries of the class map of {grid}: each of the {e} edges between neighbouring \
          cells of different classes, typed. Where a side landed on a stable cycle, Newton's \
          method continues that cycle from its own cell towards the other cell's parameters \
-         (a step that fails is shortened, never taken for the cycle's end) and locates where \
-         it stops being stable to 2^-20 of the edge ({located} points located). A crossing seen (the cycle beyond converged, a multiplier outside \
+         (a failure from afar is solved again from closer, never taken for the cycle's end) \
+         and locates where it stops being stable, an end to 2^-20 of the edge, a crossing to \
+         2^-10 ({located} points located). A crossing seen (the cycle beyond converged, a multiplier outside \
          the circle) is a period doubling (through -1), a fold (+1) or a Neimark-Sacker point \
          (a complex pair); beyond a period doubling the branch that follows (the doubled \
          cycle, from the critical eigenvector; or the half a doubled cycle merged into) is \

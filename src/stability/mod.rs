@@ -82,6 +82,11 @@ const CRITICAL: f64 = 0.05;
 /// cycle goes on. The march looks beyond such a window (up to [`MAX_JUMPS`] times a search).
 pub const JUMP_RESIDUAL: f64 = 1e-4;
 const MAX_JUMPS: u32 = 2;
+/// Stable cycles found in a bracket whose far end is a failure from afar after which that end
+/// is solved again from the last of them (at an eighth of the distance or less): the failure
+/// was from afar where the cycle goes on (3.5% of the failures on tests/data/r_lambda_128.toml),
+/// and the march goes on from there.
+const APPROACHED: u32 = 3;
 /// Newton solutions of one search at most: the march and the bisection take about 30 where
 /// no failure intervenes; each failure from afar costs one more.
 const MAX_SOLVES: u32 = 120;
@@ -144,6 +149,7 @@ pub fn bifurcation_points(
                 cycle: stable(from).expect("a pair's first side is stable"),
                 to: to.value,
                 bisections: BISECTIONS,
+                crossing_bisections: BISECTIONS,
             }
         })
         .collect();
@@ -180,6 +186,9 @@ pub struct Change<'a> {
     /// The bracket's final width is 2^-bisections of the interval ([`BISECTIONS`] for a
     /// sweep's landmarks; a map's edges need less).
     pub bisections: u32,
+    /// The same where a crossing was seen (a multiplier outside the circle beyond): no
+    /// approach types it, so that its location needs no finer bracket than the caller's.
+    pub crossing_bisections: u32,
 }
 
 /// What the continuation of a [`Change`] found.
@@ -209,7 +218,15 @@ pub fn locate_changes(settings: &Settings, changes: &[Change]) -> Vec<Found> {
                 impact_free: None,
                 impacts: true,
             };
-            Locate::new(&c.base, c.param, settings, &from, c.to, i, c.bisections)
+            Locate::new(
+                &c.base,
+                c.param,
+                settings,
+                &from,
+                c.to,
+                i,
+                [c.bisections, c.crossing_bisections],
+            )
         })
         .collect();
     let mut out = vec![Found::Nothing; changes.len()];
@@ -347,11 +364,16 @@ pub fn graze(
 
 /// Continues the stable cycle of `from` towards `to` and locates where it stops being stable,
 /// as a task for the lanes: a march of Newton solutions, each from the last stable cycle, whose
-/// step doubles after a success and halves after a failure (a Newton that does not converge
-/// from a far start is not the cycle's end), then a bisection of the bracket. A bracket whose
-/// far end holds the cycle unstable (converged, a multiplier outside the circle) has seen a
-/// crossing; one whose far end Newton cannot solve from 2^-20 of the edge is an end without
-/// one (typed by [`Locate::end`]).
+/// step doubles after a success, until a solution fails or crosses; then a bisection of the
+/// bracket. A failure from afar is not the cycle's end (Newton's basin may be the smaller
+/// one): it is the bracket's tentative far end, solved again from closer once stable cycles
+/// were found nearer to it, and from within the resolution before an end is located there;
+/// where it then holds the cycle the search goes on beyond it (96.5% of the failures on
+/// tests/data/r_lambda_128.toml were true ends, so that this costs a third of the solves of a
+/// march that halved its step after each failure). A bracket whose far end holds the cycle
+/// unstable (converged, a multiplier outside the circle) has seen a crossing; one whose far
+/// end Newton cannot solve from 2^-20 of the edge is an end without one (typed by
+/// [`Locate::end`]).
 struct Locate<'a> {
     base: &'a Params<f64>,
     param: Param,
@@ -360,8 +382,10 @@ struct Locate<'a> {
     pair: usize,
     start: Cycle,
     to: f64,
-    /// The smallest bracket is 2^-bisections of the interval.
+    /// The smallest bracket is 2^-bisections of the interval, 2^-crossing_bisections where a
+    /// crossing was seen at its far end.
     bisections: u32,
+    crossing_bisections: u32,
     /// Whether the march is over (then the bracket [good, bad] is bisected).
     bisecting: bool,
     /// The march's signed step.
@@ -383,6 +407,19 @@ struct Locate<'a> {
     reached: bool,
     /// The relative residual of the last failure from within the resolution.
     stall: f64,
+    /// The far end of the bracket is a failure from afar, not yet solved from within the
+    /// resolution.
+    tentative: bool,
+    /// The brackets the current one was found in (far end, the cycle there, tentative), the
+    /// outermost first: where the far end holds the cycle when approached, the end is in the
+    /// one before.
+    outer: Vec<(f64, Option<Cycle>, bool)>,
+    /// Stable cycles found in the bracket since its tentative far end was last tried.
+    approached: u32,
+    /// The bracket's last change moved its stable end.
+    moved_good: bool,
+    /// The march's step that first failed, to go on with where that failure was from afar.
+    resume: f64,
     /// Where Newton last stalled at a jump and its residual, while the march looks beyond.
     jump_from: Option<(f64, f64)>,
     /// Jumps looked beyond.
@@ -398,7 +435,7 @@ impl<'a> Locate<'a> {
         from: &Branch,
         to: f64,
         pair: usize,
-        bisections: u32,
+        [bisections, crossing_bisections]: [u32; 2],
     ) -> Option<Locate<'a>> {
         let start = from.cycle?.clone();
         let newton = Self::at(base, param, settings, to, &start);
@@ -409,6 +446,7 @@ impl<'a> Locate<'a> {
             pair,
             to,
             bisections,
+            crossing_bisections,
             bisecting: false,
             step_size: to - from.value,
             step: 0,
@@ -426,6 +464,11 @@ impl<'a> Locate<'a> {
             jump_from: None,
             jumps: 0,
             found: None,
+            tentative: false,
+            outer: Vec::new(),
+            approached: 0,
+            moved_good: false,
+            resume: 0.0,
         })
     }
 
@@ -443,9 +486,24 @@ impl<'a> Locate<'a> {
         Integrator::<f64>::new(&p, self.settings)
     }
 
-    /// The smallest bracket, 2^-bisections of the edge.
-    fn resolution(&self) -> f64 {
-        (self.to - self.start_value()).abs() / f64::from(1u32 << self.bisections)
+    /// The smallest bracket, 2^-bisections of the edge; 2^-crossing_bisections where the
+    /// cycle `beyond` it has crossed (a multiplier outside the circle) in a way that names the
+    /// kind without an approach: through -1 or a complex pair, or merged into its half, the last
+    /// stable cycle's multiplier near the circle. (An even period leaving through +1 may be a
+    /// doubled cycle merging, told from a fold by how close its halves come: the finer bracket.)
+    fn resolution(&self, beyond: Option<&Cycle>) -> f64 {
+        let lead = |c: &Cycle| c.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
+        let n = self.start.period;
+        let named = |b: &Cycle| {
+            let m = lead(b);
+            b.period < n || m[0] < 0.0 || m[1].abs() > 1e-6 || !n.is_multiple_of(2)
+        };
+        let b = if beyond.is_some_and(named) && 1.0 - modulus(&lead(&self.last)) <= CRITICAL {
+            self.crossing_bisections
+        } else {
+            self.bisections
+        };
+        (self.to - self.start_value()).abs() / f64::from(1u32 << b)
     }
 
     fn start_value(&self) -> f64 {
@@ -463,10 +521,13 @@ impl<'a> Locate<'a> {
         let crossed = c.converged && !stable && n.is_multiple_of(c.period);
         self.step += 1;
         let tried = self.mid - self.good;
-        let close = tried.abs() <= self.resolution();
+        // A crossing is bracketed to the coarser resolution; an end (or a crossing seen from
+        // afar that fails when approached) to the finer one, whose approach types it.
+        let close = tried.abs() <= self.resolution(crossed.then_some(&c));
         if stable || crossed {
             self.jump_from = None;
         }
+        self.moved_good = stable;
         if stable {
             self.good = self.mid;
             self.last = c.clone();
@@ -478,14 +539,14 @@ impl<'a> Locate<'a> {
                 self.done = true;
                 return;
             }
-            if self.bisecting && close {
-                // The bracket's far end, judged from afar, holds the cycle when approached:
-                // the march goes on from there.
-                self.bisecting = false;
-                self.beyond = None;
-                self.step_size = 2.0 * tried;
-            } else if !self.bisecting {
+            if !self.bisecting {
                 self.step_size *= 2.0;
+            } else if self.mid == self.bad {
+                // The bracket's far end, judged from afar, holds the cycle when approached:
+                // the end lies beyond it, in the bracket it was found in (or the march's).
+                self.widen(tried);
+            } else {
+                self.approached += 1;
             }
         } else if let (false, Some((at, stall))) = (crossed, self.jump_from) {
             // Past a stall, looking for the cycle beyond the window where Newton fails.
@@ -507,20 +568,42 @@ impl<'a> Locate<'a> {
                 self.jumps += 1;
                 self.jump_from = Some((self.mid, stall));
                 self.bisecting = false;
+                self.outer.clear();
                 self.step_size = 4.0 * tried;
             } else {
                 self.bad = self.mid;
                 self.beyond = crossed.then_some(c);
+                self.tentative = false;
+                self.approached = 0;
+                // A crossing seen is between the last stable cycle and it: the brackets
+                // outside it are no longer needed.
+                self.outer.clear();
                 self.bisecting = true;
                 if close {
-                    // Newton from within 2^-20 of the edge: the cycle ends (or crosses) here.
+                    // Newton from within the resolution: the cycle ends (or crosses) here.
                     self.end_at(self.mid, self.beyond.clone(), stall);
                     return;
                 }
             }
+        } else if self.bisecting && self.mid == self.bad {
+            // The bracket's far end fails again from closer: still a failure from afar.
+            self.approached = 0;
         } else {
-            // A failure from afar is not the cycle's end: a shorter step.
-            self.step_size = 0.5 * tried;
+            // A failure from afar is not the cycle's end (Newton's basin may be the smaller
+            // one), but most are near it: the far end of a bracket, bisected, and solved
+            // again from closer after the cycle has been found stable nearer to it
+            // ([`APPROACHED`]) and from within the resolution before an end is located there.
+            if self.bisecting {
+                self.outer
+                    .push((self.bad, self.beyond.take(), self.tentative));
+            } else {
+                self.resume = tried;
+            }
+            self.bad = self.mid;
+            self.beyond = None;
+            self.tentative = true;
+            self.approached = 0;
+            self.bisecting = true;
         }
         if self.step >= MAX_SOLVES {
             // Within the bound of work, the last bracket, or the stall looked beyond (none:
@@ -529,17 +612,24 @@ impl<'a> Locate<'a> {
                 Some((at, stall)) => self.end_at(at, None, stall),
                 None => {
                     self.done = true;
-                    self.found = self.bisecting.then(|| self.point());
+                    self.found = (self.bisecting && !self.tentative).then(|| self.point());
                 }
             }
             return;
         }
-        // The next value: half the bracket, or the bracket's far end itself (solved from
-        // within the resolution, so that a verdict from afar never ends the search), or the
-        // march's step.
-        let next = if self.bisecting && (self.bad - self.good).abs() <= self.resolution() {
+        // The next value: the bracket's far end itself (solved from within the resolution, so
+        // that a verdict from afar never ends the search, or again from closer once the cycle
+        // was found stable nearer to it), half the bracket, or the march's step.
+        let width = (self.bad - self.good).abs();
+        let next = if self.bisecting
+            && (width <= self.resolution(self.beyond.as_ref())
+                || (self.tentative && self.approached >= APPROACHED))
+        {
+            self.approached = 0;
             self.bad
-        } else if self.bisecting && (stable || crossed) {
+        } else if let Some(r) = self.secant() {
+            r
+        } else if self.bisecting {
             0.5 * (self.good + self.bad)
         } else {
             self.good + self.step_size
@@ -551,6 +641,59 @@ impl<'a> Locate<'a> {
             next
         };
         self.newton = Self::at(self.base, self.param, self.settings, self.mid, &self.last);
+    }
+
+    /// Within a crossing's bracket (the same cycle stable at one end, a multiplier outside the
+    /// circle at the other): where the leading multiplier's modulus, interpolated linearly,
+    /// reaches 1, shifted by nearly half the final resolution past it away from the end that
+    /// moved last, so that both ends close in on the root (about 4 solves for the bisection's
+    /// 10 at a crossing's resolution). `None` where the bisection halves the bracket.
+    fn secant(&self) -> Option<f64> {
+        if !self.bisecting || self.tentative {
+            return None;
+        }
+        let beyond = self.beyond.as_ref()?;
+        if beyond.period != self.start.period {
+            return None;
+        }
+        let g_bad = modulus(beyond.multipliers.first()?) - 1.0;
+        let g_good = modulus(self.last.multipliers.first()?) - 1.0;
+        let res = self.resolution(Some(beyond));
+        let w = self.bad - self.good;
+        if !(g_good < 0.0 && g_bad > 0.0) || w.abs() <= res {
+            return None;
+        }
+        let shift = if self.moved_good { 0.45 } else { -0.45 } * res * w.signum();
+        let r = self.good + w * g_good / (g_good - g_bad) + shift;
+        // At least a twentieth of the bracket from either end: a root the interpolation
+        // misplaces still shrinks it.
+        let t = ((r - self.good) / w).clamp(0.05, 0.95);
+        Some(self.good + t * w)
+    }
+
+    /// After the bracket's far end was found to hold the cycle: the bracket it was found in
+    /// becomes the bracket again, or the march goes on with the step that first failed there.
+    fn widen(&mut self, tried: f64) {
+        self.approached = 0;
+        match self.outer.pop() {
+            Some((bad, beyond, tentative)) => {
+                self.bad = bad;
+                self.beyond = beyond;
+                self.tentative = tentative;
+            }
+            None => {
+                self.bisecting = false;
+                self.beyond = None;
+                self.tentative = false;
+                self.bad = self.to;
+                self.step_size = if self.resume != 0.0 {
+                    self.resume
+                } else {
+                    2.0 * tried
+                };
+                self.resume = 0.0;
+            }
+        }
     }
 
     /// The stable cycle of period m where `c`, a stable cycle of period 2m at `self.mid` with
@@ -696,7 +839,19 @@ impl<'a> Locate<'a> {
                     // 1 - mu ~ distance^power: 1/2 at a fold; 1 where a doubled cycle merges
                     // into its half (its multiplier is the square of the half's, which leaves
                     // -1 linearly), also where its points have not yet come within DOUBLED.
-                    let power = ratio.ln() / contrast.ln();
+                    // The end lies anywhere in the last bracket, so that the nearest cycle's
+                    // distance to it is known only within a factor of two: the power is read
+                    // between the far cycle and one 8 times nearer to the end (the bracket
+                    // then shifts the distances by an eighth at most).
+                    let mid = self
+                        .cycle_near(e, 8.0 * dn, 4.0 * dn)
+                        .filter(|m| (e - m.0).abs() < 0.5 * df)
+                        .map(|m| ((e - m.0).abs(), lead(&m.1)))
+                        .filter(|(_, l)| l[1] == 0.0 && l[0] > 0.0 && l[0] < 1.0);
+                    let power = match mid {
+                        Some((dm, lm)) => ((1.0 - lm[0]) / (1.0 - lf[0])).ln() / (dm / df).ln(),
+                        None => ratio.ln() / contrast.ln(),
+                    };
                     let merging = power > 0.75 && self.start.period.is_multiple_of(2);
                     let kind = if merging || self.halves(&self.last) {
                         Kind::PeriodDoubling
@@ -707,9 +862,13 @@ impl<'a> Locate<'a> {
                         kind,
                         None,
                         format!(
-                            "1 - mu {:.3e} at {df:.3e} from the end, {:.3e} at {dn:.3e} (ratio \
-                             {ratio:.3}: the distance to the power {power:.2})",
+                            "1 - mu {:.3e} at {df:.3e} from the end, {}{:.3e} at {dn:.3e} \
+                             (ratio {ratio:.3}): the distance to the power {power:.2}",
                             1.0 - lf[0],
+                            mid.map_or(String::new(), |(dm, lm)| format!(
+                                "{:.3e} at {dm:.3e}, ",
+                                1.0 - lm[0]
+                            )),
                             1.0 - ln[0],
                         ),
                     );
@@ -810,81 +969,192 @@ impl FlowTask for Locate<'_> {
 /// edge it is well apart from its mother while a further change within the edge stays ahead.
 pub const SWITCH_AT: f64 = 1.0 / 64.0;
 
+/// Signed distances off the unstable mother, along the eigenvector of its multiplier beyond
+/// -1 (in units of the state's scale), from which Newton looks for the daughter, most likely
+/// first. (The daughter's points near the mother lie on both sides of it, but Newton from one
+/// side may converge where from the other it does not.)
+const SWITCH_EPS: [f64; 10] = [
+    1e-2, -1e-2, 3e-2, -3e-2, 3e-3, -3e-3, 1e-1, -1e-1, 1e-3, -1e-3,
+];
+
+/// Where a [`Switch`] stands.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Stage {
+    /// Newton for the half of a doubled cycle.
+    Half,
+    /// Newton for the (unstable) mother beyond the point.
+    Mother,
+    /// The mother's flow with its tangent, for the critical eigenvector.
+    Tangent,
+    /// Newton for the daughter from the `k`-th distance of [`SWITCH_EPS`].
+    Daughter(usize),
+}
+
 /// The stable cycle that follows a located period doubling `p` at the parameter value `at`
 /// just beyond it (the other parameters `base`'s), without a run: seen from the mother's side,
 /// the doubled cycle, from Newton for period 2n started off the unstable mother along the
 /// eigenvector of its multiplier beyond -1; seen from the doubled side (a cycle of period 2m
 /// merged into its half), the stable cycle of period m. `None` where Newton finds no stable
 /// cycle of that period (a subcritical doubling: nothing stable nearby follows).
-pub fn branch_switch(
-    base: &Params<f64>,
-    param: Param,
-    settings: &Settings,
-    p: &BifurcationPoint,
-    mode: crate::model::Mode,
-    at: f64,
-) -> Option<Cycle> {
-    let mut q = *base;
-    param.set(&mut q, at);
-    let it = Integrator::<f64>::new(&q, settings);
-    let start = PointState {
-        y: p.section,
-        mode,
-        diag: Default::default(),
-    };
-    let n = p.period;
-    let scale = p.section.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-    let apart = |c: &Cycle| {
-        let (mut st, half) = (c.state(), c.period / 2);
-        for _ in 0..half {
-            it.period(&mut st);
-        }
-        (0..4).any(|i| (st.y[i] - c.point[i]).abs() > DOUBLED * scale)
-    };
-    // From the doubled side: the half the cycle merged into.
-    if n.is_multiple_of(2) {
-        let mut st = start;
-        for _ in 0..n / 2 {
-            it.period(&mut st);
-        }
-        if (0..4).all(|i| (st.y[i] - p.section[i]).abs() < 0.1 * scale) {
-            let half = crate::cycles::refine(&it, &start, n / 2);
-            if half.is_stable() && half.period == n / 2 {
-                return Some(half);
+///
+/// A task for the lanes ([`run_parallel`]): its Newton solutions and the mother's tangent flow,
+/// one after another; the branch in `out` once done.
+pub struct Switch {
+    it: Integrator<f64>,
+    start: PointState<f64>,
+    n: u32,
+    scale: f64,
+    stage: Stage,
+    newton: Refine,
+    at_mother: PointState<f64>,
+    v: [f64; 4],
+    done: bool,
+    /// The branch found, once done.
+    pub out: Option<Cycle>,
+}
+
+impl Switch {
+    pub fn new(
+        base: &Params<f64>,
+        param: Param,
+        settings: &Settings,
+        p: &BifurcationPoint,
+        mode: crate::model::Mode,
+        at: f64,
+    ) -> Switch {
+        let mut q = *base;
+        param.set(&mut q, at);
+        let it = Integrator::<f64>::new(&q, settings);
+        let start = PointState {
+            y: p.section,
+            mode,
+            diag: Default::default(),
+        };
+        let n = p.period;
+        let scale = p.section.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        // From the doubled side: the half the cycle merged into, where its points n/2 periods
+        // apart are still close.
+        let merged = n.is_multiple_of(2) && {
+            let mut st = start;
+            for _ in 0..n / 2 {
+                it.period(&mut st);
             }
+            (0..4).all(|i| (st.y[i] - p.section[i]).abs() < 0.1 * scale)
+        };
+        let (stage, newton) = if merged {
+            (Stage::Half, Refine::new(it.clone(), &start, n / 2))
+        } else {
+            (Stage::Mother, Refine::new(it.clone(), &start, n))
+        };
+        Switch {
+            it,
+            start,
+            n,
+            scale,
+            stage,
+            newton,
+            at_mother: start,
+            v: [0.0; 4],
+            done: false,
+            out: None,
         }
     }
-    let mother = crate::cycles::refine(&it, &start, n);
-    let at_mother = if mother.converged && mother.period == n {
-        mother.state()
-    } else {
-        start
-    };
-    let (_, tan) = crate::cycles::flow(&it, &at_mother, n);
-    let m = tan.matrix();
-    let lambda = crate::cycles::eigenvalues(&m)
-        .into_iter()
-        .filter(|e| e[1] == 0.0 && e[0] < 0.0)
-        .min_by(|a, b| (a[0] + 1.0).abs().total_cmp(&(b[0] + 1.0).abs()))?[0];
-    // The eigenvector: the right singular vector of M - lambda I of the least singular value.
-    let shifted = m - nalgebra::Matrix4::identity() * lambda;
-    let svd = shifted.svd(false, true);
-    let vt = svd.v_t?;
-    let k = (0..4)
-        .min_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]))
-        .unwrap_or(3);
-    let v: [f64; 4] = std::array::from_fn(|i| vt[(k, i)]);
-    for eps in [1e-2, 3e-2, 3e-3, 1e-1, 1e-3] {
-        for sign in [1.0, -1.0] {
-            let mut st = at_mother;
-            for (y, d) in st.y.iter_mut().zip(v) {
-                *y += sign * eps * scale * d;
-            }
-            let c = crate::cycles::refine(&it, &st, 2 * n);
-            if c.is_stable() && c.period == 2 * n && apart(&c) {
-                return Some(c);
-            }
+
+    /// Newton for the daughter from the `k`-th distance off the mother, if any is left.
+    fn daughter(&mut self, k: usize) {
+        let Some(eps) = SWITCH_EPS.get(k) else {
+            self.done = true;
+            return;
+        };
+        let mut st = self.at_mother;
+        for (y, d) in st.y.iter_mut().zip(self.v) {
+            *y += eps * self.scale * d;
+        }
+        self.stage = Stage::Daughter(k);
+        self.newton = Refine::new(self.it.clone(), &st, 2 * self.n);
+    }
+
+    /// The period of the branch switched from.
+    pub fn period(&self) -> u32 {
+        self.n
+    }
+
+    /// Whether the cycle `c` of period 2n is not the mother traversed twice: its points n
+    /// periods apart differ.
+    fn apart(&self, c: &Cycle) -> bool {
+        let mut st = c.state();
+        for _ in 0..c.period / 2 {
+            self.it.period(&mut st);
+        }
+        (0..4).any(|i| (st.y[i] - c.point[i]).abs() > DOUBLED * self.scale)
+    }
+}
+
+impl FlowTask for Switch {
+    fn flow(&self) -> Option<(PointState<f64>, u32)> {
+        match self.stage {
+            _ if self.done => None,
+            Stage::Tangent => Some((self.at_mother, self.n)),
+            _ => self.newton.flow(),
         }
     }
-    None
+
+    fn integrator(&self) -> &Integrator<f64> {
+        &self.it
+    }
+
+    fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
+        if self.stage == Stage::Tangent {
+            let m = tan.matrix();
+            let lambda = crate::cycles::eigenvalues(&m)
+                .into_iter()
+                .filter(|e| e[1] == 0.0 && e[0] < 0.0)
+                .min_by(|a, b| (a[0] + 1.0).abs().total_cmp(&(b[0] + 1.0).abs()));
+            // The eigenvector: the right singular vector of M - lambda I of the least
+            // singular value.
+            let shifted = lambda.map(|l| m - nalgebra::Matrix4::identity() * l[0]);
+            let Some(vt) = shifted.and_then(|s| {
+                let svd = s.svd(false, true);
+                let k = (0..4)
+                    .min_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]))
+                    .unwrap_or(3);
+                svd.v_t.map(|vt| std::array::from_fn(|i| vt[(k, i)]))
+            }) else {
+                self.done = true;
+                return;
+            };
+            self.v = vt;
+            self.daughter(0);
+            return;
+        }
+        self.newton.ended(end, tan);
+        let Some(c) = self.newton.result().cloned() else {
+            return;
+        };
+        match self.stage {
+            Stage::Half if c.is_stable() && c.period == self.n / 2 => {
+                self.out = Some(c);
+                self.done = true;
+            }
+            Stage::Half => {
+                self.stage = Stage::Mother;
+                self.newton = Refine::new(self.it.clone(), &self.start, self.n);
+            }
+            Stage::Mother => {
+                if c.converged && c.period == self.n {
+                    self.at_mother = c.state();
+                }
+                self.stage = Stage::Tangent;
+            }
+            Stage::Daughter(k) => {
+                if c.is_stable() && c.period == 2 * self.n && self.apart(&c) {
+                    self.out = Some(c);
+                    self.done = true;
+                } else {
+                    self.daughter(k + 1);
+                }
+            }
+            Stage::Tangent => unreachable!("handled above"),
+        }
+    }
 }
