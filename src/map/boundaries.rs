@@ -402,7 +402,7 @@ const EDGE_CROSSING_BISECTIONS: u32 = 10;
 
 /// Where a side's motion at an edge's midpoint ended, and whether its last period held an
 /// impact ([`Grid::settle`]).
-type Settled = ([f64; 4], bool);
+type Settled = (PointState<f64>, bool);
 
 /// A continuation to run: (edge, from cell, the value continued from, the cycle, switches
 /// before it, the value of the change it follows).
@@ -469,20 +469,20 @@ impl<'a> Grid<'a> {
         2 * (run.transient_periods + run.sample_periods).max(run.look)
     }
 
-    /// Runs each side's motion from its state at its edge's midpoint for [`Grid::look`]
-    /// periods on the map's engine, all at once: where it ends, and whether its last period
-    /// held an impact (`None`: it left the finite range).
+    /// Runs each side's motion from its state at its edge's midpoint for `periods` periods
+    /// on the map's engine, all at once: where it ends, and whether its last period held an
+    /// impact (`None`: it left the finite range).
     fn settle(
         &self,
         engine: &Engine,
         runs: &[((usize, usize), PointState<f64>)],
+        periods: u32,
     ) -> crate::Result<Vec<Option<Settled>>> {
         if runs.is_empty() {
             return Ok(Vec::new());
         }
         let mut spec = crate::spec::RunSpec::new(self.cfg);
-        let periods = self.look();
-        spec.transient = periods - 1;
+        spec.transient = periods.max(2) - 1;
         spec.samples = 1;
         spec.settings.lyapunov = false;
         let m = &self.cfg.map;
@@ -509,8 +509,14 @@ impl<'a> Grid<'a> {
             &crate::progress::Silent,
             &mut |start, rs| {
                 for (k, r) in rs.into_iter().enumerate() {
-                    out[start + k] =
-                        (!r.diag.nonfinite).then_some((r.final_y, r.sample_impacts > 0));
+                    out[start + k] = (!r.diag.nonfinite).then_some((
+                        PointState {
+                            y: r.final_y,
+                            mode: r.final_mode,
+                            diag: Default::default(),
+                        },
+                        r.sample_impacts > 0,
+                    ));
                 }
             },
         )?;
@@ -850,6 +856,15 @@ fn impact_free_grazings(
     both_sides
 }
 
+/// Whether the state `y` lies on the cycle `c`, whose section points are `orbit` (within
+/// 1e-4 of the state's scale).
+fn on_orbit(c: &Cycle, orbit: &[[f64; 4]], y: &[f64; 4]) -> bool {
+    let scale = c.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+    orbit
+        .iter()
+        .any(|q| (0..4).all(|j| (q[j] - y[j]).abs() < 1e-4 * scale))
+}
+
 /// Which side's cycle coexists across each edge (the carry's or the continuation's), and
 /// whether both attractors persist at the edge's midpoint; the claims checked; and for each
 /// edge whose impact-free motion exists on both sides (`both_sides`: edge -> the impacting
@@ -930,7 +945,33 @@ fn coexistences(
             whose.push(None);
         }
     }
-    let settled = grid.settle(engine, &runs)?;
+    // In two stages: a motion already on the cycle after an eighth of the run stays on it (an
+    // attractor), so that only the others run on for the rest (more than half of the claims
+    // refused on R x lambda and eta x lambda end on the cycle).
+    let look = grid.look();
+    let early = look / 8;
+    let first = grid.settle(engine, &runs, early)?;
+    let on_cycle = |w: &Option<usize>, s: &Option<Settled>| match (w, s) {
+        (Some(i), Some((st, _))) => match &here[*i] {
+            Ok((c, orbit)) => on_orbit(c, orbit, &st.y),
+            Err(_) => false,
+        },
+        _ => false,
+    };
+    let rest: Vec<usize> = (0..runs.len())
+        .filter(|&r| first[r].is_some() && !on_cycle(&whose[r], &first[r]))
+        .collect();
+    let again: Vec<((usize, usize), PointState<f64>)> = rest
+        .iter()
+        .map(|&r| (runs[r].0, first[r].as_ref().expect("a finite end").0))
+        .collect();
+    let mut settled = first;
+    for (r, s) in rest
+        .into_iter()
+        .zip(grid.settle(engine, &again, look - early)?)
+    {
+        settled[r] = s;
+    }
     let mut ends: HashMap<usize, Option<Settled>> = HashMap::new();
     let mut crisis_ends = Vec::new();
     for (w, s) in whose.into_iter().zip(settled) {
@@ -947,13 +988,7 @@ fn coexistences(
         .enumerate()
         .map(|(i, (&(a, b, from, _, _), h))| {
             let v = h.and_then(|(c, orbit)| match ends.get(&i) {
-                Some(Some((y, _))) => {
-                    let scale = c.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-                    let on = orbit
-                        .iter()
-                        .any(|q| (0..4).all(|j| (q[j] - y[j]).abs() < 1e-4 * scale));
-                    if on { Err(OTHER_ENDS_ON_CYCLE) } else { Ok(()) }
-                }
+                Some(Some((st, _))) if on_orbit(&c, &orbit, &st.y) => Err(OTHER_ENDS_ON_CYCLE),
                 // No state of the other side, or its motion left the finite range.
                 _ => Ok(()),
             });

@@ -1194,7 +1194,7 @@ fn caption_of_boundaries(cfg: &Config, edges: usize, located: usize) -> String {
          else undetermined with its reason. Where the cycle is still stable at the other \
          cell's parameters, the two attractors coexist (a basin boundary: coexistence) if \
          both persist at the edge's midpoint (the cycle by Newton, the other side's motion \
-         run there from its own state for twice the configured periods, all at once on the \
+         run there from its own state for twice the periods a cell may be followed, all at once on the \
          map's engine); edges without a stable \
          cycle on either side are undetermined and not located. Curves join the points of \
          one type on edges of one grid square with one pair of classes, or whose changing \
