@@ -702,7 +702,7 @@ fn continuations(
                         l.from == one.0
                             && l.step >= 1
                             && matches!(l.found, Found::StableThere)
-                            && i64::from(l.period) == i64::from(cells.class[one.1])
+                            && u32::try_from(cells.class[one.1]) == Ok(l.period)
                     });
                     (!reached).then(|| start(k, two.0, two.1)).flatten()
                 })
@@ -735,7 +735,7 @@ fn continuations(
         let found = locate_changes(settings, &changes);
         ran += changes.len();
         // The branch switches after this round's doublings, all at once on the host's lanes.
-        let switches: Vec<(usize, f64, Switch)> = pending
+        let switches: Vec<((usize, f64, f64), Switch)> = pending
             .iter()
             .zip(&found)
             .zip(&changes)
@@ -758,23 +758,18 @@ fn continuations(
                     return None;
                 }
                 Some((
-                    i,
-                    at,
+                    (i, at, p.value),
                     Switch::new(&c.base, c.param, settings, p, cycle.mode, at),
                 ))
             })
             .collect();
-        let (placed, tasks): (Vec<(usize, f64)>, Vec<Switch>) =
-            switches.into_iter().map(|(i, at, t)| ((i, at), t)).unzip();
+        let (placed, tasks): (Vec<_>, Vec<Switch>) = switches.into_iter().unzip();
         let next: Vec<Pending> = placed
             .into_iter()
             .zip(run_parallel(tasks, |t| u64::from(t.period())))
-            .filter_map(|((i, at), t)| {
+            .filter_map(|((i, at, value), t)| {
                 let (k, from, _, _, step, _) = pending[i];
-                let Found::Located(p) = &found[i] else {
-                    return None;
-                };
-                Some((k, from, at, t.out?, step + 1, Some(p.value)))
+                Some((k, from, at, t.out?, step + 1, Some(value)))
             })
             .collect();
         for ((k, from, _, cycle, step, _), f) in pending.into_iter().zip(found) {

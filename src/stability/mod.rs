@@ -13,6 +13,11 @@ fn nan(v: &f64) -> bool {
     v.is_nan()
 }
 
+/// A cycle's leading multiplier, [re, im] (NaN unless converged).
+fn lead(c: &Cycle) -> [f64; 2] {
+    c.multipliers.first().copied().unwrap_or([f64::NAN; 2])
+}
+
 /// Kind of a bifurcation point along a sweep.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -492,7 +497,6 @@ impl<'a> Locate<'a> {
     /// stable cycle's multiplier near the circle. (An even period leaving through +1 may be a
     /// doubled cycle merging, told from a fold by how close its halves come: the finer bracket.)
     fn resolution(&self, beyond: Option<&Cycle>) -> f64 {
-        let lead = |c: &Cycle| c.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
         let n = self.start.period;
         let named = |b: &Cycle| {
             let m = lead(b);
@@ -753,13 +757,12 @@ impl<'a> Locate<'a> {
     /// typed by the multiplier that crossed; otherwise [`Locate::end`] types the end.
     fn point(&self) -> BifurcationPoint {
         let (good, bad, last) = (self.good, self.bad, &self.last);
-        let lead = last.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
-        let near = 1.0 - modulus(&lead) <= CRITICAL;
+        let near = 1.0 - modulus(&lead(last)) <= CRITICAL;
         let crossing = |kind| (kind, None, String::new());
         let (kind, zero, evidence) = match &self.beyond {
             Some(b) if near && b.period < last.period => crossing(Kind::PeriodDoubling),
             Some(b) if near => {
-                let out = b.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
+                let out = lead(b);
                 crossing(if out[1].abs() > 1e-6 {
                     Kind::NeimarkSacker
                 } else if out[0] < 0.0 || self.halves(last) {
@@ -811,7 +814,6 @@ impl<'a> Locate<'a> {
         let followed = (e - self.start_value()).abs();
         let w = (self.bad - self.good).abs().max(f64::MIN_POSITIVE);
         let scales = [(w, 64.0 * w), (edge.abs() / 512.0, edge.abs() / 8.0)];
-        let lead = |c: &Cycle| c.multipliers.first().copied().unwrap_or([f64::NAN; 2]);
         let mut measured = String::new();
         let mut switched = None;
         for (k, (d_near, d_far)) in scales.into_iter().enumerate() {
