@@ -111,6 +111,9 @@ pub struct Refine {
     done: bool,
     /// A converged iterate returns after no proper divisor of `n` (the device looked).
     no_divisor: bool,
+    /// The monodromy matrix of the converged cycle (not kept in [`Cycle`]: a sweep holds one
+    /// cycle per point): the Jacobian of a [`Chord`] near it.
+    monodromy: Option<Matrix4<f64>>,
 }
 
 impl Refine {
@@ -133,6 +136,7 @@ impl Refine {
             before: f64::NAN,
             done: NEWTON_ITERS == 0,
             no_divisor: false,
+            monodromy: None,
         }
     }
 
@@ -145,6 +149,11 @@ impl Refine {
     /// The answer, `None` while the iteration runs.
     pub fn result(&self) -> Option<&Cycle> {
         self.done.then_some(&self.out)
+    }
+
+    /// The monodromy matrix of the cycle found (`None` unless converged).
+    pub fn monodromy(&self) -> Option<&Matrix4<f64>> {
+        self.monodromy.as_ref()
     }
 
     /// Flows of periods one iteration integrates.
@@ -218,6 +227,7 @@ impl Refine {
             }
             out.converged = true;
             out.multipliers = eigenvalues(&m);
+            self.monodromy = Some(m);
             return false;
         }
         // No progress in two iterations: not converging to the start's cycle (see `refine`).
@@ -255,6 +265,210 @@ impl FlowTask for Refine {
     }
 }
 
+/// Chord iterations at most before Newton's method takes over.
+const CHORD_ITERS: u32 = 8;
+/// A chord iteration that shrinks the residual less than this factor hands over to Newton's
+/// method (it converges faster where the cycle's Jacobian has moved from the one used).
+const CHORD_RATE: f64 = 0.6;
+
+/// Newton's method of a continuation step ([`Refine`]) with the monodromy matrix `M0` of a cycle
+/// nearby, the chord method: `x <- x - (M0 - I)^-1 (P^n(x) - x)` with plain flows (the state
+/// alone: about half the cost of a flow with the tangent vectors) while each shrinks the residual
+/// [`CHORD_RATE`]-fold; then [`Refine`] from where they got to, whose first flow (with the
+/// tangent vectors) confirms the cycle and gives its multipliers, or goes on with Newton's
+/// iterations where the chord slowed down. A chord iteration that does not shrink the residual
+/// fails the solve, or with `confirm` hands it to [`Refine`] from the start, whose verdict it is
+/// then (where a failure would end a search, the chord's smaller basin must not decide it).
+#[derive(Clone, Debug)]
+pub struct Chord {
+    it: Integrator<f64>,
+    start: PointState<f64>,
+    st: PointState<f64>,
+    n: u32,
+    /// The Jacobian of the residual, `M0 - I` at first, then Broyden's updates of it.
+    jac: Matrix4<f64>,
+    /// The last residual and the step taken from it (Broyden's secant).
+    last: Option<(Vector4<f64>, Vector4<f64>)>,
+    /// The residual before the last chord step (NaN at first).
+    residual: f64,
+    iterations: u32,
+    confirm: bool,
+    newton: Option<Refine>,
+    failed: Option<Cycle>,
+}
+
+/// The solve of a continuation step: [`Chord`] where the Jacobian of a cycle nearby is known,
+/// else [`Refine`].
+#[derive(Clone, Debug)]
+pub enum Solve {
+    Chord(Box<Chord>),
+    Newton(Box<Refine>),
+}
+
+impl Solve {
+    /// Newton's method at `it` from `start` for the cycle of period `n` near one whose
+    /// monodromy matrix, where known, is `m`: the chord's Jacobian.
+    pub fn new(
+        it: Integrator<f64>,
+        start: &PointState<f64>,
+        n: u32,
+        m: Option<&Matrix4<f64>>,
+        confirm: bool,
+    ) -> Solve {
+        match m {
+            Some(m) => Solve::Chord(Box::new(Chord {
+                jac: m - Matrix4::identity(),
+                last: None,
+                it,
+                start: *start,
+                st: *start,
+                n,
+                residual: f64::NAN,
+                iterations: 0,
+                confirm,
+                newton: None,
+                failed: None,
+            })),
+            None => Solve::Newton(Box::new(Refine::new(it, start, n))),
+        }
+    }
+
+    /// The answer, `None` while the iteration runs.
+    pub fn result(&self) -> Option<&Cycle> {
+        match self {
+            Solve::Chord(c) => match &c.newton {
+                Some(r) => r.result(),
+                None => c.failed.as_ref(),
+            },
+            Solve::Newton(r) => r.result(),
+        }
+    }
+
+    /// The monodromy matrix of the cycle found (`None` unless converged).
+    pub fn monodromy(&self) -> Option<&Matrix4<f64>> {
+        match self {
+            Solve::Chord(c) => c.newton.as_ref().and_then(Refine::monodromy),
+            Solve::Newton(r) => r.monodromy(),
+        }
+    }
+
+    /// Flows with the tangent vectors (Newton's) or without (the chord's).
+    pub fn tangent_flow(&self) -> bool {
+        match self {
+            Solve::Chord(c) => c.newton.is_some(),
+            Solve::Newton(_) => true,
+        }
+    }
+}
+
+impl Chord {
+    /// Newton's method from `st` takes over.
+    fn hand_over(&mut self, st: PointState<f64>) {
+        self.newton = Some(Refine::new(self.it.clone(), &st, self.n));
+    }
+
+    /// The chord does not converge: a failure, or Newton's method from the start decides.
+    fn give_up(&mut self, residual: f64) {
+        if self.confirm {
+            self.hand_over(self.start);
+            return;
+        }
+        self.failed = Some(Cycle {
+            period: self.n,
+            point: self.st.y,
+            mode: self.st.mode,
+            residual,
+            iterations: self.iterations,
+            converged: false,
+            multipliers: Vec::new(),
+        });
+    }
+
+    fn step(&mut self, end: &PointState<f64>) {
+        self.iterations += 1;
+        if end.diag.nonfinite {
+            return self.give_up(f64::INFINITY);
+        }
+        let mut st = self.st;
+        let r = Vector4::from_fn(|i, _| end.y[i] - st.y[i]);
+        let res = r.amax();
+        let scale = st.y.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        let tol = NEWTON_TOL * scale;
+        if res <= tol {
+            return self.hand_over(st);
+        }
+        let rate = res / self.residual;
+        if rate >= 1.0 {
+            return self.give_up(res);
+        }
+        if rate > CHORD_RATE || self.iterations >= CHORD_ITERS {
+            return self.hand_over(st);
+        }
+        if let Some((r0, dx)) = self.last {
+            // Broyden's update: the Jacobian that maps the last step onto the change of the
+            // residual it made, nearest to the one before.
+            let dr = r - r0;
+            self.jac += (dr - self.jac * dx) * dx.transpose() / dx.norm_squared();
+        }
+        let Some(dx) = self
+            .jac
+            .lu()
+            .solve(&(-r))
+            .filter(|d| d.iter().all(|v| v.is_finite()))
+        else {
+            return self.give_up(res);
+        };
+        for i in 0..4 {
+            st.y[i] += dx[i];
+        }
+        st.mode = mode_after_update(&self.it, &st);
+        if let Mode::Stick | Mode::LockPos | Mode::LockNeg = st.mode {
+            co_move(&self.it.p, &mut st.y);
+        }
+        self.st = st;
+        self.residual = res;
+        self.last = Some((r, dx));
+        // Where the next residual, at this rate, is within the tolerance, the next flow is
+        // Newton's: it confirms the cycle with the tangent vectors.
+        if rate * res <= tol {
+            self.hand_over(st);
+        }
+    }
+}
+
+impl FlowTask for Solve {
+    fn flow(&self) -> Option<(PointState<f64>, u32)> {
+        match self {
+            Solve::Chord(c) => match &c.newton {
+                Some(r) => r.flow(),
+                None => c.failed.is_none().then_some((c.st, c.n)),
+            },
+            Solve::Newton(r) => r.flow(),
+        }
+    }
+
+    fn integrator(&self) -> &Integrator<f64> {
+        match self {
+            Solve::Chord(c) => &c.it,
+            Solve::Newton(r) => &r.it,
+        }
+    }
+
+    fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
+        match self {
+            Solve::Chord(c) => match &mut c.newton {
+                Some(r) => r.ended(end, tan),
+                None => c.step(end),
+            },
+            Solve::Newton(r) => r.ended(end, tan),
+        }
+    }
+
+    fn tangent(&self) -> bool {
+        self.tangent_flow()
+    }
+}
+
 /// Runs `tasks` on the lanes of every thread ([`run_queue`]), costliest first by `cost`, and
 /// returns them in their order: the long tasks start together (their lanes stay busy
 /// together) and the cheap ones fill the lanes that free up; a thread's last few long tasks
@@ -289,6 +503,10 @@ impl<T: FlowTask> FlowTask for Indexed<T> {
 
     fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
         self.1.ended(end, tan)
+    }
+
+    fn tangent(&self) -> bool {
+        self.1.tangent()
     }
 }
 

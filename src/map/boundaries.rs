@@ -23,6 +23,7 @@ use crate::model::{Mode, Params};
 use crate::stability::{
     BifurcationPoint, Change, Found, Grazed, Kind, SWITCH_AT, Switch, locate_changes,
 };
+use nalgebra::Matrix4;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 
@@ -405,8 +406,16 @@ const EDGE_CROSSING_BISECTIONS: u32 = 10;
 type Settled = (PointState<f64>, bool);
 
 /// A continuation to run: (edge, from cell, the value continued from, the cycle, switches
-/// before it, the value of the change it follows).
-type Pending = (usize, usize, f64, Cycle, u32, Option<f64>);
+/// before it, the value of the change it follows, the cycle's monodromy matrix where known).
+type Pending = (
+    usize,
+    usize,
+    f64,
+    Cycle,
+    u32,
+    Option<f64>,
+    Option<Matrix4<f64>>,
+);
 
 /// Branch switches followed along one edge from one side at most (a cascade of doublings
 /// to 32 times the cell's period).
@@ -549,9 +558,10 @@ pub fn locate(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Bou
     let grid = Grid::new(cfg);
     let settings = cfg.settings();
     let edges = grid.edges(cells.class);
-    let (trials, cycles) = side_cycles(&grid, &settings, cells, &edges);
+    let (trials, cycles, jacobians) = side_cycles(&grid, &settings, cells, &edges);
     let t1 = std::time::Instant::now();
-    let (mut per_edge, continuations) = continuations(&grid, &settings, cells, &edges, &cycles);
+    let (mut per_edge, continuations) =
+        continuations(&grid, &settings, cells, &edges, &cycles, &jacobians);
     let both_sides = impact_free_grazings(&grid, &settings, cells, &edges, &mut per_edge);
     let continuation_s = t1.elapsed().as_secs_f64();
     let t2 = std::time::Instant::now();
@@ -602,7 +612,7 @@ fn side_cycles(
     settings: &crate::method::Settings,
     cells: &Cells,
     edges: &[Edge],
-) -> (usize, HashMap<usize, Cycle>) {
+) -> (usize, HashMap<usize, Cycle>, HashMap<usize, Matrix4<f64>>) {
     let periodic = |c: usize| {
         cells.class[c] > 0 && cells.state[4 * c..4 * c + 4].iter().all(|v| v.is_finite())
     };
@@ -625,13 +635,17 @@ fn side_cycles(
         })
         .collect();
     let trials = tasks.len();
-    let cycles = sides
-        .iter()
-        .zip(Decider::Host.refine(settings, tasks))
-        .map(|(&c, t)| (c, t.cycle()))
-        .filter(|(c, cy)| cy.is_stable() && cy.period == cells.class[*c] as u32)
-        .collect();
-    (trials, cycles)
+    let (mut cycles, mut jacobians) = (HashMap::new(), HashMap::new());
+    for (&c, t) in sides.iter().zip(Decider::Host.refine(settings, tasks)) {
+        if let Some(m) = t.monodromy() {
+            jacobians.insert(c, *m);
+        }
+        let cy = t.cycle();
+        if cy.is_stable() && cy.period == cells.class[c] as u32 {
+            cycles.insert(c, cy);
+        }
+    }
+    (trials, cycles, jacobians)
 }
 
 /// A continuation from each side with a stable cycle towards the other side, unless the map's
@@ -645,6 +659,7 @@ fn continuations(
     cells: &Cells,
     edges: &[Edge],
     cycles: &HashMap<usize, Cycle>,
+    jacobians: &HashMap<usize, Matrix4<f64>>,
 ) -> (Vec<EdgeFound>, usize) {
     let m = &grid.cfg.map;
     // (edge, from cell, the value continued from, the cycle, switches before it, the value of
@@ -661,6 +676,7 @@ fn continuations(
             cycle.clone(),
             0,
             None,
+            jacobians.get(&from).copied(),
         ))
     };
     // The side of the smaller parameter value first (the side whose chain the edge reports),
@@ -718,7 +734,7 @@ fn continuations(
         let param = |k: usize| if edges[k].2 { m.x } else { m.y };
         let changes: Vec<Change> = pending
             .iter()
-            .map(|(k, from, v, cycle, _, _)| {
+            .map(|(k, from, v, cycle, _, _, m)| {
                 let mut base = grid.params(*from);
                 param(*k).set(&mut base, *v);
                 Change {
@@ -726,6 +742,7 @@ fn continuations(
                     param: param(*k),
                     from: *v,
                     cycle,
+                    monodromy: *m,
                     to: to(*k, *from),
                     bisections: EDGE_BISECTIONS,
                     crossing_bisections: EDGE_CROSSING_BISECTIONS,
@@ -740,7 +757,7 @@ fn continuations(
             .zip(&found)
             .zip(&changes)
             .enumerate()
-            .filter_map(|(i, ((&(_, _, _, ref cycle, step, prev), f), c))| {
+            .filter_map(|(i, ((&(_, _, _, ref cycle, step, prev, _), f), c))| {
                 let Found::Located(p) = f else {
                     return None;
                 };
@@ -768,11 +785,11 @@ fn continuations(
             .into_iter()
             .zip(run_parallel(tasks, |t| u64::from(t.period())))
             .filter_map(|((i, at, value), t)| {
-                let (k, from, _, _, step, _) = pending[i];
-                Some((k, from, at, t.out?, step + 1, Some(value)))
+                let (k, from, _, _, step, _, _) = pending[i];
+                Some((k, from, at, t.out?, step + 1, Some(value), t.out_m))
             })
             .collect();
-        for ((k, from, _, cycle, step, _), f) in pending.into_iter().zip(found) {
+        for ((k, from, _, cycle, step, _, _), f) in pending.into_iter().zip(found) {
             per_edge[k].push(Link {
                 found: f,
                 period: cycle.period,

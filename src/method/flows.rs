@@ -27,11 +27,28 @@ pub trait FlowTask {
     /// `log_volume` and `events` are not kept).
     fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>);
 
+    /// Whether the flow asked for needs the tangent vectors; `false`: the state alone (`ended`
+    /// then gets the identity).
+    fn tangent(&self) -> bool {
+        true
+    }
+
     /// The task's remaining flows, one at a time without lanes.
     fn finish(&mut self) {
         while let Some((st, n)) = self.flow() {
-            let (end, tan) = super::tangent::flow(self.integrator(), &st, n);
-            self.ended(&end, &tan);
+            if self.tangent() {
+                let (end, tan) = super::tangent::flow(self.integrator(), &st, n);
+                self.ended(&end, &tan);
+            } else {
+                let mut end = st;
+                for _ in 0..n {
+                    self.integrator().period(&mut end);
+                    if end.diag.nonfinite {
+                        break;
+                    }
+                }
+                self.ended(&end, &Tangent::identity(4));
+            }
         }
     }
 }
@@ -92,10 +109,15 @@ fn finish_scalar<T: FlowTask>(
     mut st: PointState<f64>,
     mut tan: Tangent<f64>,
     left: u32,
+    tangent: bool,
 ) {
     for _ in 0..left {
         crate::progress::poll();
-        t.integrator().period_observed(&mut st, &mut tan);
+        if tangent {
+            t.integrator().period_observed(&mut st, &mut tan);
+        } else {
+            t.integrator().period(&mut st);
+        }
         if st.diag.nonfinite {
             break;
         }
@@ -104,19 +126,60 @@ fn finish_scalar<T: FlowTask>(
     t.finish();
 }
 
-/// Starts the task's next flow on lane `l` of `b` (flows of no period end at once); false
-/// when the task is done.
-fn load<T: FlowTask>(
-    b: &mut Batch<f64, Four<f64, NEWTON_LANES>, NEWTON_LANES>,
-    t: &mut T,
-    l: usize,
-    left: &mut u32,
-) -> bool {
+/// The task's next flow, flows of no period ended at once; `None` when the task is done.
+fn next_flow<T: FlowTask>(t: &mut T) -> Option<(PointState<f64>, u32)> {
     while let Some((st, n)) = t.flow() {
-        if n == 0 {
-            t.ended(&st, &Tangent::identity(4));
-            continue;
+        if n > 0 {
+            return Some((st, n));
         }
+        t.ended(&st, &Tangent::identity(4));
+    }
+    None
+}
+
+/// One thread's lanes of one kind of flow: with the tangent vectors or the state alone (a
+/// batch of plain flows skips the tangent vectors: half the cost of a period with them).
+struct LaneSet<'a, T, const TANGENT: bool> {
+    b: Batch<f64, Four<f64, NEWTON_LANES>, NEWTON_LANES>,
+    /// The task of each lane and the periods left of its flow.
+    slot: [Option<&'a mut T>; NEWTON_LANES],
+    left: [u32; NEWTON_LANES],
+}
+
+impl<'a, T: FlowTask, const TANGENT: bool> LaneSet<'a, T, TANGENT> {
+    #[inline(always)]
+    fn new(pad: &Integrator<f64>) -> Self {
+        // Idle lanes hold a copy of a state and an integrator and are never run.
+        let idle = PointState {
+            y: [0.0; 4],
+            mode: Mode::SlipPos,
+            diag: Default::default(),
+        };
+        LaneSet {
+            b: Batch {
+                q: LaneParams::new(&[pad; NEWTON_LANES]),
+                st: [idle; NEWTON_LANES],
+                live: [false; NEWTON_LANES],
+                tan: Four([[[0.0; NEWTON_LANES]; 4]; 4]),
+                tan_ok: [TANGENT; NEWTON_LANES],
+            },
+            slot: std::array::from_fn(|_| None),
+            left: [0; NEWTON_LANES],
+        }
+    }
+
+    fn free(&self) -> Option<usize> {
+        self.slot.iter().position(|s| s.is_none())
+    }
+
+    fn busy(&self) -> usize {
+        self.slot.iter().filter(|s| s.is_some()).count()
+    }
+
+    /// Starts the flow `(st, n)` of `t` on lane `l`.
+    #[inline(always)]
+    fn load(&mut self, t: &'a mut T, l: usize, (st, n): (PointState<f64>, u32)) {
+        let b = &mut self.b;
         b.q.set(l, t.integrator());
         b.st[l] = st;
         b.live[l] = true;
@@ -125,11 +188,50 @@ fn load<T: FlowTask>(
                 xi[l] = if i == v { 1.0 } else { 0.0 };
             }
         }
-        *left = n;
-        return true;
+        self.left[l] = n;
+        self.slot[l] = Some(t);
     }
-    false
+
+    /// One period of the busy lanes (inlined: the AVX2 copy of the runner compiles it with
+    /// its wider vectors); the tasks whose flow ended go on in their lane where
+    /// their next flow is of this set's kind, else into `waiting`.
+    #[inline(always)]
+    fn period(&mut self, pad: &Integrator<f64>, waiting: &mut Vec<Waiting<'a, T>>) {
+        {
+            let its: [&Integrator<f64>; NEWTON_LANES] =
+                std::array::from_fn(|l| self.slot[l].as_deref().map_or(pad, |t| t.integrator()));
+            crate::progress::poll();
+            self.b.period(&its, false);
+        }
+        for l in 0..NEWTON_LANES {
+            let Some(t) = self.slot[l].as_deref_mut() else {
+                continue;
+            };
+            self.left[l] -= 1;
+            if self.left[l] > 0 && self.b.live[l] {
+                continue;
+            }
+            self.b.live[l] = false;
+            let st = self.b.st[l];
+            t.ended(&st, &lane_tangent(&self.b.tan, l));
+            let t = self.slot[l].take().expect("a busy lane");
+            if let Some(f) = next_flow(t) {
+                if t.tangent() == TANGENT {
+                    self.load(t, l, f);
+                } else {
+                    waiting.push((t, f));
+                }
+            }
+        }
+    }
 }
+
+/// A task left to finish on its own: the state and tangent of its current flow, the periods
+/// left of it, and whether it has the tangent vectors.
+type Rest<'a, T> = (&'a mut T, PointState<f64>, Tangent<f64>, u32, bool);
+
+/// A task whose next flow waits for a lane of its kind.
+type Waiting<'a, T> = (&'a mut T, (PointState<f64>, u32));
 
 #[inline(always)]
 fn run_queue_portable<T: FlowTask + Send>(queue: &Queue<T>) {
@@ -145,74 +247,82 @@ fn run_queue_portable<T: FlowTask + Send>(queue: &Queue<T>) {
         }
         return;
     }
-    // Idle lanes hold a copy of a state and an integrator and are never run.
     let pad = first.integrator().clone();
-    let idle = PointState {
-        y: [0.0; 4],
-        mode: Mode::SlipPos,
-        diag: Default::default(),
-    };
-    let mut b = Batch {
-        q: LaneParams::new(&[&pad; NEWTON_LANES]),
-        st: [idle; NEWTON_LANES],
-        live: [false; NEWTON_LANES],
-        tan: Four([[[0.0; NEWTON_LANES]; 4]; 4]),
-        tan_ok: [true; NEWTON_LANES],
-    };
-    // The task of each lane and the periods left of its flow.
-    let mut slot: [Option<&mut T>; NEWTON_LANES] = std::array::from_fn(|_| None);
-    let mut left = [0u32; NEWTON_LANES];
-    let mut waiting = std::iter::once(first).chain(start);
+    // Lanes with the tangent vectors and lanes of plain flows.
+    let mut with: LaneSet<T, true> = LaneSet::new(&pad);
+    let mut plain: LaneSet<T, false> = LaneSet::new(&pad);
+    let mut waiting: Vec<Waiting<T>> = Vec::new();
+    let mut fresh = std::iter::once(first).chain(start);
     let mut drained = false;
     loop {
-        for l in 0..NEWTON_LANES {
-            while slot[l].is_none() && !drained {
-                let Some(t) = waiting.next().or_else(|| queue.take()) else {
-                    drained = true;
-                    break;
-                };
-                if load(&mut b, t, l, &mut left[l]) {
-                    slot[l] = Some(t);
+        // Waiting flows into the free lanes of their kind, then new tasks while a lane is free
+        // (a few waiting at most: a task whose first flow is of the other kind waits).
+        let mut i = 0;
+        while i < waiting.len() {
+            let free = if waiting[i].0.tangent() {
+                with.free()
+            } else {
+                plain.free()
+            };
+            if let Some(l) = free {
+                let (t, f) = waiting.swap_remove(i);
+                if t.tangent() {
+                    with.load(t, l, f)
+                } else {
+                    plain.load(t, l, f)
                 }
+            } else {
+                i += 1;
             }
         }
-        let busy = slot.iter().filter(|s| s.is_some()).count();
+        while !drained
+            && waiting.len() < NEWTON_LANES
+            && (with.free().is_some() || plain.free().is_some())
+        {
+            let Some(t) = fresh.next().or_else(|| queue.take()) else {
+                drained = true;
+                break;
+            };
+            let Some(f) = next_flow(t) else {
+                continue;
+            };
+            match (t.tangent(), with.free(), plain.free()) {
+                (true, Some(l), _) => with.load(t, l, f),
+                (false, _, Some(l)) => plain.load(t, l, f),
+                _ => waiting.push((t, f)),
+            }
+        }
+        let busy = with.busy() + plain.busy() + waiting.len();
         if busy == 0 {
             return;
         }
         if drained && 3 * busy < NEWTON_LANES {
             // One long task left (a batch costs more than a scalar flow): it finishes on its
             // own, on another thread where one is idle.
-            let rest: Vec<(&mut T, PointState<f64>, Tangent<f64>, u32)> = (0..NEWTON_LANES)
-                .filter_map(|l| {
-                    let t = slot[l].take()?;
-                    Some((t, b.st[l], lane_tangent(&b.tan, l), left[l]))
-                })
-                .collect();
+            let mut rest: Vec<Rest<T>> = Vec::new();
+            for l in 0..NEWTON_LANES {
+                if let Some(t) = with.slot[l].take() {
+                    let tan = lane_tangent(&with.b.tan, l);
+                    rest.push((t, with.b.st[l], tan, with.left[l], true));
+                }
+                if let Some(t) = plain.slot[l].take() {
+                    let tan = Tangent::identity(4);
+                    rest.push((t, plain.b.st[l], tan, plain.left[l], false));
+                }
+            }
+            for (t, (st, n)) in waiting.drain(..) {
+                let tangent = t.tangent();
+                rest.push((t, st, Tangent::identity(4), n, tangent));
+            }
             rest.into_par_iter()
-                .for_each(|(t, st, tan, left)| finish_scalar(t, st, tan, left));
+                .for_each(|(t, st, tan, left, tangent)| finish_scalar(t, st, tan, left, tangent));
             return;
         }
-        {
-            let its: [&Integrator<f64>; NEWTON_LANES] =
-                std::array::from_fn(|l| slot[l].as_deref().map_or(&pad, |t| t.integrator()));
-            crate::progress::poll();
-            b.period(&its, false);
+        if with.busy() > 0 {
+            with.period(&pad, &mut waiting);
         }
-        for l in 0..NEWTON_LANES {
-            let Some(t) = slot[l].as_deref_mut() else {
-                continue;
-            };
-            left[l] -= 1;
-            if left[l] > 0 && b.live[l] {
-                continue;
-            }
-            b.live[l] = false;
-            let st = b.st[l];
-            t.ended(&st, &lane_tangent(&b.tan, l));
-            if !load(&mut b, t, l, &mut left[l]) {
-                slot[l] = None;
-            }
+        if plain.busy() > 0 {
+            plain.period(&pad, &mut waiting);
         }
     }
 }

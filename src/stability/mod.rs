@@ -2,9 +2,10 @@
 //! kind and its multipliers, located by continuation and bisection, and the grazing of an
 //! impact-free motion. (Whether one point is a `period-n` is decided in [`crate::decide`].)
 
-use crate::cycles::{Cycle, Refine, Tangent, modulus, run_parallel};
+use crate::cycles::{Cycle, Refine, Solve, Tangent, modulus, run_parallel};
 use crate::method::{FlowTask, Integrator, PointState, Settings};
 use crate::model::{Param, Params};
+use nalgebra::Matrix4;
 use serde::Serialize;
 
 pub mod ends;
@@ -152,6 +153,7 @@ pub fn bifurcation_points(
                 param,
                 from: from.value,
                 cycle: stable(from).expect("a pair's first side is stable"),
+                monodromy: None,
                 to: to.value,
                 bisections: BISECTIONS,
                 crossing_bisections: BISECTIONS,
@@ -187,6 +189,8 @@ pub struct Change<'a> {
     pub param: Param,
     pub from: f64,
     pub cycle: &'a Cycle,
+    /// The monodromy matrix of `cycle`, where known: the chord's Jacobian from the start.
+    pub monodromy: Option<Matrix4<f64>>,
     pub to: f64,
     /// The bracket's final width is 2^-bisections of the interval ([`BISECTIONS`] for a
     /// sweep's landmarks; a map's edges need less).
@@ -216,23 +220,7 @@ pub fn locate_changes(settings: &Settings, changes: &[Change]) -> Vec<Found> {
     let tasks: Vec<Option<Locate>> = changes
         .iter()
         .enumerate()
-        .map(|(i, c)| {
-            let from = Branch {
-                value: c.from,
-                cycle: Some(c.cycle).filter(|c| c.is_stable()),
-                impact_free: None,
-                impacts: true,
-            };
-            Locate::new(
-                &c.base,
-                c.param,
-                settings,
-                &from,
-                c.to,
-                i,
-                [c.bisections, c.crossing_bisections],
-            )
-        })
+        .map(|(i, c)| Locate::new(c, settings, i))
         .collect();
     let mut out = vec![Found::Nothing; changes.len()];
     let tasks = run_parallel(tasks.into_iter().flatten().collect(), |t| {
@@ -387,6 +375,8 @@ struct Locate<'a> {
     pair: usize,
     start: Cycle,
     to: f64,
+    /// The monodromy matrix of `last`, where the solve that found it kept it.
+    last_m: Option<Matrix4<f64>>,
     /// The smallest bracket is 2^-bisections of the interval, 2^-crossing_bisections where a
     /// crossing was seen at its far end.
     bisections: u32,
@@ -406,7 +396,7 @@ struct Locate<'a> {
     beyond: Option<Cycle>,
     /// The stable cycles found on the way (value, cycle): what [`Locate::end`] compares.
     history: Vec<(f64, Cycle)>,
-    newton: Refine,
+    newton: Solve,
     done: bool,
     /// The cycle is stable at `to`.
     reached: bool,
@@ -433,17 +423,17 @@ struct Locate<'a> {
 }
 
 impl<'a> Locate<'a> {
-    fn new(
-        base: &'a Params<f64>,
-        param: Param,
-        settings: &'a Settings,
-        from: &Branch,
-        to: f64,
-        pair: usize,
-        [bisections, crossing_bisections]: [u32; 2],
-    ) -> Option<Locate<'a>> {
-        let start = from.cycle?.clone();
-        let newton = Self::at(base, param, settings, to, &start);
+    /// The search of `change` (the `pair`-th), `None` where its cycle is not stable.
+    fn new(change: &'a Change, settings: &'a Settings, pair: usize) -> Option<Locate<'a>> {
+        let start = Some(change.cycle).filter(|c| c.is_stable())?.clone();
+        let (base, param, to) = (&change.base, change.param, change.to);
+        let (bisections, crossing_bisections) = (change.bisections, change.crossing_bisections);
+        let from = change.from;
+        let last_m = change.monodromy;
+        let mut p = *base;
+        param.set(&mut p, to);
+        let it = Integrator::<f64>::new(&p, settings);
+        let newton = Solve::new(it, &start.state(), start.period, last_m.as_ref(), false);
         Some(Locate {
             base,
             param,
@@ -453,14 +443,15 @@ impl<'a> Locate<'a> {
             bisections,
             crossing_bisections,
             bisecting: false,
-            step_size: to - from.value,
+            step_size: to - from,
             step: 0,
-            good: from.value,
+            good: from,
             bad: to,
             mid: to,
             last: start.clone(),
+            last_m,
             beyond: None,
-            history: vec![(from.value, start.clone())],
+            history: vec![(from, start.clone())],
             start,
             newton,
             done: false,
@@ -477,12 +468,20 @@ impl<'a> Locate<'a> {
         })
     }
 
-    /// Newton at parameter value `v` from the cycle `c`.
-    fn at(base: &Params<f64>, param: Param, settings: &Settings, v: f64, c: &Cycle) -> Refine {
-        let mut p = *base;
-        param.set(&mut p, v);
-        let st = c.state();
-        Refine::new(Integrator::<f64>::new(&p, settings), &st, c.period)
+    /// The start of Newton's method at `v`: the last stable cycle's point moved along the
+    /// secant of the last two (of one mode), where `v` is at most four of their distances
+    /// beyond the last: the first residual shrinks from the order of the step to its square.
+    fn predicted(&self, v: f64) -> PointState<f64> {
+        let mut st = self.last.state();
+        if let [.., (v0, c0), (v1, c1)] = self.history.as_slice() {
+            let t = (v - v1) / (v1 - v0);
+            if c0.mode == c1.mode && c0.period == c1.period && t.is_finite() && t.abs() <= 4.0 {
+                for i in 0..4 {
+                    st.y[i] = c1.point[i] + t * (c1.point[i] - c0.point[i]);
+                }
+            }
+        }
+        st
     }
 
     fn integrator(&self, v: f64) -> Integrator<f64> {
@@ -518,7 +517,10 @@ impl<'a> Locate<'a> {
     fn solved(&mut self, c: Cycle) {
         let n = self.start.period;
         // A doubled cycle that has merged into its stable half is that half, traversed twice.
-        let c = self.merged(&c).unwrap_or(c);
+        let (c, m) = match self.merged(&c) {
+            Some(half) => (half, None),
+            None => (c, self.newton.monodromy().copied()),
+        };
         let stable = c.is_stable() && c.period == n;
         // Converged to this cycle (or the cycle it merged into, of a divisor period) but not
         // stable: the far side of a crossing.
@@ -535,6 +537,7 @@ impl<'a> Locate<'a> {
         if stable {
             self.good = self.mid;
             self.last = c.clone();
+            self.last_m = m;
             self.history.push((self.mid, c));
             if self.mid == self.to {
                 // Stable across the whole interval: it coexists at `to` with what `to`'s own
@@ -644,7 +647,17 @@ impl<'a> Locate<'a> {
         } else {
             next
         };
-        self.newton = Self::at(self.base, self.param, self.settings, self.mid, &self.last);
+        // A failure from within the resolution ends the search: Newton's own verdict.
+        let confirm = (self.mid - self.good).abs() <= self.resolution(None);
+        // Newton's method at `mid` from the last stable cycle moved along the branch: the
+        // chord method with that cycle's Jacobian where known.
+        self.newton = Solve::new(
+            self.integrator(self.mid),
+            &self.predicted(self.mid),
+            self.last.period,
+            self.last_m.as_ref(),
+            confirm,
+        );
     }
 
     /// Within a crossing's bracket (the same cycle stable at one end, a multiplier outside the
@@ -956,6 +969,10 @@ impl FlowTask for Locate<'_> {
         self.newton.integrator()
     }
 
+    fn tangent(&self) -> bool {
+        self.newton.tangent_flow()
+    }
+
     fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
         self.newton.ended(end, tan);
         if let Some(c) = self.newton.result() {
@@ -1013,6 +1030,8 @@ pub struct Switch {
     done: bool,
     /// The branch found, once done.
     pub out: Option<Cycle>,
+    /// Its monodromy matrix, where the solve kept it.
+    pub out_m: Option<Matrix4<f64>>,
 }
 
 impl Switch {
@@ -1059,6 +1078,7 @@ impl Switch {
             v: [0.0; 4],
             done: false,
             out: None,
+            out_m: None,
         }
     }
 
@@ -1135,6 +1155,7 @@ impl FlowTask for Switch {
         };
         match self.stage {
             Stage::Half if c.is_stable() && c.period == self.n / 2 => {
+                self.out_m = self.newton.monodromy().copied();
                 self.out = Some(c);
                 self.done = true;
             }
@@ -1150,6 +1171,7 @@ impl FlowTask for Switch {
             }
             Stage::Daughter(k) => {
                 if c.is_stable() && c.period == 2 * self.n && self.apart(&c) {
+                    self.out_m = self.newton.monodromy().copied();
                     self.out = Some(c);
                     self.done = true;
                 } else {
