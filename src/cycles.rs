@@ -240,13 +240,7 @@ impl Refine {
         if !dx.iter().all(|v| v.is_finite()) {
             return false;
         }
-        for i in 0..4 {
-            st.y[i] += dx[i];
-        }
-        st.mode = mode_after_update(it, st);
-        if let Mode::Stick | Mode::LockPos | Mode::LockNeg = st.mode {
-            co_move(&it.p, &mut st.y);
-        }
+        moved(it, st, &dx);
         out.iterations < NEWTON_ITERS
     }
 }
@@ -272,9 +266,9 @@ const CHORD_ITERS: u32 = 8;
 const CHORD_RATE: f64 = 0.6;
 
 /// Newton's method of a continuation step ([`Refine`]) with the monodromy matrix `M0` of a cycle
-/// nearby, the chord method: `x <- x - (M0 - I)^-1 (P^n(x) - x)` with plain flows (the state
-/// alone: about half the cost of a flow with the tangent vectors) while each shrinks the residual
-/// [`CHORD_RATE`]-fold; then [`Refine`] from where they got to, whose first flow (with the
+/// nearby, the chord method: `x <- x - J^-1 (P^n(x) - x)`, J = `M0 - I` at first and Broyden's
+/// update of it after each step, with plain flows (the state alone: about half the cost of a
+/// flow with the tangent vectors) while each shrinks the residual [`CHORD_RATE`]-fold; then [`Refine`] from where they got to, whose first flow (with the
 /// tangent vectors) confirms the cycle and gives its multipliers, or goes on with Newton's
 /// iterations where the chord slowed down. A chord iteration that does not shrink the residual
 /// fails the solve, or with `confirm` hands it to [`Refine`] from the start, whose verdict it is
@@ -289,8 +283,6 @@ pub struct Chord {
     jac: Matrix4<f64>,
     /// The last residual and the step taken from it (Broyden's secant).
     last: Option<(Vector4<f64>, Vector4<f64>)>,
-    /// The residual before the last chord step (NaN at first).
-    residual: f64,
     iterations: u32,
     confirm: bool,
     newton: Option<Refine>,
@@ -323,7 +315,6 @@ impl Solve {
                 start: *start,
                 st: *start,
                 n,
-                residual: f64::NAN,
                 iterations: 0,
                 confirm,
                 newton: None,
@@ -349,14 +340,6 @@ impl Solve {
         match self {
             Solve::Chord(c) => c.newton.as_ref().and_then(Refine::monodromy),
             Solve::Newton(r) => r.monodromy(),
-        }
-    }
-
-    /// Flows with the tangent vectors (Newton's) or without (the chord's).
-    pub fn tangent_flow(&self) -> bool {
-        match self {
-            Solve::Chord(c) => c.newton.is_some(),
-            Solve::Newton(_) => true,
         }
     }
 }
@@ -397,7 +380,7 @@ impl Chord {
         if res <= tol {
             return self.hand_over(st);
         }
-        let rate = res / self.residual;
+        let rate = res / self.last.map_or(f64::NAN, |(r0, _)| r0.amax());
         if rate >= 1.0 {
             return self.give_up(res);
         }
@@ -418,15 +401,8 @@ impl Chord {
         else {
             return self.give_up(res);
         };
-        for i in 0..4 {
-            st.y[i] += dx[i];
-        }
-        st.mode = mode_after_update(&self.it, &st);
-        if let Mode::Stick | Mode::LockPos | Mode::LockNeg = st.mode {
-            co_move(&self.it.p, &mut st.y);
-        }
+        moved(&self.it, &mut st, &dx);
         self.st = st;
-        self.residual = res;
         self.last = Some((r, dx));
         // Where the next residual, at this rate, is within the tolerance, the next flow is
         // Newton's: it confirms the cycle with the tangent vectors.
@@ -464,8 +440,12 @@ impl FlowTask for Solve {
         }
     }
 
+    /// Flows with the tangent vectors (Newton's) or without (the chord's).
     fn tangent(&self) -> bool {
-        self.tangent_flow()
+        match self {
+            Solve::Chord(c) => c.newton.is_some(),
+            Solve::Newton(_) => true,
+        }
     }
 }
 
@@ -528,6 +508,18 @@ fn least_return(it: &Integrator<f64>, st: &PointState<f64>, n: u32, scale: f64) 
 }
 
 /// Mode of a Newton iterate: the old one unless a slip changed direction.
+/// A Newton (or chord) step `dx` applied to the iterate `st`: its mode re-derived, and a stuck
+/// or locked state kept co-moving.
+fn moved(it: &Integrator<f64>, st: &mut PointState<f64>, dx: &Vector4<f64>) {
+    for i in 0..4 {
+        st.y[i] += dx[i];
+    }
+    st.mode = mode_after_update(it, st);
+    if let Mode::Stick | Mode::LockPos | Mode::LockNeg = st.mode {
+        co_move(&it.p, &mut st.y);
+    }
+}
+
 fn mode_after_update(it: &Integrator<f64>, st: &PointState<f64>) -> Mode {
     let v = st.y[1] - st.y[3];
     match st.mode {

@@ -40,13 +40,7 @@ pub trait FlowTask {
                 let (end, tan) = super::tangent::flow(self.integrator(), &st, n);
                 self.ended(&end, &tan);
             } else {
-                let mut end = st;
-                for _ in 0..n {
-                    self.integrator().period(&mut end);
-                    if end.diag.nonfinite {
-                        break;
-                    }
-                }
+                let end = super::tangent::plain_flow(self.integrator(), &st, n);
                 self.ended(&end, &Tangent::identity(4));
             }
         }

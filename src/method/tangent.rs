@@ -366,6 +366,18 @@ pub fn flow<F: Real>(
     (s, t)
 }
 
+/// [`flow`] of the state alone (no tangent vectors): the end after `periods` forcing periods.
+pub fn plain_flow<F: Real>(it: &Integrator<F>, st: &PointState<F>, periods: u32) -> PointState<F> {
+    let mut s = *st;
+    for _ in 0..periods {
+        it.period(&mut s);
+        if s.diag.nonfinite {
+            break;
+        }
+    }
+    s
+}
+
 /// Below this norm a tangent vector is taken as collapsed (a stick or lock removes up to two
 /// directions exactly); it is replaced by a fresh orthogonal direction and counted at the floor.
 pub fn collapse_floor<F: Real>() -> F {

@@ -422,6 +422,13 @@ struct Locate<'a> {
     found: Option<BifurcationPoint>,
 }
 
+/// The integrator of `base` with `param` at `v`.
+fn integrator_at(base: &Params<f64>, param: Param, settings: &Settings, v: f64) -> Integrator<f64> {
+    let mut p = *base;
+    param.set(&mut p, v);
+    Integrator::<f64>::new(&p, settings)
+}
+
 impl<'a> Locate<'a> {
     /// The search of `change` (the `pair`-th), `None` where its cycle is not stable.
     fn new(change: &'a Change, settings: &'a Settings, pair: usize) -> Option<Locate<'a>> {
@@ -430,9 +437,7 @@ impl<'a> Locate<'a> {
         let (bisections, crossing_bisections) = (change.bisections, change.crossing_bisections);
         let from = change.from;
         let last_m = change.monodromy;
-        let mut p = *base;
-        param.set(&mut p, to);
-        let it = Integrator::<f64>::new(&p, settings);
+        let it = integrator_at(base, param, settings, to);
         let newton = Solve::new(it, &start.state(), start.period, last_m.as_ref(), false);
         Some(Locate {
             base,
@@ -485,9 +490,7 @@ impl<'a> Locate<'a> {
     }
 
     fn integrator(&self, v: f64) -> Integrator<f64> {
-        let mut p = *self.base;
-        self.param.set(&mut p, v);
-        Integrator::<f64>::new(&p, self.settings)
+        integrator_at(self.base, self.param, self.settings, v)
     }
 
     /// The smallest bracket, 2^-bisections of the edge; 2^-crossing_bisections where the
@@ -970,7 +973,7 @@ impl FlowTask for Locate<'_> {
     }
 
     fn tangent(&self) -> bool {
-        self.newton.tangent_flow()
+        self.newton.tangent()
     }
 
     fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
