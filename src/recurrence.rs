@@ -11,6 +11,7 @@
 use crate::classify::{Candidate, SETTLED, approaches};
 use crate::cycles::{Cycle, refine};
 use crate::method::{Integrator, PointState};
+use crate::progress::Progress;
 
 /// The longest cycle looked for.
 pub const MAX_LONG_PERIOD: u32 = 1024;
@@ -108,18 +109,25 @@ pub struct Search {
 /// Runs [`WINDOW`] periods from `from` and tries Newton at the lag [`best_lag`] proposes, from
 /// the window's last state: the stable cycle found there, where the motion is seen to approach
 /// it ([`approaches`] over the window's y1 values).
-pub fn search(it: &Integrator<f64>, from: &PointState<f64>) -> Search {
+pub fn search(it: &Integrator<f64>, from: &PointState<f64>, progress: &dyn Progress) -> Search {
     let mut st = *from;
     st.diag = Default::default();
     let mut states = Vec::with_capacity(WINDOW as usize);
-    for _ in 0..WINDOW {
+    // The window's periods as they run, a few at a time (the caller counted them all).
+    const REPORT: u32 = 64;
+    for k in 0..WINDOW {
         crate::progress::poll();
         it.period(&mut st);
+        if (k + 1) % REPORT == 0 {
+            progress.advance(u64::from(REPORT));
+        }
         if st.diag.nonfinite {
+            progress.advance(u64::from(WINDOW - (k + 1) / REPORT * REPORT));
             return Search::default();
         }
         states.push(st.y);
     }
+    progress.advance(u64::from(WINDOW % REPORT));
     let mut out = Search {
         periods: WINDOW,
         ..Search::default()

@@ -265,6 +265,17 @@ fn every_commands_timings_share_the_split_keys() {
             assert_eq!(t[k].as_u64(), Some(0), "{what}: timings.{k}: {t}");
         }
         assert!(integration + host <= wall + 1e-9, "{what}: {t}");
+        // The adaptive run's parts (configured stages, long look, recurrence search), each
+        // within the wall (zero where the command ran none).
+        let parts: f64 = ["configured_s", "look_s", "search_s"]
+            .iter()
+            .map(|k| {
+                t["parts"][k]
+                    .as_f64()
+                    .unwrap_or_else(|| panic!("{what}: timings.parts.{k}: {t}"))
+            })
+            .sum();
+        assert!((0.0..=wall + 1e-9).contains(&parts), "{what}: {t}");
         assert_eq!(
             t["files_s"].as_f64().is_some_and(|f| f > 0.0),
             files,

@@ -98,6 +98,25 @@ fn a_stable_cycle_of_period_558_is_named_by_point_and_map() {
         let class: Vec<i32> = npy(&d.join(format!("{b}-class.npy")));
         let mult: Vec<f64> = npy(&d.join(format!("{b}-multiplier.npy")));
         assert_eq!(class[4], 558, "{b}: {class:?}");
+        // The JSON says what the search cost and found: the centre's cycle among its finds.
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join(format!("{b}.json"))).unwrap())
+                .unwrap();
+        let parts = &j["timings"]["parts"];
+        assert!(parts["found"].as_u64().unwrap() >= 1, "{b}: {parts}");
+        assert!(
+            parts["searched"].as_u64() >= parts["found"].as_u64(),
+            "{b}: {parts}"
+        );
+        let wall = j["timings"]["wall_s"].as_f64().unwrap();
+        let sum: f64 = ["configured_s", "look_s", "search_s"]
+            .iter()
+            .map(|k| parts[k].as_f64().unwrap())
+            .sum();
+        assert!(
+            parts["search_s"].as_f64().unwrap() > 0.0 && sum <= wall,
+            "{b}: parts {parts} against the wall {wall}"
+        );
         assert!(
             (mult[4] - lead).abs() < 2e-3,
             "{b}: |mu| {} against {lead}",
@@ -150,4 +169,62 @@ fn a_slow_cycle_left_unresolved_is_named() {
         );
         assert!((s.multiplier - lead).abs() < 2e-3, "{s:?} against {lead}");
     }
+}
+
+/// Work counted as the progress bar and explore's `/api/progress` see it: what the first count
+/// held plus what each later part announced ([`rattle::progress::Progress::more`]).
+#[derive(Default)]
+struct Counted {
+    done: std::sync::atomic::AtomicU64,
+    more: std::sync::atomic::AtomicU64,
+}
+
+impl rattle::progress::Progress for Counted {
+    fn advance(&self, n: u64) {
+        self.done.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    }
+    fn more(&self, n: u64) {
+        self.more.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    }
+}
+
+/// The recurrence search is work the progress counts (issue 74 item 5): the period-558 cell of
+/// [`a_stable_cycle_of_period_558_is_named_by_point_and_map`], found by the search, announces
+/// the search's window before it runs and reports it done, so that the count ends where the
+/// work does.
+#[test]
+fn progress_counts_the_search_as_work() {
+    let sets: Vec<String> = [
+        SETS[2],
+        "map.x=R",
+        "map.x_from=0.799",
+        "map.x_to=0.801",
+        "map.x_points=3",
+        "map.y=lambda",
+        "map.y_from=0.0199",
+        "map.y_to=0.0201",
+        "map.y_points=3",
+        "method.precision=f64",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let cfg = Config::load(&config("fig2.toml"), &sets).unwrap();
+    let engine = rattle::engine::Engine::Cpu;
+    let c = Counted::default();
+    let (got, t) = rattle::map::compute_cells(&engine, &cfg, [4], 1, true, &c).unwrap();
+    assert_eq!(got[0].0.class, rattle::class::Class::Periodic(558));
+    let first = rattle::spec::RunSpec::new(&cfg).periods() as u64;
+    let (done, more) = (c.done.into_inner(), c.more.into_inner());
+    assert_eq!(done, first + more, "work done against work counted");
+    assert_eq!((t.parts.searched, t.parts.found), (1, 1), "{:?}", t.parts);
+    assert!(
+        more >= u64::from(rattle::recurrence::WINDOW),
+        "the search's window announced: {more}"
+    );
+    assert!(
+        t.parts.search_s > 0.0 && t.parts.configured_s > 0.0,
+        "{:?}",
+        t.parts
+    );
 }

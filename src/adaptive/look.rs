@@ -180,8 +180,8 @@ pub fn recur<K: Looked + Sync>(
     points: &Points,
     own: usize,
     keep: &K,
-    done: &mut [K::Point],
-    periods: &mut [u32],
+    (done, periods): (&mut [K::Point], &mut [u32]),
+    progress: &dyn Progress,
 ) -> (usize, usize)
 where
     K::Point: Sync,
@@ -194,15 +194,15 @@ where
     let idx: Vec<usize> = (0..own.min(done.len()))
         .filter(|&i| matches!(keep.verdict(&done[i]).1, Rule::Torus | Rule::Undecided))
         .collect();
+    // The windows are work the first count did not hold (Newton's trials add theirs as they go).
+    progress.more(idx.len() as u64 * u64::from(crate::recurrence::WINDOW));
     let found: Vec<(usize, crate::recurrence::Search)> = idx
         .par_iter()
         .map(|&i| {
             let it = Integrator::<f64>::new(&points.params(&spec.params, i), &spec.settings);
             let (y, mode, _) = keep.state(&done[i]);
-            (
-                i,
-                crate::recurrence::search(&it, &it.start_in(y, Some(mode))),
-            )
+            let start = it.start_in(y, Some(mode));
+            (i, crate::recurrence::search(&it, &start, progress))
         })
         .collect();
     let mut cycles = 0;

@@ -25,7 +25,7 @@ use crate::engine::{Engine, EngineError, Timings};
 pub mod look;
 
 use crate::carry::{Carried, Neighbours, Seed};
-use crate::method::{Diagnostics, RunResult};
+use crate::method::{Diagnostics, Parts, RunResult};
 use crate::model::{Mode, Params};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
@@ -736,8 +736,11 @@ pub fn run_samples(
         newton_s: 0.0,
     };
     let transfers0 = engine.transfers();
+    let t0 = Instant::now();
     let (mut done, mut periods, mut timings) =
         drive(engine, spec, points, early, &mut keep, progress)?;
+    let configured_s = t0.elapsed().as_secs_f64();
+    let t_look = Instant::now();
     let (t, look) = look::look(
         engine,
         spec,
@@ -750,9 +753,26 @@ pub fn run_samples(
         progress,
     )?;
     timings.add(&t);
+    let look_s = t_look.elapsed().as_secs_f64();
     let t_recur = Instant::now();
-    look::recur(spec, points, points.len(), &keep, &mut done, &mut periods);
-    timings.host_s += t_recur.elapsed().as_secs_f64();
+    let (searched, found) = look::recur(
+        spec,
+        points,
+        points.len(),
+        &keep,
+        (&mut done, &mut periods),
+        progress,
+    );
+    let search_s = t_recur.elapsed().as_secs_f64();
+    timings.host_s += search_s;
+    timings.parts = Parts {
+        configured_s,
+        look_s,
+        looked: look.looked as u64,
+        search_s,
+        searched: searched as u64,
+        found: found as u64,
+    };
     look::coexist(
         engine.decider(spec.decide, spec.decide_precision),
         spec,
@@ -907,9 +927,17 @@ pub fn run_summaries(
     progress: &dyn Progress,
 ) -> Result<(Vec<Summary>, Timings), EngineError> {
     let transfers0 = engine.transfers();
+    let t0 = Instant::now();
     let (mut out, mut timings) = configured_summaries(engine, spec, points, early, progress)?;
+    // The streams' sum where they overlapped, as the other seconds of an overlapped run.
+    let configured_s = if timings.streams > 1 {
+        timings.integration_s + timings.decide_s + timings.host_s
+    } else {
+        t0.elapsed().as_secs_f64()
+    };
     let mut periods: Vec<u32> = out.iter().map(|s| s.periods).collect();
-    let (t, _) = look::look(
+    let t_look = Instant::now();
+    let (t, look) = look::look(
         engine,
         spec,
         points,
@@ -921,10 +949,27 @@ pub fn run_summaries(
         progress,
     )?;
     timings.add(&t);
+    let look_s = t_look.elapsed().as_secs_f64();
     // The search runs on the host: its time is the host's deciding.
     let t_recur = Instant::now();
-    look::recur(spec, points, own, &Summaries, &mut out, &mut periods);
-    timings.host_s += t_recur.elapsed().as_secs_f64();
+    let (searched, found) = look::recur(
+        spec,
+        points,
+        own,
+        &Summaries,
+        (&mut out, &mut periods),
+        progress,
+    );
+    let search_s = t_recur.elapsed().as_secs_f64();
+    timings.host_s += search_s;
+    timings.parts = Parts {
+        configured_s,
+        look_s,
+        looked: look.looked as u64,
+        search_s,
+        searched: searched as u64,
+        found: found as u64,
+    };
     // Every thread's (the streams'), once: the engine's own counts of each run are not added.
     timings.transfers = engine.transfers().since(&transfers0);
     Ok((out, timings))

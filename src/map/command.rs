@@ -408,6 +408,7 @@ fn assemble(engine: &Engine, o: &MapOptions, parts: Vec<Part>) -> crate::Result<
             steps_per_s: Some(steps / secs),
             streams: Some(timings.streams.max(1)),
             transfers: Some(timings.transfers),
+            parts: Some(timings.parts),
             ..MapTimings::default()
         },
         memory: match cfg.z_axis() {
@@ -678,6 +679,7 @@ fn merged_timings(parts: &[Part]) -> MapTimings {
         host_s: Some(t.host_s),
         device_decide_s: Some(t.decide_s),
         transfers: Some(t.transfers),
+        parts: Some(t.parts),
         ..MapTimings::default()
     }
 }

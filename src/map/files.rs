@@ -126,6 +126,10 @@ pub struct MapTimings {
     /// adapter's start, the engine's setup and the parts' merge.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wall_s: Option<f64>,
+    /// The adaptive run's parts (the configured stages, the long look, the recurrence search:
+    /// `method::Parts`), summed over the parts of the map.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub parts: Option<crate::method::Parts>,
     /// Streams run at once (`run.overlap`): with more than one, the seconds above but
     /// `files_s` and `wall_s` are the streams' sums and can add up to more than the wall.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -31,8 +31,8 @@ pub use events::{
 pub use flows::{FlowTask, NEWTON_LANES, Queue, run_flows, run_flows_portable, run_queue};
 pub use lanes::{LANES, batches, run_lanes, run_lanes_portable};
 pub use result::{
-    Diagnostics, ImpactMethod, PointState, RunResult, Settings, Split, Timings, Transfers, energy,
-    impact_speed,
+    Diagnostics, ImpactMethod, Parts, PointState, RunResult, Settings, Split, Timings, Transfers,
+    energy, impact_speed,
 };
 
 /// Event kinds; the numeric values are shared with the shader (`EV_*`).

@@ -259,6 +259,42 @@ pub struct Timings {
     /// What crossed between the host and the device ([`Transfers`]; zero on the CPU).
     #[serde(default)]
     pub transfers: Transfers,
+    /// Where an adaptive run's wall time went, part by part ([`Parts`]; zero for a plain run).
+    #[serde(default)]
+    pub parts: Parts,
+}
+
+/// The parts of an adaptive run ([`crate::adaptive`]), each its wall seconds and the points it
+/// took: the configured stages (with the adaptive horizon), the long look's stages, the
+/// recurrence search on the host. Each part's seconds hold its integration and its deciding
+/// (the split of [`Timings`] cuts across them); in an overlapped run the configured part is the
+/// streams' sum.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Parts {
+    /// The configured stages: the early rounds, the configured stretch, the adaptive horizon.
+    pub configured_s: f64,
+    /// The long look's stages ([`crate::adaptive::look::look`]).
+    pub look_s: f64,
+    /// Points the look went on with.
+    pub looked: u64,
+    /// The recurrence search ([`crate::recurrence`]): its windows and Newton's trials.
+    pub search_s: f64,
+    /// Points searched.
+    pub searched: u64,
+    /// Of those, points whose search found the stable cycle they approach.
+    pub found: u64,
+}
+
+impl Parts {
+    /// Adds another run's parts.
+    pub fn add(&mut self, o: &Parts) {
+        self.configured_s += o.configured_s;
+        self.look_s += o.look_s;
+        self.looked += o.looked;
+        self.search_s += o.search_s;
+        self.searched += o.searched;
+        self.found += o.found;
+    }
 }
 
 /// What crossed between the host and a device adapter (docs/performance.md, "Round trips"):
@@ -314,6 +350,8 @@ pub struct Split {
     /// What crossed between the host and the device.
     #[serde(flatten)]
     pub transfers: Transfers,
+    /// The adaptive run's parts ([`Parts`]; zero where the command ran none).
+    pub parts: Parts,
 }
 
 impl Split {
@@ -327,6 +365,7 @@ impl Split {
             files_s: None,
             wall_s,
             transfers: t.transfers,
+            parts: t.parts,
         }
     }
 
@@ -356,5 +395,6 @@ impl Timings {
         self.decide_s += o.decide_s;
         self.streams = self.streams.max(o.streams);
         self.transfers.add(&o.transfers);
+        self.parts.add(&o.parts);
     }
 }

@@ -298,8 +298,9 @@ function showNearest(p) {
 }
 
 // Progress while a computation runs: of this load's phase only (a phase's watcher stops when
-// the next phase starts). The count covers the configured periods; past it the long look and
-// the recurrence search go on for the cells still undecided, which the bar says, not "100%".
+// the next phase starts). The count grows with the work found on the way (the long look's
+// stages, the recurrence search's windows); past it only the stable cycles carried between
+// cells and the map's assembly remain, which the bar says, not "100%".
 async function watch(label, token, phase) {
   const current = () => state.loads === token && state.phase === phase && state.busy;
   while (current()) {
@@ -307,7 +308,7 @@ async function watch(label, token, phase) {
       const p = await call("/api/progress");
       if (p.busy && p.total > 0 && current()) {
         status(p.done >= p.total
-          ? `${label}: looking further at the cells still undecided (long look, recurrence search)...`
+          ? `${label}: carrying stable cycles between cells...`
           : `${label}: ${Math.floor((100 * p.done) / p.total)}%`);
       }
     } catch (e) { /* the next poll tells */ }
