@@ -170,6 +170,43 @@ pub fn look<K: Looked>(
     Ok((timings, counts))
 }
 
+/// The look ([`look`]) and the search ([`recur`]) that follow a run's configured stages, which
+/// took `configured_s`: their engine times added to `timings`, the search's to its host
+/// deciding, and every part's seconds and points in `timings.parts`. Returns the look's counts.
+#[allow(clippy::too_many_arguments)]
+pub fn look_and_search<K: Looked + Sync>(
+    engine: &Engine,
+    spec: &RunSpec,
+    points: &Points,
+    (nb, own): (&Neighbours, usize),
+    keep: &mut K,
+    (done, periods): (&mut [K::Point], &mut [u32]),
+    progress: &dyn Progress,
+    (timings, configured_s): (&mut Timings, f64),
+) -> Result<LookCounts, EngineError>
+where
+    K::Point: Sync,
+{
+    let t0 = std::time::Instant::now();
+    let (t, counts) = look(engine, spec, points, nb, own, keep, done, periods, progress)?;
+    timings.add(&t);
+    let look_s = t0.elapsed().as_secs_f64();
+    let t1 = std::time::Instant::now();
+    let (searched, found) = recur(spec, points, own, keep, (done, periods), progress);
+    // The search runs on the host: its time is the host's deciding.
+    let search_s = t1.elapsed().as_secs_f64();
+    timings.host_s += search_s;
+    timings.parts = crate::method::Parts {
+        configured_s,
+        look_s,
+        looked: counts.looked as u64,
+        search_s,
+        searched: searched as u64,
+        found: found as u64,
+    };
+    Ok(counts)
+}
+
 /// Cycles beyond the kernel's tail ([`crate::recurrence`]): every point among the first `own`
 /// still torus-looking or undecided after the look runs on, on the host in f64, for a window in
 /// which a lag of up to 1024 periods that recurs is tried by Newton's method; a stable cycle

@@ -25,7 +25,7 @@ use crate::engine::{Engine, EngineError, Timings};
 pub mod look;
 
 use crate::carry::{Carried, Neighbours, Seed};
-use crate::method::{Diagnostics, Parts, RunResult};
+use crate::method::{Diagnostics, RunResult};
 use crate::model::{Mode, Params};
 use crate::progress::Progress;
 use crate::spec::{Points, RunSpec};
@@ -740,39 +740,16 @@ pub fn run_samples(
     let (mut done, mut periods, mut timings) =
         drive(engine, spec, points, early, &mut keep, progress)?;
     let configured_s = t0.elapsed().as_secs_f64();
-    let t_look = Instant::now();
-    let (t, look) = look::look(
+    let look = look::look_and_search(
         engine,
         spec,
         points,
-        nb,
-        points.len(),
+        (nb, points.len()),
         &mut keep,
-        &mut done,
-        &mut periods,
-        progress,
-    )?;
-    timings.add(&t);
-    let look_s = t_look.elapsed().as_secs_f64();
-    let t_recur = Instant::now();
-    let (searched, found) = look::recur(
-        spec,
-        points,
-        points.len(),
-        &keep,
         (&mut done, &mut periods),
         progress,
-    );
-    let search_s = t_recur.elapsed().as_secs_f64();
-    timings.host_s += search_s;
-    timings.parts = Parts {
-        configured_s,
-        look_s,
-        looked: look.looked as u64,
-        search_s,
-        searched: searched as u64,
-        found: found as u64,
-    };
+        (&mut timings, configured_s),
+    )?;
     look::coexist(
         engine.decider(spec.decide, spec.decide_precision),
         spec,
@@ -936,40 +913,16 @@ pub fn run_summaries(
         t0.elapsed().as_secs_f64()
     };
     let mut periods: Vec<u32> = out.iter().map(|s| s.periods).collect();
-    let t_look = Instant::now();
-    let (t, look) = look::look(
+    look::look_and_search(
         engine,
         spec,
         points,
-        nb,
-        own,
+        (nb, own),
         &mut Summaries,
-        &mut out,
-        &mut periods,
-        progress,
-    )?;
-    timings.add(&t);
-    let look_s = t_look.elapsed().as_secs_f64();
-    // The search runs on the host: its time is the host's deciding.
-    let t_recur = Instant::now();
-    let (searched, found) = look::recur(
-        spec,
-        points,
-        own,
-        &Summaries,
         (&mut out, &mut periods),
         progress,
-    );
-    let search_s = t_recur.elapsed().as_secs_f64();
-    timings.host_s += search_s;
-    timings.parts = Parts {
-        configured_s,
-        look_s,
-        looked: look.looked as u64,
-        search_s,
-        searched: searched as u64,
-        found: found as u64,
-    };
+        (&mut timings, configured_s),
+    )?;
     // Every thread's (the streams'), once: the engine's own counts of each run are not added.
     timings.transfers = engine.transfers().since(&transfers0);
     Ok((out, timings))
