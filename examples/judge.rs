@@ -109,6 +109,24 @@ fn judge(p: &Params<f64>, zeno: f64, y0: [f64; 4]) -> Verdict {
     last
 }
 
+/// The verdicts of `k` starts 1e-9 apart in y1 around `y0`, as `verdict:count` joined by `;`.
+fn outcomes(p: &Params<f64>, zeno: f64, y0: [f64; 4], k: u32) -> String {
+    let mut seen: Vec<(String, u32)> = Vec::new();
+    for j in 1..=k {
+        let mut y = y0;
+        y[0] += f64::from(j) * 1e-9;
+        let v = judge(p, zeno, y).0;
+        match seen.iter_mut().find(|s| s.0 == v) {
+            Some(s) => s.1 += 1,
+            None => seen.push((v, 1)),
+        }
+    }
+    seen.iter()
+        .map(|(v, n)| format!("{v}:{n}"))
+        .collect::<Vec<_>>()
+        .join(";")
+}
+
 /// One window of WINDOW periods from `st` (which it advances), with its neighbour.
 fn window(
     r: &DryReference,
@@ -288,6 +306,14 @@ fn main() -> anyhow::Result<()> {
             picked.extend(cells.into_iter().take(count).map(|c| (c, name(c))));
         }
     }
+    // JUDGE_STARTS=K: each cell judged again from K starts 1e-9 apart in y1 (a column
+    // `outcomes`: each verdict reached and how often). Where a chaotic transient ends on one of
+    // several attractors, which one a start reaches is beyond any integrator's reach after a
+    // few hundred periods: the verdicts from nearby starts say which outcomes a map may name.
+    let spread: u32 = std::env::var("JUDGE_STARTS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0);
     let rows: Vec<(usize, String)> = {
         use rayon::prelude::*;
         picked
@@ -298,10 +324,14 @@ fn main() -> anyhow::Result<()> {
                 cfg.map.x.set(&mut p, xs[ix]);
                 cfg.map.y.set(&mut p, ys[iy]);
                 let (class, period, l, l1, digits) = judge(&p, zeno, cfg.initial.y);
-                let row = format!(
+                let mut row = format!(
                     "{ix},{iy},{:.9},{:.9},{g},{class},{period},{l:.6},{l1:.6},{digits:.2}",
                     xs[ix], ys[iy]
                 );
+                if spread > 0 {
+                    row.push(',');
+                    row.push_str(&outcomes(&p, zeno, cfg.initial.y, spread));
+                }
                 (c, row)
             })
             .collect()
@@ -319,7 +349,8 @@ fn main() -> anyhow::Result<()> {
     let mut f = std::fs::File::create(&a[5])?;
     writeln!(
         f,
-        "ix,iy,x,y,map_group,judge,judge_period,lyapunov,lyapunov_first_half,birkhoff_digits"
+        "ix,iy,x,y,map_group,judge,judge_period,lyapunov,lyapunov_first_half,birkhoff_digits{}",
+        if spread > 0 { ",outcomes" } else { "" }
     )?;
     for r in rows {
         writeln!(f, "{r}")?;

@@ -409,10 +409,13 @@ pub enum Rule {
     /// An exponent was asked for but the tangent vector overflowed (f32): unresolved, not
     /// aperiodic ([`NoExponent`](Rule::NoExponent) is for runs that asked for none).
     ExponentLost,
+    /// The motion looked chaotic beside a stable cycle carried from a neighbour, and copies of
+    /// it landed on that cycle ([`crate::escape`]): the chaos was a transient.
+    Escaped,
 }
 
 impl Rule {
-    pub const ALL: [Rule; 8] = [
+    pub const ALL: [Rule; 9] = [
         Rule::StableCycle,
         Rule::PositiveExponent,
         Rule::Torus,
@@ -421,6 +424,7 @@ impl Rule {
         Rule::NoExponent,
         Rule::Undecided,
         Rule::ExponentLost,
+        Rule::Escaped,
     ];
     /// Compact code for arrays: the position in [`Rule::ALL`] (an inferred cell keeps its
     /// corners' rule).
@@ -438,6 +442,7 @@ impl Rule {
             Rule::NoExponent => "no_exponent",
             Rule::Undecided => "undecided",
             Rule::ExponentLost => "exponent_lost",
+            Rule::Escaped => "escaped",
         }
     }
 }

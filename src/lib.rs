@@ -23,6 +23,7 @@ pub mod cycles;
 pub mod decide;
 pub mod engine;
 pub mod error;
+pub mod escape;
 pub mod explore;
 pub mod gpu;
 

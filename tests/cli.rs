@@ -267,7 +267,7 @@ fn every_commands_timings_share_the_split_keys() {
         assert!(integration + host <= wall + 1e-9, "{what}: {t}");
         // The adaptive run's parts (configured stages, long look, recurrence search), each
         // within the wall (zero where the command ran none).
-        let parts: f64 = ["configured_s", "look_s", "search_s"]
+        let parts: f64 = ["configured_s", "look_s", "search_s", "carry_s"]
             .iter()
             .map(|k| {
                 t["parts"][k]

@@ -203,6 +203,7 @@ where
         search_s,
         searched: searched as u64,
         found: found as u64,
+        carry_s: 0.0,
     };
     Ok(counts)
 }

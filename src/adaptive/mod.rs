@@ -750,6 +750,7 @@ pub fn run_samples(
         progress,
         (&mut timings, configured_s),
     )?;
+    let t_carry = Instant::now();
     look::coexist(
         engine.decider(spec.decide, spec.decide_precision),
         spec,
@@ -758,6 +759,7 @@ pub fn run_samples(
         &keep,
         &mut done,
     );
+    timings.parts.carry_s = t_carry.elapsed().as_secs_f64();
     timings.transfers = engine.transfers().since(&transfers0);
     let mut settle = Vec::with_capacity(done.len());
     let mut coexist = Vec::with_capacity(done.len());

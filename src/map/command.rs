@@ -378,19 +378,26 @@ pub fn compute_map(
         Some(k) => coarse_part(engine, cfg, k, o.clear_chaotic(), o.starts, progress)?,
         None => compute_part(engine, cfg, (0, 1), o.starts, progress)?,
     };
-    let mut m = assemble(engine, o, vec![part])?;
+    let mut m = assemble(engine, o, vec![part], progress)?;
     m.report.timings.wall_s = Some(t.elapsed().as_secs_f64());
     Ok(m)
 }
 
 /// The whole map of `parts`: merged, with its report.
-fn assemble(engine: &Engine, o: &MapOptions, parts: Vec<Part>) -> crate::Result<MapResult> {
-    let (cfg, fields, parts) = merge(parts)?;
+fn assemble(
+    engine: &Engine,
+    o: &MapOptions,
+    parts: Vec<Part>,
+    progress: &dyn Progress,
+) -> crate::Result<MapResult> {
+    let t_carry = std::time::Instant::now();
+    let (cfg, fields, parts) = merge(parts, progress)?;
     let cells = cell_count(&cfg);
     let mut timings = Timings::default();
     for p in &parts {
         timings.add(&p.timings);
     }
+    timings.parts.carry_s = t_carry.elapsed().as_secs_f64();
     let (secs, host_s, decide_s) = (timings.integration_s, timings.host_s, timings.decide_s);
     let periods = periods_integrated(&cfg, &fields);
     let steps = periods as f64 * cfg.method.steps_per_period as f64;
@@ -471,7 +478,7 @@ pub fn run(
         fields,
         mut report,
         timings,
-    } = assemble(engine, o, parts)?;
+    } = assemble(engine, o, parts, progress)?;
     let (secs, host_s, decide_s) = (timings.integration_s, timings.host_s, timings.decide_s);
     if let Some(other) = o.compare {
         // The grids were checked by `o.check` before computing.
@@ -636,7 +643,7 @@ pub fn run_shared(
     });
     let parts = parts.into_iter().collect::<Result<Vec<_>, _>>()?;
     let devices: Vec<String> = parts.iter().map(|p| p.device.clone()).collect();
-    let (cfg, fields, _) = merge(parts)?;
+    let (cfg, fields, _) = merge(parts, &crate::progress::Silent)?;
     let report = MapReport {
         command: "map",
         backend: Some("gpu".into()),
@@ -703,7 +710,7 @@ pub fn merge_files(paths: &[PathBuf], out: &Path) -> crate::Result<MapSummary> {
         .iter()
         .map(|p| read_part(p))
         .collect::<Result<Vec<_>, _>>()?;
-    let (cfg, fields, parts) = merge(parts)?;
+    let (cfg, fields, parts) = merge(parts, &crate::progress::Silent)?;
     let report = MapReport {
         command: "map (merged)",
         version: Some(parts[0].version.clone()),

@@ -183,7 +183,7 @@ map_layers! {
     lyapunov_se: [Option<f64>; 1] = |c| [finite(c.lyapunov.se)];
     /// Agreeing digits of the torus test over the cell's last window; NaN without one.
     torus: [Option<f64>; 1] = |c| [finite(c.torus)];
-    /// The rule that decided the cell: 0 stable cycle, 1 positive exponent, 2 torus, 3 no impact, 4 failed, 5 no exponent, 6 undecided, 7 exponent lost (docs/classes.md).
+    /// The rule that decided the cell: 0 stable cycle, 1 positive exponent, 2 torus, 3 no impact, 4 failed, 5 no exponent, 6 undecided, 7 exponent lost, 8 escaped (docs/classes.md).
     rule: [u8; 1] = |c| [c.rule.code()];
     /// The two periods Newton tried (0: none).
     tried: [u32; 2] = |c| c.tried;
@@ -193,8 +193,10 @@ map_layers! {
     dissipation: [Option<f64>; 2] = |c| c.dissipation.map(finite);
     /// Fraction of the sampled time the masses moved together.
     stick_fraction: [Option<f64>; 1] = |c| [finite(c.stick_fraction)];
-    /// Periods until the motion was on its attractor: for a chaotic cell the length of its look (docs/classes.md), otherwise the periods before the window that showed the attractor (an upper bound); 0 for inferred cells.
+    /// Periods until the motion was on its attractor: for a chaotic cell the length of its look (docs/classes.md), for an escaped one (rule 8) the periods before the copies of its motion plus their mean lifetime, otherwise the periods before the window that showed the attractor (an upper bound); 0 for inferred cells.
     settle: [u32; 1] = |c| [c.settle];
+    /// The standard error of the settle time where it is an estimate: of a cell whose chaotic-looking motion was a transient (rule 8, escaped), the settle time is the periods run before the copies of its motion started plus their mean lifetime, this its standard error; NaN elsewhere.
+    settle_se: [Option<f64>; 1] = |_c| [None];
     /// The period of a stable cycle carried from a neighbouring cell that exists at this cell's parameters beside the attractor its trajectory reached (0: none found).
     coexist: [i32; 1] = |c| [c.coexist.map_or(0, |k| k.period as i32)];
     /// The state (y1..y4) at the end of the cell's run, on its attractor: the start of a boundary's Newton continuation (`--boundaries`); NaN for inferred cells.

@@ -219,12 +219,116 @@ fn cell_spec(cfg: &Config) -> RunSpec {
     RunSpec::new(cfg).with_tangent(cfg.tangent(crate::config::Tangent::Largest))
 }
 
+/// The transients beyond the look ([`crate::escape`]): every `computed` cell that looks
+/// chaotic (`classes`) where a stable cycle was `carried` to it from a neighbour (`nb`) that
+/// landed on it runs copies of its motion from its last state; where copies land on stable cycles, the one most landed on is the cell's
+/// attractor (rule `escaped`, its settle time the periods run plus the copies' mean lifetime,
+/// with its error in `settle_se`), and the window's observables, which were the transient's,
+/// are NaN. Returns the classes after, and for each cell whose motion escaped, another stable
+/// cycle known there (the carried one, or another the copies landed on) that coexists.
+fn escape_transients(
+    cfg: &Config,
+    spec: &RunSpec,
+    (computed, mut classes): (&[usize], Vec<Class>),
+    (carried, nb): (&[Option<crate::cycles::Cycle>], &crate::carry::Neighbours),
+    fields: &mut Fields,
+    progress: &dyn Progress,
+) -> (Vec<Class>, Vec<Option<u32>>) {
+    use crate::method::{Integrator, PointState};
+    let t0 = std::time::Instant::now();
+    let values = cell_values(cfg, computed.iter().copied());
+    let vary = [cfg.map.x, cfg.map.y];
+    let points = Points::along(&vary, &values);
+    let mut idx = Vec::new();
+    let mut motions = Vec::new();
+    for (k, &c) in computed.iter().enumerate() {
+        // The cycle known nearby: a neighbour's own attractor, carried here (a cycle carried
+        // on through chaotic cells in later rounds rarely ends a transient there: on two maps
+        // judged, 32 of 34 escapes were beside a cell on their cycle, 82 of 196 candidates).
+        let Some(n) = carried[k].as_ref().map(|c| c.period) else {
+            continue;
+        };
+        if classes[k] != Class::Chaotic
+            || !nb.of[k].iter().any(|&j| classes[j] == Class::Periodic(n))
+        {
+            continue;
+        }
+        let y: [f64; 4] = std::array::from_fn(|j| fields.state[4 * c + j].unwrap_or(f64::NAN));
+        if !y.iter().all(|v| v.is_finite()) {
+            continue;
+        }
+        let start = PointState {
+            y,
+            mode: crate::model::Mode::from_u32(u32::from(fields.mode[c])),
+            diag: Default::default(),
+        };
+        idx.push(k);
+        let params = points.params(&spec.params, k);
+        motions.push((Integrator::<f64>::new(&params, &spec.settings), start));
+    }
+    let out = crate::escape::escapes(&motions, progress);
+    let mut beside = vec![None; computed.len()];
+    let mut escaped = 0;
+    for (&k, e) in idx.iter().zip(&out) {
+        log::trace!(
+            "escape: cell {} ({}, {}): {} of {} copies landed, exposure {}, cycles {:?}",
+            computed[k],
+            computed[k] % cfg.map.x_points as usize,
+            computed[k] / cfg.map.x_points as usize,
+            e.escaped,
+            e.copies,
+            e.exposure,
+            e.cycles
+                .iter()
+                .map(|c| (c.0.period, c.1))
+                .collect::<Vec<_>>()
+        );
+        let (Some((mean, se)), Some((cycle, _, ipp))) = (e.lifetime(), e.cycles.first()) else {
+            continue;
+        };
+        escaped += 1;
+        let c = computed[k];
+        let n = cycle.period;
+        let m = cycle.leading_modulus();
+        classes[k] = Class::Periodic(n);
+        fields.class[c] = classes[k].code();
+        fields.period[c] = n as i32;
+        fields.multiplier[c] = Some(m);
+        let eta = points.params(&spec.params, k).eta;
+        fields.lyapunov[c] = Some(crate::cycles::exponent(m, n, eta));
+        fields.lyapunov_se[c] = Some(0.0);
+        fields.rule[c] = crate::classify::Rule::Escaped.code();
+        fields.impacts_per_period[c] = *ipp;
+        fields.torus[c] = None;
+        fields.impact_speed[2 * c..2 * c + 2].fill(None);
+        fields.dissipation[2 * c..2 * c + 2].fill(None);
+        fields.stick_fraction[c] = None;
+        for j in 0..4 {
+            fields.state[4 * c + j] = Some(cycle.point[j]);
+        }
+        fields.mode[c] = cycle.mode as u8;
+        fields.settle[c] = fields.periods[c].saturating_add(mean.round() as u32);
+        fields.settle_se[c] = Some(se);
+        let carried_n = carried[k].as_ref().map(|c| c.period);
+        beside[k] = carried_n
+            .filter(|&p| p != n)
+            .or_else(|| e.cycles.get(1).map(|c| c.0.period));
+    }
+    log::debug!(
+        "escapes: {} chaotic-looking cells beside a carried stable cycle, {escaped} of them \
+         transients, {:.2} s",
+        idx.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    (classes, beside)
+}
+
 /// Carries the stable cycles of a whole map's cells to their neighbouring cells
 /// ([`crate::carry::carry`]) and records in `fields.coexist` each carried cycle that coexists
 /// with the cell's own attractor. Runs on the whole grid once its parts are joined, on the host
 /// in f64, so that a single run, its shards and its checkpoints give the same layer. Cells
 /// filled by `--refine` neither seed nor receive. Returns the cells that gained a cycle.
-pub fn carry_over(cfg: &Config, fields: &mut Fields) -> usize {
+pub fn carry_over(cfg: &Config, fields: &mut Fields, progress: &dyn Progress) -> usize {
     if cfg.z_axis().is_some() {
         // Slice by slice, each as the plane's own map carries (nothing crosses between slices).
         let per = plane_cells(cfg);
@@ -235,7 +339,7 @@ pub fn carry_over(cfg: &Config, fields: &mut Fields) -> usize {
         let mut coexist = Vec::with_capacity(fields.len());
         for k in 0..cfg.z_count() {
             let mut slice = fields.range(k * per..(k + 1) * per);
-            gained += carry_over(&cfg.slice(k), &mut slice);
+            gained += carry_over(&cfg.slice(k), &mut slice, progress);
             coexist.extend(slice.coexist);
         }
         fields.coexist = coexist;
@@ -274,10 +378,21 @@ pub fn carry_over(cfg: &Config, fields: &mut Fields) -> usize {
         &seeds,
         &nb,
     );
+    let (classes, beside) = escape_transients(
+        cfg,
+        &spec,
+        (&computed, classes),
+        (&carried, &nb),
+        fields,
+        progress,
+    );
     fields.coexist = vec![0; n];
-    for ((&c, cycle), &class) in computed.iter().zip(&carried).zip(&classes) {
+    for (((&c, cycle), &class), other) in computed.iter().zip(&carried).zip(&classes).zip(&beside) {
         if let Some(k) = crate::carry::coexisting(cycle.as_ref(), class) {
             fields.coexist[c] = k.period as i32;
+        }
+        if let Some(p) = other {
+            fields.coexist[c] = *p as i32;
         }
     }
     carried.iter().filter(|c| c.is_some()).count()

@@ -354,7 +354,10 @@ pub fn read_part(path: &Path) -> crate::Result<Part> {
 /// [`Part::differs_from`]), hold possible values and cover every cell once. The stable cycles
 /// of the joined map are then carried over its whole grid ([`super::carry_over`]): every map,
 /// whole, sharded or checkpointed, is finished here.
-pub fn merge(mut parts: Vec<Part>) -> crate::Result<(Config, Fields, Vec<Part>)> {
+pub fn merge(
+    mut parts: Vec<Part>,
+    progress: &dyn crate::progress::Progress,
+) -> crate::Result<(Config, Fields, Vec<Part>)> {
     let first = parts
         .first()
         .ok_or_else(|| crate::Error::Merge("no parts given".into()))?;
@@ -409,6 +412,6 @@ pub fn merge(mut parts: Vec<Part>) -> crate::Result<(Config, Fields, Vec<Part>)>
     }
     let cfg = parts[0].config.clone();
     // The carry goes over the whole grid, as one run's would (a part's coexist layer is empty).
-    super::carry_over(&cfg, &mut fields);
+    super::carry_over(&cfg, &mut fields, progress);
     Ok((cfg, fields, parts))
 }

@@ -266,7 +266,7 @@ pub struct Timings {
 
 /// The parts of an adaptive run ([`crate::adaptive`]), each its wall seconds and the points it
 /// took: the configured stages (with the adaptive horizon), the long look's stages, the
-/// recurrence search on the host. Each part's seconds hold its integration and its deciding
+/// recurrence search on the host, the carried cycles with the escapes. Each part's seconds hold its integration and its deciding
 /// (the split of [`Timings`] cuts across them); in an overlapped run the configured part is the
 /// streams' sum.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -283,6 +283,10 @@ pub struct Parts {
     pub searched: u64,
     /// Of those, points whose search found the stable cycle they approach.
     pub found: u64,
+    /// Stable cycles carried between points and the copies of chaotic-looking motions beside
+    /// them ([`crate::escape`]); a map's over its whole grid once its parts are joined.
+    #[serde(default)]
+    pub carry_s: f64,
 }
 
 impl Parts {
@@ -294,6 +298,7 @@ impl Parts {
         self.search_s += o.search_s;
         self.searched += o.searched;
         self.found += o.found;
+        self.carry_s += o.carry_s;
     }
 }
 

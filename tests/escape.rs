@@ -1,0 +1,131 @@
+//! Transients beyond the look, decided by evidence (issue 74 item 3, `rattle::escape`): copies of
+//! a chaotic-looking motion beside a stable cycle known nearby either land on a cycle (the chaos
+//! was a transient) or none does in their span (the evidence for `chaotic`). Judged by the
+//! independent reference (`reference::dry`: exact motion between events), never by rattle's
+//! integrator at other settings: its verdicts from eight starts 1e-9 apart
+//! (`JUDGE_STARTS=8 cargo run --release --example judge -- tests/data/b1_eta.toml CLASS_NPY
+//! cells:CELLS.csv 1 OUT.csv`) say which attractors a chaotic transient there ends on.
+
+mod common;
+use rattle::class::Class;
+use rattle::classify::Rule;
+use rattle::config::{Config, Precision};
+use rattle::method::Integrator;
+
+fn data(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
+}
+
+/// The judged cells of tests/data/b1_eta.toml whose motion the escapes decided on lavapipe f32
+/// or the CPU in f64: (ix, iy) and the outcomes the reference reached from the map's start and
+/// from eight starts 1e-9 away.
+fn judged() -> Vec<((usize, usize), Vec<String>)> {
+    let mut r = csv::Reader::from_path(data("b1_eta_escapes_judged.csv")).unwrap();
+    r.deserialize::<std::collections::HashMap<String, String>>()
+        .map(|row| {
+            let row = row.unwrap();
+            let at = (row["ix"].parse().unwrap(), row["iy"].parse().unwrap());
+            let mut outs: Vec<String> = row["outcomes"]
+                .split(';')
+                .map(|o| o.split(':').next().unwrap().to_string())
+                .collect();
+            outs.push(row["judge"].clone());
+            (at, outs)
+        })
+        .collect()
+}
+
+/// On a map nobody tuned on (m1's damping against the forcing frequency), the cells whose
+/// chaotic-looking motion escaped name a cycle the reference reaches from there, on the CPU in
+/// f64 and on the GPU in f32; each escape carries its mean lifetime and its error; and the two
+/// precisions agree on at least 99% of the cells both decide.
+#[test]
+fn escaped_transients_name_a_cycle_the_reference_reaches() {
+    let judged = judged();
+    let base = Config::load(&data("b1_eta.toml"), &[]).unwrap();
+    let nx = base.map.x_points as usize;
+    let mut engines = vec![(rattle::engine::Engine::Cpu, Precision::F64)];
+    if let Some(g) = common::gpu_engine() {
+        engines.push((g, Precision::F32));
+    }
+    let mut maps = Vec::new();
+    for (engine, precision) in &engines {
+        let mut cfg = base.clone();
+        cfg.method.precision = *precision;
+        let o = rattle::map::MapOptions::default();
+        let m = rattle::map::compute_map(engine, &cfg, &o, &rattle::progress::Silent).unwrap();
+        let f = &m.fields;
+        let escaped: Vec<usize> = (0..f.len())
+            .filter(|&c| f.rule[c] == Rule::Escaped.code())
+            .collect();
+        let what = format!("{} {precision:?}", engine.name());
+        assert!(escaped.len() >= 8, "{what}: {} escapes", escaped.len());
+        let mut unjudged = 0;
+        for &c in &escaped {
+            let class = Class::from_code(f.class[c]).name();
+            let (mean, se) = (f.settle[c], f.settle_se[c].unwrap());
+            assert!(
+                mean >= f.periods[c] && se > 0.0 && se.is_finite(),
+                "{what}: cell {c}: settle {mean} +- {se}"
+            );
+            match judged.iter().find(|(at, _)| at.1 * nx + at.0 == c) {
+                Some((at, outs)) => assert!(
+                    outs.contains(&class),
+                    "{what}: cell {at:?} named {class}, the reference reaches {outs:?}"
+                ),
+                None => unjudged += 1,
+            }
+        }
+        // A build may decide a few cells the fixture did not hold: none unjudged goes unseen.
+        assert!(
+            unjudged * 10 <= escaped.len(),
+            "{what}: {unjudged} of {} escapes not in the fixture",
+            escaped.len()
+        );
+        maps.push(m.fields.classes());
+    }
+    if let [a, b] = &maps[..] {
+        let both: Vec<usize> = (0..a.len())
+            .filter(|&c| a[c] != Class::Unresolved && b[c] != Class::Unresolved)
+            .collect();
+        let agree = both.iter().filter(|&&c| a[c] == b[c]).count();
+        assert!(
+            agree as f64 >= 0.99 * both.len() as f64,
+            "f32 and f64 agree on {agree} of {} cells",
+            both.len()
+        );
+    }
+}
+
+/// A chaotic attractor is not left: from the end of the configured run at a cell of
+/// tests/data/r_lambda_128.toml that the reference judged chaotic (cell (117, 67) of
+/// tests/data/r_lambda_judged_uniform.csv, exponent 0.057 over 3 x 10^4 periods), no copy lands
+/// on a cycle in all their periods, and every period counts as exposure.
+#[test]
+fn no_copy_leaves_a_chaotic_attractor() {
+    let mut r = csv::Reader::from_path(data("r_lambda_judged_uniform.csv")).unwrap();
+    let row = r
+        .records()
+        .map(|r| r.unwrap())
+        .find(|r| &r[0] == "117" && &r[1] == "67")
+        .expect("the judged cell");
+    assert_eq!(&row[5], "chaotic", "the reference's verdict");
+    let mut cfg = Config::load(&data("r_lambda_128.toml"), &[]).unwrap();
+    cfg.model.restitution = row[2].parse().unwrap();
+    cfg.model.lambda = row[3].parse().unwrap();
+    let spec = rattle::spec::RunSpec::new(&cfg);
+    let it = Integrator::<f64>::new(&spec.params, &spec.settings);
+    let mut st = it.start_in(cfg.initial.y, None);
+    for _ in 0..spec.periods() {
+        it.period(&mut st);
+    }
+    let e = &rattle::escape::escapes(&[(it, st)], &rattle::progress::Silent)[0];
+    assert_eq!(e.escaped, 0, "{e:?}");
+    assert!(e.cycles.is_empty() && e.lifetime().is_none(), "{e:?}");
+    assert_eq!(
+        e.exposure,
+        u64::from(rattle::escape::COPIES * rattle::escape::SPAN)
+    );
+}
