@@ -19,8 +19,9 @@
 //! - None landing in [`COPIES`] x [`SPAN`] periods is the evidence for `chaotic`: a transient
 //!   whose mean lifetime were well under that many periods would have ended in some copy.
 //!
-//! Every copy runs its own course, whatever the others do, so the answer is the same however
-//! the copies are dealt to threads, and a map's shards and checkpoints agree with one run.
+//! Every copy runs its own course, whatever the others do, and the lanes equal the scalar
+//! integrator bit for bit (tests/lanes.rs), so the answer is the same however the copies are
+//! dealt to threads and lanes, and a map's shards and checkpoints agree with one run.
 
 use crate::cycles::Cycle;
 use crate::method::tangent::Tangent;

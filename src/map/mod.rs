@@ -239,85 +239,97 @@ fn escape_transients(
     let values = cell_values(cfg, computed.iter().copied());
     let vary = [cfg.map.x, cfg.map.y];
     let points = Points::along(&vary, &values);
-    let mut idx = Vec::new();
-    let mut motions = Vec::new();
-    for (k, &c) in computed.iter().enumerate() {
-        // The cycle known nearby: a neighbour's own attractor, carried here (a cycle carried
-        // on through chaotic cells in later rounds rarely ends a transient there: on two maps
-        // judged, 32 of 34 escapes were beside a cell on their cycle, 82 of 196 candidates).
-        let Some(n) = carried[k].as_ref().map(|c| c.period) else {
-            continue;
-        };
-        if classes[k] != Class::Chaotic
-            || !nb.of[k].iter().any(|&j| classes[j] == Class::Periodic(n))
-        {
-            continue;
-        }
-        let y: [f64; 4] = std::array::from_fn(|j| fields.state[4 * c + j].unwrap_or(f64::NAN));
-        if !y.iter().all(|v| v.is_finite()) {
-            continue;
-        }
-        let start = PointState {
-            y,
-            mode: crate::model::Mode::from_u32(u32::from(fields.mode[c])),
-            diag: Default::default(),
-        };
-        idx.push(k);
-        let params = points.params(&spec.params, k);
-        motions.push((Integrator::<f64>::new(&params, &spec.settings), start));
-    }
-    let out = crate::escape::escapes(&motions, progress);
     let mut beside = vec![None; computed.len()];
-    let mut escaped = 0;
-    for (&k, e) in idx.iter().zip(&out) {
-        log::trace!(
-            "escape: cell {} ({}, {}): {} of {} copies landed, exposure {}, cycles {:?}",
-            computed[k],
-            computed[k] % cfg.map.x_points as usize,
-            computed[k] / cfg.map.x_points as usize,
-            e.escaped,
-            e.copies,
-            e.exposure,
-            e.cycles
-                .iter()
-                .map(|c| (c.0.period, c.1))
-                .collect::<Vec<_>>()
-        );
-        let (Some((mean, se)), Some((cycle, _, ipp))) = (e.lifetime(), e.cycles.first()) else {
-            continue;
-        };
-        escaped += 1;
-        let c = computed[k];
-        let n = cycle.period;
-        let m = cycle.leading_modulus();
-        classes[k] = Class::Periodic(n);
-        fields.class[c] = classes[k].code();
-        fields.period[c] = n as i32;
-        fields.multiplier[c] = Some(m);
-        let eta = points.params(&spec.params, k).eta;
-        fields.lyapunov[c] = Some(crate::cycles::exponent(m, n, eta));
-        fields.lyapunov_se[c] = Some(0.0);
-        fields.rule[c] = crate::classify::Rule::Escaped.code();
-        fields.impacts_per_period[c] = *ipp;
-        fields.torus[c] = None;
-        fields.impact_speed[2 * c..2 * c + 2].fill(None);
-        fields.dissipation[2 * c..2 * c + 2].fill(None);
-        fields.stick_fraction[c] = None;
-        for j in 0..4 {
-            fields.state[4 * c + j] = Some(cycle.point[j]);
+    let mut tried = vec![false; computed.len()];
+    let (mut candidates, mut escaped, mut rounds) = (0, 0, 0);
+    // In rounds: a cell that escaped onto a cycle makes its chaotic-looking neighbours, where
+    // that cycle was carried, candidates of the next round, until no cell is left to try.
+    loop {
+        let mut idx = Vec::new();
+        let mut motions = Vec::new();
+        for (k, &c) in computed.iter().enumerate() {
+            // The cycle known nearby: a neighbour's own attractor, carried here (a cycle
+            // carried on through chaotic cells in later rounds of the carry rarely ends a
+            // transient there: on two maps judged, 32 of 34 escapes were beside a cell on
+            // their cycle, 82 of 196 candidates).
+            let Some(n) = carried[k].as_ref().map(|c| c.period) else {
+                continue;
+            };
+            if tried[k]
+                || classes[k] != Class::Chaotic
+                || !nb.of[k].iter().any(|&j| classes[j] == Class::Periodic(n))
+            {
+                continue;
+            }
+            tried[k] = true;
+            let y: [f64; 4] = std::array::from_fn(|j| fields.state[4 * c + j].unwrap_or(f64::NAN));
+            if !y.iter().all(|v| v.is_finite()) {
+                continue;
+            }
+            let start = PointState {
+                y,
+                mode: crate::model::Mode::from_u32(u32::from(fields.mode[c])),
+                diag: Default::default(),
+            };
+            idx.push(k);
+            let params = points.params(&spec.params, k);
+            motions.push((Integrator::<f64>::new(&params, &spec.settings), start));
         }
-        fields.mode[c] = cycle.mode as u8;
-        fields.settle[c] = fields.periods[c].saturating_add(mean.round() as u32);
-        fields.settle_se[c] = Some(se);
-        let carried_n = carried[k].as_ref().map(|c| c.period);
-        beside[k] = carried_n
-            .filter(|&p| p != n)
-            .or_else(|| e.cycles.get(1).map(|c| c.0.period));
+        if idx.is_empty() {
+            break;
+        }
+        rounds += 1;
+        candidates += idx.len();
+        let out = crate::escape::escapes(&motions, progress);
+        for (&k, e) in idx.iter().zip(&out) {
+            log::trace!(
+                "escape: cell {} ({}, {}): {} of {} copies landed, exposure {}, cycles {:?}",
+                computed[k],
+                computed[k] % cfg.map.x_points as usize,
+                computed[k] / cfg.map.x_points as usize,
+                e.escaped,
+                e.copies,
+                e.exposure,
+                e.cycles
+                    .iter()
+                    .map(|c| (c.0.period, c.1))
+                    .collect::<Vec<_>>()
+            );
+            let (Some((mean, se)), Some((cycle, _, ipp))) = (e.lifetime(), e.cycles.first()) else {
+                continue;
+            };
+            escaped += 1;
+            let c = computed[k];
+            let n = cycle.period;
+            let m = cycle.leading_modulus();
+            classes[k] = Class::Periodic(n);
+            fields.class[c] = classes[k].code();
+            fields.period[c] = n as i32;
+            fields.multiplier[c] = Some(m);
+            let eta = points.params(&spec.params, k).eta;
+            fields.lyapunov[c] = Some(crate::cycles::exponent(m, n, eta));
+            fields.lyapunov_se[c] = Some(0.0);
+            fields.rule[c] = crate::classify::Rule::Escaped.code();
+            fields.impacts_per_period[c] = *ipp;
+            fields.torus[c] = None;
+            fields.impact_speed[2 * c..2 * c + 2].fill(None);
+            fields.dissipation[2 * c..2 * c + 2].fill(None);
+            fields.stick_fraction[c] = None;
+            for j in 0..4 {
+                fields.state[4 * c + j] = Some(cycle.point[j]);
+            }
+            fields.mode[c] = cycle.mode as u8;
+            fields.settle[c] = fields.periods[c].saturating_add(mean.round() as u32);
+            fields.settle_se[c] = Some(se);
+            let carried_n = carried[k].as_ref().map(|c| c.period);
+            beside[k] = carried_n
+                .filter(|&p| p != n)
+                .or_else(|| e.cycles.get(1).map(|c| c.0.period));
+        }
     }
     log::debug!(
-        "escapes: {} chaotic-looking cells beside a carried stable cycle, {escaped} of them \
-         transients, {:.2} s",
-        idx.len(),
+        "escapes: {candidates} chaotic-looking cells beside a carried stable cycle in {rounds} \
+         rounds, {escaped} of them transients, {:.2} s",
         t0.elapsed().as_secs_f64()
     );
     (classes, beside)
