@@ -397,7 +397,9 @@ fn assemble(
     for p in &parts {
         timings.add(&p.timings);
     }
+    // The carry and the escapes are the host's deciding too.
     timings.parts.carry_s = t_carry.elapsed().as_secs_f64();
+    timings.host_s += timings.parts.carry_s;
     let (secs, host_s, decide_s) = (timings.integration_s, timings.host_s, timings.decide_s);
     let periods = periods_integrated(&cfg, &fields);
     let steps = periods as f64 * cfg.method.steps_per_period as f64;
