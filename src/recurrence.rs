@@ -41,11 +41,19 @@ const CONVERGING: f64 = 0.5;
 /// 2's eta 1.72-1.76), where Newton at a long period would be tried in vain.
 const NEAR_REPEAT: f64 = 0.05;
 
-/// The lag the search proposes: among the lags that converge (recent differences at most
-/// [`CONVERGING`] of the early ones, within [`NEAR_REPEAT`] of the range) or have settled (within
-/// [`SETTLED`] of the range), the one of the smallest recent difference, or its least divisor
-/// that qualifies too.
+/// The lag the search proposes first ([`lags`]).
 pub fn best_lag(states: &[[f64; 4]]) -> Option<Candidate> {
+    lags(states).into_iter().next()
+}
+
+/// The lags the search tries, in order: among the lags that converge (recent differences at most
+/// [`CONVERGING`] of the early ones, within [`NEAR_REPEAT`] of the range) or have settled (within
+/// [`SETTLED`] of the range), the least divisor that qualifies of the one of the smallest recent
+/// difference, then that one itself. A cycle recurs at its multiples as well, and a transient's
+/// rotation can suit a multiple better; but a long cycle that winds close round a shorter
+/// unstable one (a period-168 round a period-21) qualifies at the short lag too, where Newton
+/// finds the unstable cycle, not the motion's.
+pub fn lags(states: &[[f64; 4]]) -> Vec<Candidate> {
     let len = states.len();
     let mut span = [0.0f64; 4];
     for (i, s) in span.iter_mut().enumerate() {
@@ -57,7 +65,7 @@ pub fn best_lag(states: &[[f64; 4]]) -> Option<Candidate> {
         *s = hi - lo;
     }
     if !span.iter().all(|s| s.is_finite()) || span.iter().all(|&s| s <= 0.0) {
-        return None;
+        return Vec::new();
     }
     // Each component relative to its own range (a flat one, the stuck relative motion, is
     // left out).
@@ -84,15 +92,22 @@ pub fn best_lag(states: &[[f64; 4]]) -> Option<Candidate> {
             })
         })
         .collect();
-    // The best lag, or the least of its divisors that qualifies too (a cycle recurs at its
-    // multiples as well, and a transient's rotation can suit a multiple better).
-    let best = found
+    let Some(best) = found
         .iter()
         .min_by(|a, b| a.recent.total_cmp(&b.recent))
-        .copied()?;
-    found
+        .copied()
+    else {
+        return Vec::new();
+    };
+    let least = found
         .into_iter()
         .find(|c| best.period.is_multiple_of(c.period))
+        .unwrap_or(best);
+    if least.period == best.period {
+        vec![best]
+    } else {
+        vec![least, best]
+    }
 }
 
 /// What a search came to.
@@ -106,9 +121,9 @@ pub struct Search {
     pub best: Option<Candidate>,
 }
 
-/// Runs [`WINDOW`] periods from `from` and tries Newton at the lag [`best_lag`] proposes, from
-/// the window's last state: the stable cycle found there, where the motion is seen to approach
-/// it ([`approaches`] over the window's y1 values).
+/// Runs [`WINDOW`] periods from `from` and tries Newton at the lags [`lags`] proposes, in
+/// order, from the window's last state: the first stable cycle found, where the motion is seen
+/// to approach it ([`approaches`] over the window's y1 values).
 pub fn search(it: &Integrator<f64>, from: &PointState<f64>, progress: &dyn Progress) -> Search {
     let mut st = *from;
     st.diag = Default::default();
@@ -132,14 +147,14 @@ pub fn search(it: &Integrator<f64>, from: &PointState<f64>, progress: &dyn Progr
         periods: WINDOW,
         ..Search::default()
     };
-    let Some(cand) = best_lag(&states) else {
-        return out;
-    };
-    out.best = Some(cand);
-    let c = refine(it, &st, cand.period);
     let y1: Vec<f64> = states.iter().map(|s| s[0]).collect();
-    if c.is_stable() && approaches(&y1, &st.y, &cand, &c.point, c.leading_modulus()) {
-        out.found = Some(c);
+    for cand in lags(&states) {
+        out.best = Some(cand);
+        let c = refine(it, &st, cand.period);
+        if c.is_stable() && approaches(&y1, &st.y, &cand, &c.point, c.leading_modulus()) {
+            out.found = Some(c);
+            break;
+        }
     }
     out
 }
@@ -174,6 +189,28 @@ mod tests {
             let c = best_lag(&s).expect("a lag");
             assert_eq!(c.period, n as u32, "{c:?}");
         }
+    }
+
+    /// A period-168 cycle winding round a period-21 orbit (rotation 3/8 a round, 3% of the
+    /// range), approached at 0.995 a period: a shorter lag, a divisor of 168, converges too
+    /// (the approach dies out there as well), so the search tries it first and 168 after it,
+    /// not the shorter one alone.
+    #[test]
+    fn a_long_cycle_round_a_short_one_is_tried_at_its_own_period_too() {
+        let s: Vec<[f64; 4]> = (0..WINDOW as usize)
+            .map(|k| {
+                let base = TAU * (k % 21) as f64 / 21.0;
+                let wind = TAU * (k / 21 * 3 % 8) as f64 / 8.0 + base;
+                let off = 0.3 * 0.995f64.powi(k as i32) * (k as f64 * 0.7).sin();
+                let x = base.sin() + 0.03 * wind.cos() + off;
+                [x, base.cos() + 0.03 * wind.sin(), 0.5 * x, x * x]
+            })
+            .collect();
+        let tried: Vec<u32> = lags(&s).iter().map(|c| c.period).collect();
+        assert!(
+            tried.len() == 2 && tried[0] < 168 && 168 % tried[0] == 0 && tried[1] == 168,
+            "{tried:?}"
+        );
     }
 
     #[test]
