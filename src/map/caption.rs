@@ -73,6 +73,19 @@ pub(super) fn caption(
             ltol = r.lyapunov_tol,
         )
     });
+    let escaped = match rules.get("escaped") {
+        Some(e) => format!(
+            " A cell still chaotic-looking beside a neighbour on a stable cycle carried \
+                     to it then ran {n} copies of its motion for up to {span} periods each \
+                     (f64, on the host): in {e} cells copies landed on a stable cycle, which the \
+                     cell names (rule escaped: its chaos was a transient; PREFIX-settle.npy: the \
+                     periods run plus the copies' mean lifetime, PREFIX-settle_se.npy: its \
+                     error).",
+            n = crate::escape::COPIES,
+            span = crate::escape::SPAN,
+        ),
+        None => String::new(),
+    };
     let looked = if r.look > r.transient_periods + r.sample_periods {
         format!(
             " A cell still chaotic-looking then went on and left as soon as a window showed \
@@ -107,7 +120,7 @@ pub(super) fn caption(
          periods (PREFIX-periods.npy) and is unresolved only then.{looked} A cell still \
          quasi-periodic or unresolved then runs {win} periods more on the host (f64) for a \
          recurrence at a lag <= {maxl} that Newton's method confirms as a stable cycle the \
-         motion approaches. Cells by deciding rule: \
+         motion approaches.{escaped} Cells by deciding rule: \
          {rules}. Colours: one hue per period family (1, 2, 3, 4, 5-8, 9-16, 17-64, 65-1024) with \
          lightness steps inside a family; chaotic near-black, quasi-periodic light green. The \
          legend gives the share and the count of every class shown. Most frequent: \
