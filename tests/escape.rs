@@ -129,3 +129,36 @@ fn no_copy_leaves_a_chaotic_attractor() {
         u64::from(rattle::escape::COPIES * rattle::escape::SPAN)
     );
 }
+
+/// A volume's slice is its plane's map with the escapes too: on the CPU in f64, the volume of
+/// tests/data/b1_eta.toml over R 0.65-0.66 (two slices) holds, in its first slice, every layer
+/// of the map at that slice's R byte for byte, escaped cells included.
+#[test]
+fn a_volumes_slice_escapes_as_its_map() {
+    let sets: Vec<String> = [
+        "method.precision=f64",
+        "map.z=R",
+        "map.z_from=0.65",
+        "map.z_to=0.66",
+        "map.z_points=2",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let vol = Config::load(&data("b1_eta.toml"), &sets).unwrap();
+    let plane = vol.slice(0);
+    let engine = rattle::engine::Engine::Cpu;
+    let o = rattle::map::MapOptions::default();
+    let v = rattle::map::compute_map(&engine, &vol, &o, &rattle::progress::Silent).unwrap();
+    let m = rattle::map::compute_map(&engine, &plane, &o, &rattle::progress::Silent).unwrap();
+    let n = m.fields.len();
+    assert!(
+        m.fields.rule.iter().any(|&r| r == Rule::Escaped.code()),
+        "the plane has escapes"
+    );
+    let dims = [plane.map.y_points as usize, plane.map.x_points as usize];
+    let slice = v.fields.range(0..n).npy_bytes(&dims);
+    for ((name, a), (_, b)) in slice.iter().zip(m.fields.npy_bytes(&dims)) {
+        assert!(*a == b, "{name}: the volume's slice differs from its map");
+    }
+}

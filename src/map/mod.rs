@@ -337,7 +337,8 @@ fn escape_transients(
 
 /// Carries the stable cycles of a whole map's cells to their neighbouring cells
 /// ([`crate::carry::carry`]) and records in `fields.coexist` each carried cycle that coexists
-/// with the cell's own attractor. Runs on the whole grid once its parts are joined, on the host
+/// with the cell's own attractor, then decides the escapes of chaotic-looking cells beside a
+/// carried cycle ([`crate::escape`]). Runs on the whole grid once its parts are joined, on the host
 /// in f64, so that a single run, its shards and its checkpoints give the same layer. Cells
 /// filled by `--refine` neither seed nor receive. Returns the cells that gained a cycle.
 pub fn carry_over(cfg: &Config, fields: &mut Fields, progress: &dyn Progress) -> usize {
@@ -348,13 +349,15 @@ pub fn carry_over(cfg: &Config, fields: &mut Fields, progress: &dyn Progress) ->
             return 0;
         }
         let mut gained = 0;
-        let mut coexist = Vec::with_capacity(fields.len());
+        // Every layer of each slice back: the escapes change classes, states and settle times
+        // as well as the coexist record.
+        let mut joined = Fields::default();
         for k in 0..cfg.z_count() {
             let mut slice = fields.range(k * per..(k + 1) * per);
             gained += carry_over(&cfg.slice(k), &mut slice, progress);
-            coexist.extend(slice.coexist);
+            joined.append(slice);
         }
-        fields.coexist = coexist;
+        *fields = joined;
         return gained;
     }
     let n = fields.len();
