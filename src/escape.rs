@@ -144,17 +144,21 @@ fn least_period(it: &Integrator<f64>, st: &PointState<f64>, lag: u32) -> Option<
     })
 }
 
-/// Impacts per period over one round of the cycle `c`.
-fn impacts_per_period(it: &Integrator<f64>, c: &Cycle) -> f64 {
+/// The section points of one round of the cycle `c`, and its impacts per period.
+fn round_of(it: &Integrator<f64>, c: &Cycle) -> (Vec<[f64; 4]>, f64) {
     let mut st = c.state();
-    for _ in 0..c.period {
-        it.period(&mut st);
-    }
-    st.diag.impacts as f64 / f64::from(c.period.max(1))
+    let orbit = (0..c.period)
+        .map(|_| {
+            let y = st.y;
+            it.period(&mut st);
+            y
+        })
+        .collect();
+    (orbit, st.diag.impacts as f64 / f64::from(c.period.max(1)))
 }
 
-/// Whether the state `y` lies on the cycle through `c` (within a millionth of its scale of one
-/// of its section points; `orbit` holds them).
+/// Whether the state `y` lies on the cycle whose section points `orbit` holds (within 1e-4 of
+/// their scale of one of them: a landed copy may still be converging).
 fn on(orbit: &[[f64; 4]], y: &[f64; 4]) -> bool {
     let scale = orbit.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
     orbit
@@ -218,20 +222,12 @@ pub fn escapes(
         if !cycle.is_stable() {
             continue;
         }
-        let mut s = cycle.state();
-        let orbit: Vec<[f64; 4]> = (0..cycle.period)
-            .map(|_| {
-                let y = s.y;
-                it.period(&mut s);
-                y
-            })
-            .collect();
+        let (orbit, ipp) = round_of(it, &cycle);
         if !on(&orbit, &st.y) {
             // Newton went elsewhere than the copy's cycle.
             continue;
         }
         e.escaped += 1;
-        let ipp = impacts_per_period(it, &cycle);
         orbits[m].push(orbit);
         e.cycles.push((cycle, 1, ipp));
     }
