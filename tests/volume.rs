@@ -93,6 +93,20 @@ fn slices_equal_maps(name: &str, args: &[&str]) -> serde_json::Value {
     }
     // Three slices across the band: the test compares more than one kind of cell.
     assert!(classes.len() >= 3, "{classes:?}");
+    // The animations through z: one frame per slice, each the size of the first; a plane
+    // has none.
+    for gif in ["v.gif", "v-lyapunov.gif"] {
+        let file = std::fs::File::open(d.join(gif)).unwrap_or_else(|e| panic!("{gif}: {e}"));
+        let mut dec = gif::DecodeOptions::new().read_info(file).expect(gif);
+        let (w, h) = (dec.width(), dec.height());
+        let mut frames = 0;
+        while let Some(f) = dec.read_next_frame().expect(gif) {
+            assert_eq!((f.width, f.height), (w, h), "{gif}");
+            frames += 1;
+        }
+        assert_eq!(frames, 3, "{gif}");
+    }
+    assert!(!d.join("m0.gif").exists() && !d.join("m0-lyapunov.gif").exists());
     j
 }
 

@@ -307,26 +307,32 @@ impl Images<'_> {
         if self.cfg.z_axis().is_some() {
             // A volume: every slice a panel, under one legend counting the whole volume.
             let panels = self.panels(cells);
-            return Ok(crate::render::category_panels_png(
-                &st.path(&with_ext(self.prefix, "png")),
-                &crate::render::CategoryPanels {
-                    title: &volume_title(self.cfg, "attractor class", &title(self.cfg)),
-                    x_label: &m.x.label(),
-                    y_label: &m.y.label(),
-                    x_range: xr,
-                    y_range: yr,
-                    nx,
-                    ny,
-                    panels: &panels,
-                    categories: &cat_refs,
-                    families: &fam_refs,
-                    member_label: &|c| c.to_string(),
-                    note: note.as_deref(),
-                    curves: &[],
-                    curve_legend: &[],
-                },
-            )?);
+            let p = crate::render::CategoryPanels {
+                title: &volume_title(self.cfg, "attractor class", &title(self.cfg)),
+                x_label: &m.x.label(),
+                y_label: &m.y.label(),
+                x_range: xr,
+                y_range: yr,
+                nx,
+                ny,
+                panels: &panels,
+                categories: &cat_refs,
+                families: &fam_refs,
+                member_label: &|c| c.to_string(),
+                note: note.as_deref(),
+                curves: &[],
+                curve_legend: &[],
+            };
+            crate::render::category_panels_png(&st.path(&with_ext(self.prefix, "png")), &p)?;
+            // The same slices one after another, the legend fixed (PREFIX.gif).
+            crate::render::category_frames_gif(
+                &st.path(&with_ext(self.prefix, "gif")),
+                &p,
+                FRAME_MS,
+            )?;
+            return Ok(());
         }
+        st.remove_stale(&with_ext(self.prefix, "gif"));
         category_map_png(
             &st.path(&with_ext(self.prefix, "png")),
             &CategoryMap {
@@ -355,33 +361,40 @@ impl Images<'_> {
     /// of an earlier run must not stay beside this data.
     fn scalar(&self, st: &mut Staged, name: &str, s: &Scalar) -> crate::Result<()> {
         let m = &self.cfg.map;
-        let path = with_ext(&crate::output::with_suffix(self.prefix, name), "png");
+        let base = crate::output::with_suffix(self.prefix, name);
+        let path = with_ext(&base, "png");
         if !s.values.iter().any(|v| v.is_finite()) {
             log::warn!(
                 "no cell has a value of {name}; {} is not drawn",
                 path.display()
             );
             st.remove_stale(&path);
+            st.remove_stale(&with_ext(&base, "gif"));
             return Ok(());
         }
         let (xr, yr) = self.ranges();
         if self.cfg.z_axis().is_some() {
             let panels = self.panels(s.values);
-            return Ok(crate::render::scalar_panels_png(
-                &st.path(&path),
-                &crate::render::ScalarPanels {
-                    title: &volume_title(self.cfg, &s.title, ""),
-                    x_label: &m.x.label(),
-                    y_label: &m.y.label(),
-                    x_range: xr,
-                    y_range: yr,
-                    nx: m.x_points as usize,
-                    ny: m.y_points as usize,
-                    panels: &panels,
-                    colorbar_label: s.panels_label,
-                    center: s.center,
-                },
-            )?);
+            let p = crate::render::ScalarPanels {
+                title: &volume_title(self.cfg, &s.title, ""),
+                x_label: &m.x.label(),
+                y_label: &m.y.label(),
+                x_range: xr,
+                y_range: yr,
+                nx: m.x_points as usize,
+                ny: m.y_points as usize,
+                panels: &panels,
+                colorbar_label: s.panels_label,
+                center: s.center,
+            };
+            crate::render::scalar_panels_png(&st.path(&path), &p)?;
+            if ANIMATED.contains(&name) {
+                crate::render::scalar_frames_gif(&st.path(&with_ext(&base, "gif")), &p, FRAME_MS)?;
+            }
+            return Ok(());
+        }
+        if ANIMATED.contains(&name) {
+            st.remove_stale(&with_ext(&base, "gif"));
         }
         scalar_map_png(
             &st.path(&path),
@@ -403,6 +416,12 @@ impl Images<'_> {
         Ok(())
     }
 }
+
+/// How long each slice of a volume's animation (PREFIX.gif, PREFIX-lyapunov.gif) is shown:
+/// 16 slices loop in 8 s.
+const FRAME_MS: u32 = 500;
+/// The scalar layers animated through z beside their panels (the class layer always is).
+const ANIMATED: [&str; 1] = ["lyapunov"];
 
 /// A volume's figure title: `what` at its z values, then `rest` (a class map's model; the
 /// configured `map.title` in its place where given).

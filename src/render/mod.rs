@@ -25,7 +25,10 @@ pub use maps::{
 };
 pub use orbit::{PointFigure, point_figure_png, point_figure_svg};
 pub use palette::{ATTRACTOR_COLORS, color, period_color};
-pub use panels::{CategoryPanels, ScalarPanels, category_panels_png, scalar_panels_png};
+pub use panels::{
+    CategoryPanels, ScalarPanels, category_frames_gif, category_panels_png, scalar_frames_gif,
+    scalar_panels_png,
+};
 pub use sensitivity::{
     Bar, Plane, SensitivityFigure, class_color, sensitivity_png, sensitivity_svg,
 };
@@ -139,6 +142,112 @@ where
     )
     .map_err(|e| io(e.to_string()))?;
     write_file(path, &png).map_err(|e| io(e.to_string()))
+}
+
+/// Renders `n` frames of `width` x `height` (`draw(k, area)` paints frame k on white) and
+/// writes them as one looping animated GIF to `path`, each shown `delay_ms` (to 10 ms).
+///
+/// One palette serves every frame, so that a pixel the frames share (a legend, an axis) is
+/// the same in each: the 128 colours most used over all frames (a class map's few colours
+/// exactly) and 128 spread over the rest, every other colour drawn as its nearest among them. Frames are drawn twice (once
+/// to count colours, once to write) rather than held: a volume may have thousands of slices.
+fn render_gif<F>(
+    path: &Path,
+    (width, height): (u32, u32),
+    n: usize,
+    delay_ms: u32,
+    draw: F,
+) -> Result<(), RenderError>
+where
+    F: Fn(usize, &Area<'_>) -> Result<(), RenderError>,
+{
+    use std::collections::HashMap;
+    check_size("image", width, height)?;
+    ensure_font()?;
+    let io = |e: String| RenderError::Io {
+        path: path.display().to_string(),
+        msg: e,
+    };
+    let frame = |k: usize| -> Result<Vec<u8>, RenderError> {
+        let mut buf = vec![255u8; width as usize * height as usize * 3];
+        {
+            let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
+            draw(k, &root)?;
+            root.present().map_err(draw_err)?;
+        }
+        Ok(buf)
+    };
+    let mut used: HashMap<[u8; 3], u64> = HashMap::new();
+    for k in 0..n {
+        for p in frame(k)?.chunks_exact(3) {
+            *used.entry([p[0], p[1], p[2]]).or_default() += 1;
+        }
+    }
+    let mut by_use: Vec<([u8; 3], u64)> = used.into_iter().collect();
+    // Most used first; ties by colour, so that the file does not depend on hashing.
+    by_use.sort_unstable_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    let dist = |p: &[u8; 3], c: &[u8; 3]| {
+        (0..3)
+            .map(|i| (i32::from(p[i]) - i32::from(c[i])).pow(2))
+            .sum::<i32>()
+    };
+    // The 128 most used exactly, then the colour farthest from those chosen, in turn (a
+    // colour bar's rare ends keep a colour of their own rather than the nearest grey).
+    let mut palette: Vec<[u8; 3]> = by_use.iter().take(128).map(|c| c.0).collect();
+    let rest: Vec<[u8; 3]> = by_use.iter().skip(128).map(|c| c.0).collect();
+    let mut gap: Vec<i32> = rest
+        .iter()
+        .map(|c| palette.iter().map(|p| dist(p, c)).min().unwrap_or(i32::MAX))
+        .collect();
+    while palette.len() < 256 {
+        let Some((far, &d)) = gap
+            .iter()
+            .enumerate()
+            .max_by_key(|&(i, d)| (*d, usize::MAX - i))
+        else {
+            break;
+        };
+        if d == 0 {
+            break;
+        }
+        let c = rest[far];
+        palette.push(c);
+        for (g, r) in gap.iter_mut().zip(&rest) {
+            *g = (*g).min(dist(&c, r));
+        }
+    }
+    let mut index: HashMap<[u8; 3], u8> = HashMap::new();
+    let nearest = |c: [u8; 3]| -> u8 {
+        (0..palette.len())
+            .min_by_key(|&i| dist(&palette[i], &c))
+            .unwrap_or(0) as u8
+    };
+    let flat: Vec<u8> = palette.iter().flatten().copied().collect();
+    let mut gif = Vec::new();
+    {
+        let mut enc = gif::Encoder::new(&mut gif, width as u16, height as u16, &flat)
+            .map_err(|e| io(e.to_string()))?;
+        enc.set_repeat(gif::Repeat::Infinite)
+            .map_err(|e| io(e.to_string()))?;
+        for k in 0..n {
+            let px: Vec<u8> = frame(k)?
+                .chunks_exact(3)
+                .map(|p| {
+                    let c = [p[0], p[1], p[2]];
+                    *index.entry(c).or_insert_with(|| nearest(c))
+                })
+                .collect();
+            let f = gif::Frame {
+                width: width as u16,
+                height: height as u16,
+                delay: (delay_ms / 10).min(u32::from(u16::MAX)) as u16,
+                buffer: std::borrow::Cow::Owned(px),
+                ..Default::default()
+            };
+            enc.write_frame(&f).map_err(|e| io(e.to_string()))?;
+        }
+    }
+    write_file(path, &gif).map_err(|e| io(e.to_string()))
 }
 
 /// Writes a rendered file through the output sets' guarded creation ([`crate::output::create`]).

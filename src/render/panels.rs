@@ -12,7 +12,7 @@ use super::maps::{
 };
 use super::{
     Area, FONT, RenderError, check_grid, check_range, draw_err, ensure_font, fmt_tick, invalid,
-    paint, render_png,
+    paint, render_gif, render_png,
 };
 
 /// Most panels one figure takes.
@@ -426,85 +426,135 @@ fn draw_panel(
     Ok(())
 }
 
-/// Writes one PNG with every slice of `p` as a panel, under one legend whose counts and
-/// shares are over all panels.
-pub fn category_panels_png(path: &Path, p: &CategoryPanels) -> Result<(), RenderError> {
+/// Which panels one image shows: every slice in its own place, or one slice alone (a frame of
+/// an animation through z, the legend or colour scale still the whole volume's).
+#[derive(Clone, Copy)]
+enum Shown {
+    All,
+    One(usize),
+}
+
+impl Shown {
+    /// The figure's panel count and, for each slot, the slice it shows.
+    fn slots(self, n: usize) -> Vec<usize> {
+        match self {
+            Shown::All => (0..n).collect(),
+            Shown::One(k) => vec![k],
+        }
+    }
+}
+
+/// What draws one figure on a white area.
+trait Draw: Fn(&Area<'_>) -> Result<(), RenderError> {}
+impl<F: Fn(&Area<'_>) -> Result<(), RenderError>> Draw for F {}
+
+/// Draws the category figure of `p` showing `shown`; its size.
+fn category_figure(p: &CategoryPanels, shown: Shown) -> Result<(Geometry, impl Draw), RenderError> {
     let (x, y) = check_panels(
         p.panels.iter().map(|q| q.1.len()),
         (p.nx, p.ny),
         (p.x_range, p.y_range),
     )?;
-    let index = |code: u16| p.categories.iter().position(|c| c.0 == code);
-    // The whole volume, so the legend counts every cell of every panel.
-    let all: Vec<u16> = p.panels.iter().flat_map(|q| q.1.iter().copied()).collect();
-    let mut counts = vec![0usize; p.categories.len() + 1];
-    for &code in &all {
-        counts[index(code).unwrap_or(p.categories.len())] += 1;
-    }
-    let g = geometry(p.panels.len(), y, LEGEND_W)?;
-    let map = CategoryMap {
-        title: p.title,
-        x_label: p.x_label,
-        y_label: p.y_label,
-        x_range: x,
-        y_range: y,
-        nx: p.nx,
-        ny: p.ny * p.panels.len(),
-        cells: &all,
-        categories: p.categories,
-        families: p.families,
-        member_label: p.member_label,
-        note: p.note,
-        curves: &[],
-        curve_legend: p.curve_legend,
-        width: g.width,
-        height: g.height,
-    };
-    let legend = Legend {
-        map: &map,
-        counts: &counts,
-        present: (0..p.categories.len()).filter(|&k| counts[k] > 0).collect(),
-        width: LEGEND_W,
-    };
-    let axes = Axes {
-        title: p.title,
-        labels: (p.x_label, p.y_label),
-        x,
-        y,
-        dims: (p.nx, p.ny),
-    };
-    render_png(path, g.width, g.height, |root| {
+    let slots = shown.slots(p.panels.len());
+    let g = geometry(slots.len(), y, LEGEND_W)?;
+    let gg = g.clone();
+    let draw = move |root: &Area<'_>| -> Result<(), RenderError> {
+        let index = |code: u16| p.categories.iter().position(|c| c.0 == code);
+        // The whole volume, so the legend counts every cell of every panel (also in a frame
+        // that shows one: the legend stays put from frame to frame).
+        let all: Vec<u16> = p.panels.iter().flat_map(|q| q.1.iter().copied()).collect();
+        let mut counts = vec![0usize; p.categories.len() + 1];
+        for &code in &all {
+            counts[index(code).unwrap_or(p.categories.len())] += 1;
+        }
+        let map = CategoryMap {
+            title: p.title,
+            x_label: p.x_label,
+            y_label: p.y_label,
+            x_range: x,
+            y_range: y,
+            nx: p.nx,
+            ny: p.ny * p.panels.len(),
+            cells: &all,
+            categories: p.categories,
+            families: p.families,
+            member_label: p.member_label,
+            note: p.note,
+            curves: &[],
+            curve_legend: p.curve_legend,
+            width: g.width,
+            height: g.height,
+        };
+        let legend = Legend {
+            map: &map,
+            counts: &counts,
+            present: (0..p.categories.len()).filter(|&k| counts[k] > 0).collect(),
+            width: LEGEND_W,
+        };
+        let axes = Axes {
+            title: p.title,
+            labels: (p.x_label, p.y_label),
+            x,
+            y,
+            dims: (p.nx, p.ny),
+        };
         root.fill(&WHITE).map_err(draw_err)?;
         draw_frame(root, &g, &axes)?;
-        let n = p.panels.len();
-        for (i, (title, cells)) in p.panels.iter().enumerate() {
+        let n = slots.len();
+        for (i, &k) in slots.iter().enumerate() {
+            let (title, cells) = &p.panels[k];
             let color = |ix: usize, iy: usize| {
                 index(cells[iy * p.nx + ix]).map_or(MISSING_GREY, |k| rgb(p.categories[k].2))
             };
-            let curves = p.curves.get(i).map_or(&[][..], |c| &c[..]);
+            let curves = p.curves.get(k).map_or(&[][..], |c| &c[..]);
             draw_panel(root, &g, &axes, (i, n), title, color, curves)?;
         }
         let right = root.clone().shrink((g.side_x, 0), (LEGEND_W, g.height));
         legend.draw(&right, g.grid_y.0..g.height as i32 - MARGIN, LEGEND_PX)
+    };
+    Ok((gg, draw))
+}
+
+/// Writes one PNG with every slice of `p` as a panel, under one legend whose counts and
+/// shares are over all panels.
+pub fn category_panels_png(path: &Path, p: &CategoryPanels) -> Result<(), RenderError> {
+    let (g, draw) = category_figure(p, Shown::All)?;
+    render_png(path, g.width, g.height, draw)
+}
+
+/// Writes an animated GIF through the slices of `p`, one frame per slice (its z value in the
+/// panel's title), each `delay_ms` long, looping; the legend (counts and shares over the whole
+/// volume) the same in every frame.
+pub fn category_frames_gif(
+    path: &Path,
+    p: &CategoryPanels,
+    delay_ms: u32,
+) -> Result<(), RenderError> {
+    let mut frames = Vec::with_capacity(p.panels.len());
+    for k in 0..p.panels.len() {
+        frames.push(category_figure(p, Shown::One(k))?);
+    }
+    let (w, h) = (frames[0].0.width, frames[0].0.height);
+    render_gif(path, (w, h), frames.len(), delay_ms, |k, root| {
+        (frames[k].1)(root)
     })
 }
 
-/// Writes one PNG with every slice of `p` as a panel, under one colour scale spanning the
-/// values of all panels.
-pub fn scalar_panels_png(path: &Path, p: &ScalarPanels) -> Result<(), RenderError> {
+/// Draws the scalar figure of `p` showing `shown`; its size.
+fn scalar_figure(p: &ScalarPanels, shown: Shown) -> Result<(Geometry, impl Draw), RenderError> {
     let (x, y) = check_panels(
         p.panels.iter().map(|q| q.1.len()),
         (p.nx, p.ny),
         (p.x_range, p.y_range),
     )?;
+    // The scale spans every slice's values, in a frame of one slice too.
     let (vmin, vmax, scale) = color_scale(
         p.panels.iter().flat_map(|q| q.1.iter().copied()),
         p.center,
         p.title,
     )?;
-    // Only finite values get here: plotters' colour maps panic on NaN.
-    let cmap = |v: f64| scale.get_color_normalized(v, vmin, vmax);
-    let g = geometry(p.panels.len(), y, BAR_SIDE_W)?;
+    let slots = shown.slots(p.panels.len());
+    let g = geometry(slots.len(), y, BAR_SIDE_W)?;
     let axes = Axes {
         title: p.title,
         labels: (p.x_label, p.y_label),
@@ -512,11 +562,15 @@ pub fn scalar_panels_png(path: &Path, p: &ScalarPanels) -> Result<(), RenderErro
         y,
         dims: (p.nx, p.ny),
     };
-    render_png(path, g.width, g.height, |root| {
+    let gg = g.clone();
+    let draw = move |root: &Area<'_>| -> Result<(), RenderError> {
+        // Only finite values get here: plotters' colour maps panic on NaN.
+        let cmap = |v: f64| scale.get_color_normalized(v, vmin, vmax);
         root.fill(&WHITE).map_err(draw_err)?;
         draw_frame(root, &g, &axes)?;
-        let n = p.panels.len();
-        for (i, (title, values)) in p.panels.iter().enumerate() {
+        let n = slots.len();
+        for (i, &k) in slots.iter().enumerate() {
+            let (title, values) = &p.panels[k];
             let color = |ix: usize, iy: usize| {
                 let v = values[iy * p.nx + ix];
                 if v.is_finite() { cmap(v) } else { MISSING_GREY }
@@ -549,6 +603,27 @@ pub fn scalar_panels_png(path: &Path, p: &ScalarPanels) -> Result<(), RenderErro
             },
             &cmap,
         )
+    };
+    Ok((gg, draw))
+}
+
+/// Writes one PNG with every slice of `p` as a panel, under one colour scale spanning the
+/// values of all panels.
+pub fn scalar_panels_png(path: &Path, p: &ScalarPanels) -> Result<(), RenderError> {
+    let (g, draw) = scalar_figure(p, Shown::All)?;
+    render_png(path, g.width, g.height, draw)
+}
+
+/// As [`category_frames_gif`] for a scalar layer: one frame per slice under the one colour
+/// scale of the whole volume.
+pub fn scalar_frames_gif(path: &Path, p: &ScalarPanels, delay_ms: u32) -> Result<(), RenderError> {
+    let mut frames = Vec::with_capacity(p.panels.len());
+    for k in 0..p.panels.len() {
+        frames.push(scalar_figure(p, Shown::One(k))?);
+    }
+    let (w, h) = (frames[0].0.width, frames[0].0.height);
+    render_gif(path, (w, h), frames.len(), delay_ms, |k, root| {
+        (frames[k].1)(root)
     })
 }
 
@@ -706,6 +781,91 @@ mod tests {
         }
     }
 
+    /// The frames of the looping GIF at `path`, each checked to last `delay_cs` centiseconds.
+    fn gif_frames(path: &Path, delay_cs: u16) -> Vec<image::RgbaImage> {
+        let file = std::io::BufReader::new(std::fs::File::open(path).expect("gif written"));
+        let mut opts = gif::DecodeOptions::new();
+        opts.set_color_output(gif::ColorOutput::RGBA);
+        let mut dec = opts.read_info(file).expect("a GIF");
+        assert_eq!(dec.repeat(), gif::Repeat::Infinite);
+        let mut frames = Vec::new();
+        while let Some(f) = dec.read_next_frame().expect("a frame") {
+            assert_eq!(f.delay, delay_cs, "centiseconds");
+            let img = image::RgbaImage::from_raw(
+                u32::from(f.width),
+                u32::from(f.height),
+                f.buffer.to_vec(),
+            )
+            .expect("frame size");
+            frames.push(img);
+        }
+        frames
+    }
+
+    /// The animation: one frame per slice showing that slice's cells, the legend (whole
+    /// volume's counts) the same in every frame, looping, each frame as long as asked.
+    #[test]
+    fn frames_gif_one_slice_a_frame_legend_fixed() {
+        let n = 5;
+        let slices: Vec<Vec<u16>> = (0..n).map(|k| slice(k, n)).collect();
+        let panels: Vec<(String, &[u16])> = slices
+            .iter()
+            .enumerate()
+            .map(|(k, s)| (format!("eta = {:.4}", 1.0 + k as f64 / 15.0), &s[..]))
+            .collect();
+        let p = CategoryPanels {
+            title: "attractor class over (a, b) at 5 values of eta",
+            x_label: "a (forcing amplitude)",
+            y_label: "b (damping)",
+            x_range: X,
+            y_range: Y,
+            nx: NX,
+            ny: NY,
+            panels: &panels,
+            categories: &CATS,
+            families: &[],
+            member_label: &|c| c.to_string(),
+            note: None,
+            curves: &[],
+            curve_legend: &[],
+        };
+        let path = tmp("frames.gif");
+        category_frames_gif(&path, &p, 400).expect("gif");
+        let g = geometry(1, Y, LEGEND_W).expect("geometry");
+        let frames = gif_frames(&path, 40);
+        assert_eq!(frames.len(), n);
+        let colour = |code: u16| {
+            CATS.iter()
+                .find(|c| c.0 == code)
+                .map_or([190, 190, 190], |c| c.2)
+        };
+        let exact = |a: [u8; 4], b: [u8; 3]| (0..3).all(|i| a[i] == b[i]);
+        let mut legend: Option<Vec<u8>> = None;
+        for (k, f) in frames.iter().enumerate() {
+            let img = f;
+            assert_eq!(img.dimensions(), (g.width, g.height));
+            for (ix, iy) in [(NX / 2, NY / 2), (2, NY / 2), (NX - 3, 2), (NX - 1, NY - 1)] {
+                let (x, y) = cell_pixel(g.plots[0], g.side, ix, iy);
+                let want = colour(slices[k][iy * NX + ix]);
+                assert!(
+                    exact(img.get_pixel(x, y).0, want),
+                    "frame {k} cell ({ix}, {iy}): {:?} against {want:?}",
+                    img.get_pixel(x, y).0
+                );
+            }
+            // The legend's swatches: the same pixels in every frame.
+            let col: Vec<u8> = (0..g.height)
+                .flat_map(|y| img.get_pixel((g.side_x + 10) as u32, y).0)
+                .collect();
+            match &legend {
+                None => legend = Some(col),
+                Some(first) => assert!(first == &col, "frame {k}'s legend moved"),
+            }
+        }
+        // Slices differ, so frames do: the disc grows from frame to frame.
+        assert_ne!(frames[0], frames[n - 1]);
+    }
+
     #[test]
     fn sixteen_category_panels() {
         let (g, _) = category_figure(16, "panels16.png");
@@ -761,6 +921,31 @@ mod tests {
         for k in 0..n {
             let (x, y) = cell_pixel(g.plots[k], g.side, 0, 0);
             assert_eq!(img.get_pixel(x, y).0, [190, 190, 190], "panel {k}");
+        }
+        // The animation: frame k is panel k under the same scale, its colours those of the
+        // panels' PNG to within 12 a channel (one palette of 256 for all frames).
+        let gif = tmp("scalar16.gif");
+        scalar_frames_gif(&gif, &p, 250).expect("gif");
+        let frames = gif_frames(&gif, 25);
+        assert_eq!(frames.len(), n);
+        let one = geometry(1, Y, BAR_SIDE_W).expect("geometry");
+        for (k, f) in frames.iter().enumerate() {
+            for (ix, iy) in [
+                (0, 0),
+                (NX / 2, NY / 2),
+                (3, NY - 2),
+                (NX - 1, 5),
+                (NX / 3, 1),
+            ] {
+                let (x, y) = cell_pixel(g.plots[k], g.side, ix, iy);
+                let want = img.get_pixel(x, y).0;
+                let (x, y) = cell_pixel(one.plots[0], one.side, ix, iy);
+                let got = f.get_pixel(x, y).0;
+                assert!(
+                    (0..3).all(|i| got[i].abs_diff(want[i]) <= 12),
+                    "frame {k} cell ({ix}, {iy}): {got:?} against the panel's {want:?}"
+                );
+            }
         }
         scalar_panels_png(&path, &ScalarPanels { center: None, ..p }).expect("viridis");
         let nan = vec![f64::NAN; NX * NY];
