@@ -342,14 +342,16 @@ impl App {
         if !current {
             *exports = None;
             let prefix = self.scratch.join("view");
-            let files = rattle::map::write_outputs(
-                &prefix,
-                &m.cfg,
-                &m.fields,
-                &m.report,
-                bounds.as_deref().map(std::slice::from_ref),
-            )
-            .map_err(internal)?;
+            // A view is a plane: its boundaries are one slice's.
+            let b = bounds
+                .as_deref()
+                .map(|b| rattle::map::boundaries::MapBoundaries {
+                    slices: vec![b.clone()],
+                    across: None,
+                });
+            let files =
+                rattle::map::write_outputs(&prefix, &m.cfg, &m.fields, &m.report, b.as_ref())
+                    .map_err(internal)?;
             let read: std::io::Result<Vec<(String, Vec<u8>)>> = files
                 .iter()
                 .map(|f| {

@@ -280,10 +280,19 @@ fn a_volumes_boundaries_are_each_slices_own() {
     let csv = std::fs::read_to_string(d.join("v-boundaries.csv")).unwrap();
     let mut lines = csv.lines();
     assert!(lines.next().unwrap().starts_with("eta,R,lambda,type,"));
-    let rows: Vec<&str> = lines.collect();
+    // The slices' points (on edges along x or y), then those between slices (along z).
+    let all: Vec<&str> = lines.collect();
+    let rows: Vec<&str> = all
+        .iter()
+        .filter_map(|r| r.strip_suffix(",x").or_else(|| r.strip_suffix(",y")))
+        .collect();
+    let between = all.iter().filter(|r| r.ends_with(",z")).count();
+    assert_eq!(rows.len() + between, all.len());
     let j = json(&d.join("v-boundaries.json"));
     assert_eq!(j["z_param"], "eta");
     assert_eq!(j["points"].as_array().unwrap().len(), rows.len());
+    assert_eq!(j["across"]["points"].as_array().unwrap().len(), between);
+    assert!(between > 0, "no edge between slices holds a point");
     let zs: Vec<f64> = json(&d.join("v.json"))["axes"]["z_values"]
         .as_array()
         .unwrap()

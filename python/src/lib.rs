@@ -351,14 +351,15 @@ impl MapData {
         // next period.
         let (cfg, f) = (self.result.cfg.clone(), self.result.fields.clone());
         let b = detached(py, 1, None, move |_| {
-            use rattle::map::boundaries::{VolumeBoundaries, of_slices};
+            use rattle::map::boundaries::{VolumeBoundaries, of_map};
             // The sides' motions at the edges' midpoints run on the map's engine.
             let (engine, _) = engine(&cfg)?;
-            let slices = of_slices(&engine, &cfg, &f)?;
-            // A volume's points and curves carry their slice's z.
-            Ok(match (cfg.z_axis(), &slices[..]) {
-                (None, [b]) => serde_json::to_string(b)?,
-                _ => serde_json::to_string(&VolumeBoundaries::of(&cfg, &slices))?,
+            let b = of_map(&engine, &cfg, &f)?;
+            // A volume's points and curves carry their slice's z; those between slices
+            // their own.
+            Ok(match (cfg.z_axis(), &b.slices[..]) {
+                (None, [one]) => serde_json::to_string(one)?,
+                _ => serde_json::to_string(&VolumeBoundaries::of(&cfg, &b))?,
             })
         })?;
         Ok(b)

@@ -19,7 +19,7 @@ use crate::config::Config;
 use crate::cycles::{Cycle, Refine, run_parallel};
 use crate::engine::{Decider, Engine};
 use crate::method::{Integrator, PointState};
-use crate::model::{Mode, Params};
+use crate::model::{Mode, Param, Params};
 use crate::stability::{
     BifurcationPoint, Change, Found, Grazed, Kind, SWITCH_AT, Switch, locate_changes,
 };
@@ -138,6 +138,10 @@ impl Type {
 pub struct Point {
     pub x: f64,
     pub y: f64,
+    /// On an edge between a volume's slices: the z of the change (a slice's points carry
+    /// their slice's z beside them instead).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub z: Option<f64>,
     #[serde(rename = "type")]
     pub ty: Type,
     /// The class names of `a` and `b`.
@@ -226,18 +230,19 @@ pub struct Cells<'a> {
 /// The boundaries of a whole map in memory (`rattle map --boundaries`, Python's
 /// `Map.boundaries()`): [`locate`] from its layers, the one path of both.
 pub fn of_fields(engine: &Engine, cfg: &Config, f: &super::Fields) -> crate::Result<Boundaries> {
+    with_cells(f, |cells| locate(engine, cfg, cells))
+}
+
+/// Runs `then` on the cells' layers of `f` (the states NaN where none was kept).
+fn with_cells<T>(f: &super::Fields, then: impl FnOnce(&Cells) -> T) -> T {
     let state: Vec<f64> = f.state.iter().map(|v| v.unwrap_or(f64::NAN)).collect();
-    locate(
-        engine,
-        cfg,
-        &Cells {
-            class: &f.class,
-            coexist: &f.coexist,
-            state: &state,
-            mode: &f.mode,
-            inferred: &f.inferred,
-        },
-    )
+    then(&Cells {
+        class: &f.class,
+        coexist: &f.coexist,
+        state: &state,
+        mode: &f.mode,
+        inferred: &f.inferred,
+    })
 }
 
 /// The boundaries of each slice of a map in memory: the plane's own for a plane; for a volume
@@ -254,6 +259,26 @@ pub fn of_slices(
             .map(|k| of_fields(engine, &cfg.slice(k), &f.range(k * per..(k + 1) * per)))
             .collect(),
     }
+}
+
+/// A map's boundaries: each slice's in its own plane (one for a plane), and a volume's on the
+/// edges between its slices.
+#[derive(Clone, Debug)]
+pub struct MapBoundaries {
+    pub slices: Vec<Boundaries>,
+    pub across: Option<Boundaries>,
+}
+
+/// The boundaries of a map in memory (`rattle map --boundaries`, `rattle boundaries`,
+/// Python's `Map.boundaries()`): each slice's ([`of_slices`]) and, for a volume, those
+/// between slices ([`locate_across`]).
+pub fn of_map(engine: &Engine, cfg: &Config, f: &super::Fields) -> crate::Result<MapBoundaries> {
+    let slices = of_slices(engine, cfg, f)?;
+    let across = match cfg.z_axis() {
+        None => None,
+        Some(_) => Some(with_cells(f, |cells| locate_across(engine, cfg, cells))?),
+    };
+    Ok(MapBoundaries { slices, across })
 }
 
 /// An item of one slice of a volume, with the slice's z value.
@@ -281,11 +306,20 @@ pub struct VolumeBoundaries<'a> {
     pub continuation_s: f64,
     pub coexistence_s: f64,
     pub seconds: f64,
+    /// The changes on the edges between slices (each point with its z), located as those
+    /// within them; their counts and seconds are not in the sums above.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub across: Option<&'a Boundaries>,
+    /// The points of one type on neighbouring edges of the volume joined into sheets, and
+    /// where sheets of two types meet ([`super::surfaces`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub surfaces: Option<super::surfaces::Surfaces>,
 }
 
 impl<'a> VolumeBoundaries<'a> {
-    /// The boundaries `slices` ([`of_slices`]) of the volume `cfg`.
-    pub fn of(cfg: &Config, slices: &'a [Boundaries]) -> VolumeBoundaries<'a> {
+    /// The boundaries `b` ([`of_map`]) of the volume `cfg`.
+    pub fn of(cfg: &Config, b: &'a MapBoundaries) -> VolumeBoundaries<'a> {
+        let slices = &b.slices[..];
         let zs = cfg.z_axis().map_or_else(|| vec![f64::NAN], |z| z.values());
         let sum = |f: &dyn Fn(&Boundaries) -> f64| slices.iter().map(f).sum::<f64>();
         let count = |f: &dyn Fn(&Boundaries) -> usize| slices.iter().map(f).sum::<usize>();
@@ -303,6 +337,8 @@ impl<'a> VolumeBoundaries<'a> {
             continuation_s: sum(&|b| b.continuation_s),
             coexistence_s: sum(&|b| b.coexistence_s),
             seconds: sum(&|b| b.seconds),
+            across: b.across.as_ref(),
+            surfaces: b.across.as_ref().map(|_| super::surfaces::of(cfg, b)),
         }
     }
 }
@@ -321,16 +357,24 @@ fn in_slices<'a, T: Serialize>(
         .collect()
 }
 
-/// The terminal's line of a map's boundaries ([`of_slices`]): a plane's, or a volume's sums.
-pub fn summary_of(cfg: &Config, slices: &[Boundaries]) -> String {
-    match (cfg.z_axis(), slices) {
-        (None, [b]) => summary_line(b),
-        _ => {
-            let v = VolumeBoundaries::of(cfg, slices);
+/// The terminal's line of a map's boundaries ([`of_map`]): a plane's, or a volume's sums and
+/// its edges between slices.
+pub fn summary_of(cfg: &Config, b: &MapBoundaries) -> String {
+    match (cfg.z_axis(), &b.slices[..]) {
+        (None, [one]) => summary_line(one),
+        (_, slices) => {
+            let v = VolumeBoundaries::of(cfg, b);
+            let across = b.across.as_ref().map_or(String::new(), |a| {
+                let line = summary_line(a);
+                format!(
+                    "; between slices: {}",
+                    line.trim_start_matches("boundaries: ")
+                )
+            });
             format!(
                 "boundaries of {} slices: {} edges between classes, {} changes located, {} \
                  curves ({} Newton trials, {} continuations in {:.2} s, {} coexistences checked \
-                 in {:.2} s) in {:.2} s",
+                 in {:.2} s) in {:.2} s{across}",
                 slices.len(),
                 v.edges,
                 v.points.iter().filter(|p| p.item.located).count(),
@@ -363,17 +407,39 @@ pub fn summary_line(b: &Boundaries) -> String {
     )
 }
 
-/// The map's grid: the cells' centres and parameters.
+/// The map's grid: the cells' centres and parameters; a volume's (cells numbered slice by
+/// slice, `(iz * ny + iy) * nx + ix`) where its edges between slices are located.
 struct Grid<'a> {
     cfg: &'a Config,
     xs: Vec<f64>,
     ys: Vec<f64>,
+    /// The z values and their parameter (a plane: none, one slice).
+    zs: Vec<f64>,
+    z: Option<Param>,
     nx: usize,
     ny: usize,
 }
 
-/// An edge between cells `a < b` whose classes differ, and whether it runs along x.
-type Edge = (usize, usize, bool);
+/// The axis an edge runs along.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Axis {
+    X,
+    Y,
+    Z,
+}
+
+impl Axis {
+    fn index(self) -> usize {
+        match self {
+            Axis::X => 0,
+            Axis::Y => 1,
+            Axis::Z => 2,
+        }
+    }
+}
+
+/// An edge between cells `a < b` whose classes differ, and the axis it runs along.
+type Edge = (usize, usize, Axis);
 
 /// What one continuation along an edge found.
 #[derive(Clone, Debug)]
@@ -425,48 +491,95 @@ const MAX_SWITCHES: u32 = 5;
 type Verdicts = HashMap<(usize, usize, usize), Result<(), &'static str>>;
 
 impl<'a> Grid<'a> {
+    /// The plane of `cfg` (a plane map, or one slice of a volume: [`Config::slice`]).
     fn new(cfg: &'a Config) -> Self {
         let m = &cfg.map;
         Grid {
             cfg,
             xs: Config::map_axis(m.x_from, m.x_to, m.x_points),
             ys: Config::map_axis(m.y_from, m.y_to, m.y_points),
+            zs: vec![f64::NAN],
+            z: None,
             nx: m.x_points as usize,
             ny: m.y_points as usize,
         }
     }
 
-    fn params(&self, c: usize) -> Params<f64> {
-        let mut p = self.cfg.params();
-        self.cfg.map.x.set(&mut p, self.xs[c % self.nx]);
-        self.cfg.map.y.set(&mut p, self.ys[c / self.nx]);
-        p
+    /// The whole volume of `cfg` (a plane where it has no z axis).
+    fn volume(cfg: &'a Config) -> Self {
+        let mut g = Grid::new(cfg);
+        if let Some(z) = cfg.z_axis() {
+            g.zs = z.values();
+            g.z = Some(z.param);
+        }
+        g
     }
 
-    /// The cell's coordinate along the edge's axis.
-    fn along(&self, c: usize, along_x: bool) -> f64 {
-        if along_x {
-            self.xs[c % self.nx]
-        } else {
-            self.ys[c / self.nx]
+    /// The cell's centre (z NaN in a plane).
+    fn coords(&self, c: usize) -> [f64; 3] {
+        let (nx, ny) = (self.nx, self.ny);
+        [
+            self.xs[c % nx],
+            self.ys[(c / nx) % ny],
+            self.zs[c / (nx * ny)],
+        ]
+    }
+
+    /// The parameter varied along `axis`.
+    fn param(&self, axis: Axis) -> Param {
+        match axis {
+            Axis::X => self.cfg.map.x,
+            Axis::Y => self.cfg.map.y,
+            Axis::Z => self.z.expect("a z edge belongs to a volume"),
         }
     }
 
+    /// The parameters the grid varies, and their values at `at` (a run's points).
+    fn vary(&self) -> Vec<Param> {
+        let m = &self.cfg.map;
+        [Some(m.x), Some(m.y), self.z]
+            .into_iter()
+            .flatten()
+            .collect()
+    }
+
+    fn values(&self, at: [f64; 3]) -> impl Iterator<Item = f64> + use<> {
+        at.into_iter().take(if self.z.is_some() { 3 } else { 2 })
+    }
+
+    /// The model's parameters at `at`.
+    fn params_at(&self, at: [f64; 3]) -> Params<f64> {
+        let mut p = self.cfg.params();
+        for (param, v) in self.vary().into_iter().zip(self.values(at)) {
+            param.set(&mut p, v);
+        }
+        p
+    }
+
+    fn params(&self, c: usize) -> Params<f64> {
+        self.params_at(self.coords(c))
+    }
+
+    /// The cell's coordinate along the edge's axis.
+    fn along(&self, c: usize, axis: Axis) -> f64 {
+        self.coords(c)[axis.index()]
+    }
+
     /// The midpoint of the edge between `a` and `b`.
-    fn midpoint(&self, a: usize, b: usize) -> (f64, f64) {
-        let nx = self.nx;
-        (
-            0.5 * (self.xs[a % nx] + self.xs[b % nx]),
-            0.5 * (self.ys[a / nx] + self.ys[b / nx]),
-        )
+    fn midpoint(&self, a: usize, b: usize) -> [f64; 3] {
+        let (p, q) = (self.coords(a), self.coords(b));
+        // The coordinates the cells share stay as they are (a plane's z stays NaN).
+        std::array::from_fn(|i| {
+            if p[i] == q[i] || p[i].is_nan() {
+                p[i]
+            } else {
+                0.5 * (p[i] + q[i])
+            }
+        })
     }
 
     fn midpoint_params(&self, a: usize, b: usize) -> Params<f64> {
-        let (x, y) = self.midpoint(a, b);
-        let mut p = self.cfg.params();
-        self.cfg.map.x.set(&mut p, x);
-        self.cfg.map.y.set(&mut p, y);
-        p
+        self.params_at(self.midpoint(a, b))
     }
 
     /// Periods a side's motion is run for at an edge's midpoint: twice the map's own look
@@ -494,14 +607,10 @@ impl<'a> Grid<'a> {
         spec.transient = periods.max(2) - 1;
         spec.samples = 1;
         spec.settings.lyapunov = false;
-        let m = &self.cfg.map;
-        let vary = [m.x, m.y];
+        let vary = self.vary();
         let values: Vec<f64> = runs
             .iter()
-            .flat_map(|&((a, b), _)| {
-                let (x, y) = self.midpoint(a, b);
-                [x, y]
-            })
+            .flat_map(|&((a, b), _)| self.values(self.midpoint(a, b)))
             .collect();
         let y0s: Vec<[f64; 4]> = runs.iter().map(|(_, s)| s.y).collect();
         let modes: Vec<Mode> = runs.iter().map(|(_, s)| s.mode).collect();
@@ -532,18 +641,30 @@ impl<'a> Grid<'a> {
         Ok(out)
     }
 
-    /// The edges whose cells' classes differ.
-    fn edges(&self, class: &[i32]) -> Vec<Edge> {
-        let (nx, ny) = (self.nx, self.ny);
+    /// The edges along `axes` whose cells' classes differ (in each slice, then between
+    /// slices).
+    fn edges(&self, class: &[i32], axes: &[Axis]) -> Vec<Edge> {
+        let (nx, ny, nz) = (self.nx, self.ny, self.zs.len());
+        let per = nx * ny;
         let mut edges = Vec::new();
-        for iy in 0..ny {
-            for ix in 0..nx {
-                let a = iy * nx + ix;
-                if ix + 1 < nx && class[a] != class[a + 1] {
-                    edges.push((a, a + 1, true));
-                }
-                if iy + 1 < ny && class[a] != class[a + nx] {
-                    edges.push((a, a + nx, false));
+        for iz in 0..nz {
+            for iy in 0..ny {
+                for ix in 0..nx {
+                    let a = iz * per + iy * nx + ix;
+                    let mut to = |b: usize, axis: Axis| {
+                        if axes.contains(&axis) && class[a] != class[b] {
+                            edges.push((a, b, axis));
+                        }
+                    };
+                    if ix + 1 < nx {
+                        to(a + 1, Axis::X);
+                    }
+                    if iy + 1 < ny {
+                        to(a + nx, Axis::Y);
+                    }
+                    if iz + 1 < nz {
+                        to(a + per, Axis::Z);
+                    }
                 }
             }
         }
@@ -554,20 +675,39 @@ impl<'a> Grid<'a> {
 /// Locates and types the boundaries of the map of `cfg` from its cells' layers; the sides'
 /// motions at the edges' midpoints run on `engine` (the map's).
 pub fn locate(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Boundaries> {
+    located(engine, &Grid::new(cfg), cells, &[Axis::X, Axis::Y])
+}
+
+/// Locates and types the changes on the edges between a volume's slices (along z), from the
+/// layers of the whole volume, as [`locate`] does within a plane: each side's own cycle
+/// continued in z towards the other slice, the same types and reasons. Their points carry
+/// their z (the located value, or the edge's midpoint); no curves (a volume's changes on
+/// neighbouring edges join into surfaces: [`super::surfaces`]).
+pub fn locate_across(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Boundaries> {
+    located(engine, &Grid::volume(cfg), cells, &[Axis::Z])
+}
+
+/// The boundaries on the edges of `grid` along `axes`.
+fn located(
+    engine: &Engine,
+    grid: &Grid,
+    cells: &Cells,
+    axes: &[Axis],
+) -> crate::Result<Boundaries> {
     let t0 = std::time::Instant::now();
-    let grid = Grid::new(cfg);
+    let cfg = grid.cfg;
     let settings = cfg.settings();
-    let edges = grid.edges(cells.class);
-    let (trials, cycles, jacobians) = side_cycles(&grid, &settings, cells, &edges);
+    let edges = grid.edges(cells.class, axes);
+    let (trials, cycles, jacobians) = side_cycles(grid, &settings, cells, &edges);
     let t1 = std::time::Instant::now();
     let (mut per_edge, continuations) =
-        continuations(&grid, &settings, cells, &edges, &cycles, &jacobians);
-    let both_sides = impact_free_grazings(&grid, &settings, cells, &edges, &mut per_edge);
+        continuations(grid, &settings, cells, &edges, &cycles, &jacobians);
+    let both_sides = impact_free_grazings(grid, &settings, cells, &edges, &mut per_edge);
     let continuation_s = t1.elapsed().as_secs_f64();
     let t2 = std::time::Instant::now();
     let (coexists, claims, free) = coexistences(
         engine,
-        &grid,
+        grid,
         &settings,
         cells,
         &edges,
@@ -581,15 +721,19 @@ pub fn locate(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Bou
         .zip(&per_edge)
         .enumerate()
         .flat_map(|(k, (&e, f))| {
-            let mut ps = edge_points(&grid, cells, e, f, &coexists, free.get(&k));
+            let mut ps = edge_points(grid, cells, e, f, &coexists, free.get(&k));
             for p in &mut ps {
                 p.edge = k;
             }
             ps
         })
         .collect();
-    check_after(engine, &grid, &settings, cells, &edges, &mut points)?;
-    let curves = curves(&points, &edges, grid.nx);
+    check_after(engine, grid, &settings, cells, &edges, &mut points)?;
+    // Curves within a plane; across slices the points join into surfaces instead.
+    let curves = match axes.contains(&Axis::Z) {
+        true => Vec::new(),
+        false => curves(&points, &edges, grid.nx),
+    };
     Ok(Boundaries {
         x_param: cfg.map.x.name(),
         y_param: cfg.map.y.name(),
@@ -661,7 +805,6 @@ fn continuations(
     cycles: &HashMap<usize, Cycle>,
     jacobians: &HashMap<usize, Matrix4<f64>>,
 ) -> (Vec<EdgeFound>, usize) {
-    let m = &grid.cfg.map;
     // (edge, from cell, the value continued from, the cycle, switches before it, the value of
     // the change it follows).
     let start = |k: usize, from: usize, to: usize| -> Option<Pending> {
@@ -681,8 +824,8 @@ fn continuations(
     };
     // The side of the smaller parameter value first (the side whose chain the edge reports),
     // the other where it has a cycle of its own and none was continued first.
-    let first = |(a, b, along_x): Edge| {
-        if grid.along(a, along_x) <= grid.along(b, along_x) {
+    let first = |(a, b, axis): Edge| {
+        if grid.along(a, axis) <= grid.along(b, axis) {
             [(a, b), (b, a)]
         } else {
             [(b, a), (a, b)]
@@ -728,10 +871,10 @@ fn continuations(
             break;
         }
         let to = |k: usize, from: usize| {
-            let (a, b, along_x) = edges[k];
-            grid.along(if from == a { b } else { a }, along_x)
+            let (a, b, axis) = edges[k];
+            grid.along(if from == a { b } else { a }, axis)
         };
-        let param = |k: usize| if edges[k].2 { m.x } else { m.y };
+        let param = |k: usize| grid.param(edges[k].2);
         let changes: Vec<Change> = pending
             .iter()
             .map(|(k, from, v, cycle, _, _, m)| {
@@ -819,7 +962,7 @@ fn impact_free_grazings(
     use rayon::prelude::*;
     let free = Class::NoImpact.code();
     let impacts = |c: usize| cells.class[c] != free && cells.class[c] != Class::Failed.code();
-    let tasks: Vec<(usize, usize, usize, bool)> = edges
+    let tasks: Vec<(usize, usize, usize, Axis)> = edges
         .iter()
         .enumerate()
         .filter(|(k, _)| {
@@ -827,25 +970,24 @@ fn impact_free_grazings(
                 .iter()
                 .any(|l| matches!(l.found, Found::Located(_)))
         })
-        .filter_map(|(k, &(a, b, along_x))| {
-            match (cells.class[a] == free, cells.class[b] == free) {
-                (true, false) if impacts(b) => Some((k, a, b, along_x)),
-                (false, true) if impacts(a) => Some((k, b, a, along_x)),
+        .filter_map(
+            |(k, &(a, b, axis))| match (cells.class[a] == free, cells.class[b] == free) {
+                (true, false) if impacts(b) => Some((k, a, b, axis)),
+                (false, true) if impacts(a) => Some((k, b, a, axis)),
                 _ => None,
-            }
-        })
+            },
+        )
         .collect();
-    let m = &grid.cfg.map;
     let found: Vec<(usize, usize, usize, Grazed)> = tasks
         .par_iter()
-        .filter_map(|&(k, good, bad, along_x)| {
+        .filter_map(|&(k, good, bad, axis)| {
             let grazed = crate::stability::graze(
                 &grid.params(good),
-                if along_x { m.x } else { m.y },
+                grid.param(axis),
                 settings,
-                grid.along(good, along_x),
+                grid.along(good, axis),
                 cell_state(cells, good)?,
-                grid.along(bad, along_x),
+                grid.along(bad, axis),
             );
             Some((k, good, bad, grazed))
         })
@@ -1075,18 +1217,20 @@ fn chain(links: &EdgeFound, from: usize) -> (Vec<(&BifurcationPoint, u32)>, Opti
 fn edge_points(
     grid: &Grid,
     cells: &Cells,
-    (a, b, along_x): Edge,
+    (a, b, axis): Edge,
     found: &EdgeFound,
     coexists: &Verdicts,
     impact_free: Option<&&'static str>,
 ) -> Vec<Point> {
-    let (mx, my) = grid.midpoint(a, b);
-    let half = 0.5 * (grid.along(b, along_x) - grid.along(a, along_x)).abs();
+    let mid = grid.midpoint(a, b);
+    let z_of = |at: [f64; 3]| grid.z.map(|_| at[2]);
+    let half = 0.5 * (grid.along(b, axis) - grid.along(a, axis)).abs();
     let name = |c: usize| Class::from_code(cells.class[c]).name().to_string();
     let period_name = |n: u32| Class::Periodic(n).name();
     let unlocated = |ty: Type, reason: &'static str| Point {
-        x: mx,
-        y: my,
+        x: mid[0],
+        y: mid[1],
+        z: z_of(mid),
         ty,
         classes: [name(a), name(b)],
         change: [name(a), name(b)],
@@ -1102,7 +1246,7 @@ fn edge_points(
         after_by_default: false,
     };
     let mut sides = [a, b];
-    sides.sort_by(|p, q| grid.along(*p, along_x).total_cmp(&grid.along(*q, along_x)));
+    sides.sort_by(|p, q| grid.along(*p, axis).total_cmp(&grid.along(*q, axis)));
     let (first, second) = {
         let (lo, hi) = (chain(found, sides[0]), chain(found, sides[1]));
         if lo.0.is_empty() {
@@ -1114,7 +1258,7 @@ fn edge_points(
     if !first.1.0.is_empty() {
         let (near, (ref steps, beyond)) = first;
         let (far, (ref others, _)) = second;
-        let toward = |v: f64| (v - grid.along(near, along_x)).abs();
+        let toward = |v: f64| (v - grid.along(near, axis)).abs();
         let tol = SAME_CHANGE * 2.0 * half;
         // The other side's changes that are not one of this side's seen from there.
         let apart: Vec<&(&BifurcationPoint, u32)> = others
@@ -1139,14 +1283,12 @@ fn edge_points(
                 .fold(p.uncertainty, |u, (q, _)| {
                     u.max((q.value - p.value).abs() + q.uncertainty)
                 });
-            let (x, y) = if along_x {
-                (p.value, my)
-            } else {
-                (mx, p.value)
-            };
+            let mut at = mid;
+            at[axis.index()] = p.value;
             out.push(Point {
-                x,
-                y,
+                x: at[0],
+                y: at[1],
+                z: z_of(at),
                 ty,
                 classes: [name(a), name(b)],
                 change: [period_name(n), after],
@@ -1188,7 +1330,7 @@ fn edge_points(
     vec![edge_unlocated(
         grid,
         cells,
-        (a, b, along_x),
+        (a, b, axis),
         found,
         coexists,
         impact_free,
@@ -1221,21 +1363,17 @@ fn check_after(
     if todo.is_empty() {
         return Ok(());
     }
-    let m = &grid.cfg.map;
     // Each point's parameters just past it, its start and the far cell's class.
-    let past: Vec<((f64, f64), [f64; 4], Class)> = todo
+    let past: Vec<([f64; 3], [f64; 4], Class)> = todo
         .iter()
         .map(|&i| {
             let p = &points[i];
-            let (a, b, along_x) = edges[p.edge];
+            let (a, b, axis) = edges[p.edge];
             let from = p.from.unwrap_or(a);
             let far = if from == a { b } else { a };
-            let step = (grid.along(far, along_x) - grid.along(from, along_x)) / 64.0;
-            let xy = if along_x {
-                (p.x + step, p.y)
-            } else {
-                (p.x, p.y + step)
-            };
+            let step = (grid.along(far, axis) - grid.along(from, axis)) / 64.0;
+            let mut xy = [p.x, p.y, p.z.unwrap_or(f64::NAN)];
+            xy[axis.index()] += step;
             (
                 xy,
                 p.section.unwrap_or_default(),
@@ -1248,8 +1386,11 @@ fn check_after(
     spec.transient = grid.look() / 2;
     spec.samples = AFTER_SAMPLES;
     spec.settings.lyapunov = false;
-    let vary = [m.x, m.y];
-    let values: Vec<f64> = past.iter().flat_map(|((x, y), _, _)| [*x, *y]).collect();
+    let vary = grid.vary();
+    let values: Vec<f64> = past
+        .iter()
+        .flat_map(|(at, _, _)| grid.values(*at))
+        .collect();
     let y0s: Vec<[f64; 4]> = past.iter().map(|(_, y, _)| *y).collect();
     let points_run = crate::spec::Points {
         vary: &vary,
@@ -1268,7 +1409,7 @@ fn check_after(
     let verdicts: Vec<Option<String>> = results
         .par_iter()
         .zip(&past)
-        .map(|(r, ((x, y), _, claim))| {
+        .map(|(r, (at, _, claim))| {
             crate::progress::poll();
             if r.diag.nonfinite || r.samples.is_empty() {
                 return Some(UNRESOLVED.to_string());
@@ -1287,10 +1428,7 @@ fn check_after(
             }
             // A recurrence Newton confirms: the cycle that follows (a window).
             let named = found.and_then(|k| {
-                let mut q = grid.cfg.params();
-                m.x.set(&mut q, *x);
-                m.y.set(&mut q, *y);
-                let it = Integrator::<f64>::new(&q, settings);
+                let it = Integrator::<f64>::new(&grid.params_at(*at), settings);
                 let last = *r.samples.last()?;
                 let st = PointState {
                     y: last,
@@ -1324,7 +1462,7 @@ fn rank(k: Kind) -> u8 {
 fn edge_unlocated(
     grid: &Grid,
     cells: &Cells,
-    (a, b, along_x): Edge,
+    (a, b, axis): Edge,
     found: &EdgeFound,
     coexists: &Verdicts,
     impact_free: Option<&&'static str>,
@@ -1345,7 +1483,7 @@ fn edge_unlocated(
     // Coexistence only where both attractors persist at the edge's midpoint. The side of the
     // smaller parameter value first, whichever way the axes run.
     let mut sides = [a, b];
-    sides.sort_by(|p, q| grid.along(*p, along_x).total_cmp(&grid.along(*q, along_x)));
+    sides.sort_by(|p, q| grid.along(*p, axis).total_cmp(&grid.along(*q, axis)));
     match sides
         .into_iter()
         .find_map(|c| coexists.get(&(a, b, c)).copied())
@@ -1373,13 +1511,13 @@ fn changing(p: &Point) -> Option<&String> {
 /// Joins the points into polylines: two points are neighbours where their edges belong to
 /// one grid square (the four cells around a grid vertex) and they have the same type and the
 /// same pair of classes; each chain of neighbours is one curve.
-fn curves(points: &[Point], edges: &[(usize, usize, bool)], nx: usize) -> Vec<Curve> {
+fn curves(points: &[Point], edges: &[Edge], nx: usize) -> Vec<Curve> {
     // The squares (lower-left cell) an edge borders.
-    let squares = |&(a, _, along_x): &(usize, usize, bool)| -> Vec<usize> {
+    let squares = |&(a, _, axis): &Edge| -> Vec<usize> {
         let mut s = vec![a];
-        if along_x && a >= nx {
+        if axis == Axis::X && a >= nx {
             s.push(a - nx);
-        } else if !along_x && a % nx > 0 {
+        } else if axis == Axis::Y && a % nx > 0 {
             s.push(a - 1);
         }
         s

@@ -506,11 +506,11 @@ pub fn run(
     let t_files = std::time::Instant::now();
     let b = o
         .boundaries
-        .then(|| super::boundaries::of_slices(engine, &cfg, &fields))
+        .then(|| super::boundaries::of_map(engine, &cfg, &fields))
         .transpose()?;
     summary
         .files
-        .extend(write_outputs(out, &cfg, &fields, &report, b.as_deref())?);
+        .extend(write_outputs(out, &cfg, &fields, &report, b.as_ref())?);
     summary.boundaries = b.as_ref().map(|b| super::boundaries::summary_of(&cfg, b));
     summary.files_s = t_files.elapsed().as_secs_f64();
     summary.host_s = host_s;
@@ -659,9 +659,9 @@ pub fn run_shared(
     };
     let b = o
         .boundaries
-        .then(|| super::boundaries::of_slices(&engines[0], &cfg, &fields))
+        .then(|| super::boundaries::of_map(&engines[0], &cfg, &fields))
         .transpose()?;
-    let files = write_outputs(out, &cfg, &fields, &report, b.as_deref())?;
+    let files = write_outputs(out, &cfg, &fields, &report, b.as_ref())?;
     let boundaries = b.as_ref().map(|b| super::boundaries::summary_of(&cfg, b));
     Ok(MapSummary {
         backend: "gpu".into(),

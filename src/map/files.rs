@@ -636,7 +636,7 @@ pub fn write_outputs(
     cfg: &Config,
     fields: &Fields,
     report: &MapReport,
-    boundaries: Option<&[super::boundaries::Boundaries]>,
+    boundaries: Option<&super::boundaries::MapBoundaries>,
 ) -> crate::Result<Vec<PathBuf>> {
     let t_files = std::time::Instant::now();
     let m = &cfg.map;
@@ -939,7 +939,7 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
     let per = super::plane_cells(&cfg);
     // The sides' motions at the edges' midpoints run on the engine the map's config names.
     let engine = crate::engine::Engine::open(cfg.method.backend)?;
-    let b: Vec<super::boundaries::Boundaries> = (0..cfg.z_count())
+    let slices: Vec<super::boundaries::Boundaries> = (0..cfg.z_count())
         .map(|k| {
             let r = k * per..(k + 1) * per;
             super::boundaries::locate(
@@ -955,13 +955,33 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
             )
         })
         .collect::<crate::Result<_>>()?;
+    // A volume's edges between slices, from the whole volume's layers.
+    let across = cfg
+        .z_axis()
+        .map(|_| {
+            super::boundaries::locate_across(
+                &engine,
+                &cfg,
+                &super::boundaries::Cells {
+                    class: &class,
+                    coexist: &coexist,
+                    state: &state,
+                    mode: &mode,
+                    inferred: &inferred,
+                },
+            )
+        })
+        .transpose()?;
+    let b = super::boundaries::MapBoundaries { slices, across };
     let mut st = Staged::new();
     stage_boundaries(&mut st, prefix, &cfg, &class, &attractors, &b)?;
     // The map's own files stay as they are, listed (with their sums) beside the new ones.
     let base = crate::output::with_suffix(prefix, "boundaries");
+    let surfaces = crate::output::with_suffix(prefix, "surfaces");
     let ours: Vec<PathBuf> = ["png", "csv", "json"]
         .iter()
         .map(|x| with_ext(&base, x))
+        .chain(SURFACE_FILES.iter().map(|x| with_ext(&surfaces, x)))
         .collect();
     // The set is committed only if the map is still the one read: its JSON and every layer
     // as they were (a map committed at PREFIX meanwhile fails this, rather than having its
@@ -984,6 +1004,95 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
     Ok((st.commit()?, super::boundaries::summary_of(&cfg, &b)))
 }
 
+/// The viewpoint of a volume's surfaces figure: yaw and pitch (radians), from the side of the
+/// x axis's low end and above.
+const SURFACE_VIEW: (f64, f64) = (0.65, 0.35);
+
+/// Stages PREFIX-surfaces.png and .svg: the sheets of every type but coexistence (a basin's
+/// edge, white) in 3-D, the z parameter upright.
+fn surfaces_figure(
+    st: &mut Staged,
+    base: &Path,
+    cfg: &Config,
+    sf: &super::surfaces::Surfaces,
+) -> crate::Result<()> {
+    use super::boundaries::Type;
+    let m = &cfg.map;
+    let Some(z) = cfg.z_axis() else {
+        return Ok(());
+    };
+    let drawn = |t: Type| !matches!(t, Type::Coexistence | Type::Undetermined);
+    let mut triangles = Vec::new();
+    let mut per_type: Vec<(Type, usize, usize)> = Vec::new();
+    for sh in sf.sheets.iter().filter(|sh| drawn(sh.kind.ty.ty())) {
+        let t = sh.kind.ty.ty();
+        for f in &sh.faces {
+            triangles.push((f.map(|i| sf.vertices[i as usize].0), t.rgb()));
+        }
+        match per_type.iter_mut().find(|e| e.0 == t) {
+            Some(e) => {
+                e.1 += 1;
+                e.2 += sh.faces.len();
+            }
+            None => per_type.push((t, 1, sh.faces.len())),
+        }
+    }
+    per_type.sort_by_key(|e| Type::ALL.iter().position(|&t| t == e.0));
+    let legend: Vec<(String, [u8; 3])> = per_type
+        .iter()
+        .map(|&(t, n, f)| {
+            (
+                format!(
+                    "{}: {} sheets, {} triangles",
+                    t.name(),
+                    grouped(n),
+                    grouped(f)
+                ),
+                t.rgb(),
+            )
+        })
+        .collect();
+    let coexist = sf
+        .sheets
+        .iter()
+        .filter(|sh| sh.kind.ty.ty() == Type::Coexistence)
+        .count();
+    let note = format!(
+        "{} coexistence sheets not drawn\n{} codimension-two candidates\n(where sheets of two \
+         types cross one\ncube of cells: the JSON's codim2)",
+        grouped(coexist),
+        grouped(sf.codim2.len())
+    );
+    let ordered = |a: f64, b: f64| (a.min(b), a.max(b));
+    let title = format!(
+        "boundary surfaces over {}, {} and {}",
+        m.x.name(),
+        m.y.name(),
+        z.param.name()
+    );
+    let fig = crate::render::SurfaceFigure {
+        title: &title,
+        labels: [&m.x.label(), &m.y.label(), &z.param.label()],
+        ranges: [
+            ordered(m.x_from, m.x_to),
+            ordered(m.y_from, m.y_to),
+            ordered(z.from, z.to),
+        ],
+        triangles: &triangles,
+        legend: &legend,
+        note: Some(&note),
+        view: SURFACE_VIEW,
+        width: 1200,
+        height: 850,
+    };
+    crate::render::surfaces_png(&st.path(&with_ext(base, "png")), &fig)?;
+    crate::render::surfaces_svg(&st.path(&with_ext(base, "svg")), &fig)?;
+    Ok(())
+}
+
+/// The extensions of a volume's PREFIX-surfaces files.
+const SURFACE_FILES: [&str; 4] = ["ply", "csv", "png", "svg"];
+
 /// Whether `json` is the JSON of a map's boundaries (its curves and points), not another set's.
 fn is_boundaries_json(json: &Path) -> bool {
     #[derive(serde::Deserialize)]
@@ -999,8 +1108,8 @@ fn is_boundaries_json(json: &Path) -> bool {
         .is_ok_and(|p| p.curves.is_some() && p.points.is_some() && p.x_param.is_some())
 }
 
-/// Stages the boundaries of the map of `cfg` (`class` and `attractors`: its layers; `slices`:
-/// its boundaries, one per slice, [`super::boundaries::of_slices`]) in the map's set `st`:
+/// Stages the boundaries of the map of `cfg` (`class` and `attractors`: its layers; `b`: its
+/// boundaries, [`super::boundaries::of_map`]) in the map's set `st`:
 /// `PREFIX-boundaries.png` (the class map with the curves over it, a volume's slices as
 /// panels), `PREFIX-boundaries.csv` (the points, a volume's with their z) and
 /// `PREFIX-boundaries.json` (curves and points; its `files` names the three, the map's JSON
@@ -1011,12 +1120,13 @@ fn stage_boundaries(
     cfg: &Config,
     class: &[i32],
     attractors: &[u8],
-    slices: &[super::boundaries::Boundaries],
+    b: &super::boundaries::MapBoundaries,
 ) -> crate::Result<()> {
     use super::boundaries::{Type, VolumeBoundaries};
+    let slices = &b.slices[..];
     let base = crate::output::with_suffix(prefix, "boundaries");
     let m = &cfg.map;
-    let volume = cfg.z_axis().map(|_| VolumeBoundaries::of(cfg, slices));
+    let volume = cfg.z_axis().map(|_| VolumeBoundaries::of(cfg, b));
     let cells: Vec<u16> = class
         .iter()
         .zip(attractors)
@@ -1114,38 +1224,52 @@ fn stage_boundaries(
     }
     // A volume's points carry their slice's z first.
     let zs = cfg.z_axis().map(|z| (z.param, z.values()));
+    // ... and, last, the axis of the point's edge (x, y, or z between slices).
     let mut csv = format!(
-        "{}{},{},type,class_a,class_b,before,after,uncertainty,located,period,reason,evidence\n",
+        "{}{},{},type,class_a,class_b,before,after,uncertainty,located,period,reason,evidence{}\n",
         zs.as_ref()
             .map_or(String::new(), |(p, _)| format!("{},", p.name())),
         m.x.name(),
-        m.y.name()
+        m.y.name(),
+        if zs.is_some() { ",along" } else { "" }
     );
+    let row = |csv: &mut String, z: String, p: &super::boundaries::Point, along: &str| {
+        csv.push_str(&format!(
+            "{z}{},{},{},{},{},{},{},{},{},{},\"{}\",\"{}\"{along}\n",
+            p.x,
+            p.y,
+            p.ty.name(),
+            p.classes[0],
+            p.classes[1],
+            p.change[0],
+            p.change[1],
+            p.uncertainty,
+            p.located,
+            p.period,
+            p.reason,
+            p.evidence
+        ));
+    };
     for (k, b) in slices.iter().enumerate() {
         let z = zs
             .as_ref()
             .map_or(String::new(), |(_, v)| format!("{},", v[k]));
         for p in &b.points {
-            csv.push_str(&format!(
-                "{z}{},{},{},{},{},{},{},{},{},{},\"{}\",\"{}\"\n",
-                p.x,
-                p.y,
-                p.ty.name(),
-                p.classes[0],
-                p.classes[1],
-                p.change[0],
-                p.change[1],
-                p.uncertainty,
-                p.located,
-                p.period,
-                p.reason,
-                p.evidence
-            ));
+            let along = match zs {
+                None => "",
+                Some(_) if p.cells[1].abs_diff(p.cells[0]) == 1 => ",x",
+                Some(_) => ",y",
+            };
+            row(&mut csv, z.clone(), p, along);
         }
+    }
+    // A volume's points on the edges between slices, each with its own z.
+    for p in b.across.iter().flat_map(|a| &a.points) {
+        row(&mut csv, format!("{},", p.z.unwrap_or(f64::NAN)), p, ",z");
     }
     st.write(&with_ext(&base, "csv"), csv.as_bytes())?;
     let json_path = with_ext(&base, "json");
-    let files: Vec<String> = ["csv", "json", "png"]
+    let mut files: Vec<String> = ["csv", "json", "png"]
         .iter()
         .filter_map(|x| {
             Some(
@@ -1156,15 +1280,33 @@ fn stage_boundaries(
             )
         })
         .collect();
+    // A volume's surfaces: the meshes (PLY) and their vertices (CSV).
+    let surfaces = crate::output::with_suffix(prefix, "surfaces");
+    match volume.as_ref().and_then(|v| v.surfaces.as_ref()) {
+        Some(sf) => {
+            st.write(&with_ext(&surfaces, "ply"), sf.ply().as_bytes())?;
+            st.write(&with_ext(&surfaces, "csv"), sf.csv().as_bytes())?;
+            surfaces_figure(st, &surfaces, cfg, sf)?;
+            for x in SURFACE_FILES {
+                let name = with_ext(&surfaces, x);
+                files.extend(name.file_name().map(|n| n.to_string_lossy().into_owned()));
+            }
+        }
+        None => {
+            for x in SURFACE_FILES {
+                st.remove_stale(&with_ext(&surfaces, x));
+            }
+        }
+    }
     let text = match (&volume, slices) {
-        (None, [b]) => serde_json::to_vec_pretty(&BoundariesJson {
-            caption: boundaries_caption(cfg, b),
-            boundaries: b,
+        (None, [one]) => serde_json::to_vec_pretty(&BoundariesJson {
+            caption: boundaries_caption(cfg, one),
+            boundaries: one,
             files,
             version: env!("CARGO_PKG_VERSION"),
         })?,
         _ => serde_json::to_vec_pretty(&BoundariesJson {
-            caption: volume_boundaries_caption(cfg, slices),
+            caption: volume_boundaries_caption(cfg, b),
             boundaries: &volume,
             files,
             version: env!("CARGO_PKG_VERSION"),
@@ -1176,16 +1318,24 @@ fn stage_boundaries(
 
 /// The caption of a volume's boundaries' JSON: each slice's located as its own map's, the
 /// counts summed over the slices.
-fn volume_boundaries_caption(cfg: &Config, slices: &[super::boundaries::Boundaries]) -> String {
-    let edges = slices.iter().map(|b| b.edges).sum();
-    let located = slices
+fn volume_boundaries_caption(cfg: &Config, b: &super::boundaries::MapBoundaries) -> String {
+    let edges = b.slices.iter().map(|b| b.edges).sum();
+    let located = b
+        .slices
         .iter()
         .map(|b| b.points.iter().filter(|p| p.located).count())
         .sum();
+    let across = b.across.as_ref().map_or(String::new(), |a| {
+        format!(
+            " The {} edges between neighbouring slices (along {}) are located and typed the              same way, each side's cycle continued in z ({} points located; `across`, each              point with the z of its change or of the edge's midpoint); the points of one type              on neighbouring edges of the volume join into surfaces (PREFIX-surfaces.ply).",
+            a.edges,
+            cfg.z_axis().map_or("z", |z| z.param.name()),
+            a.points.iter().filter(|p| p.located).count()
+        )
+    });
     format!(
         "{} Each slice's boundaries are located in its own plane, as those of the map at that \
-         z value are (edges between slices are not located); every point and curve carries its \
-         slice's z.",
+         z value are; every point and curve of a slice carries its slice's z.{across}",
         caption_of_boundaries(cfg, edges, located)
     )
 }

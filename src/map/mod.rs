@@ -10,6 +10,7 @@ mod command;
 mod fields;
 mod files;
 mod parts;
+pub mod surfaces;
 
 pub use caption::{RASTER, compare_caption, title};
 pub use command::{

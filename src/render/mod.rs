@@ -15,6 +15,7 @@ mod orbit;
 mod palette;
 mod panels;
 mod sensitivity;
+mod surfaces;
 
 pub use density::{
     DensityPlot, DensityStats, MARK_KINDS, Mark, density_panel, density_png, panels_png,
@@ -32,6 +33,7 @@ pub use panels::{
 pub use sensitivity::{
     Bar, Plane, SensitivityFigure, class_color, sensitivity_png, sensitivity_svg,
 };
+pub use surfaces::{SurfaceFigure, surfaces_png, surfaces_svg};
 
 use std::path::Path;
 use std::sync::OnceLock;
