@@ -16,8 +16,9 @@ pub const EXPLORE: MapOptions = MapOptions {
     ..MapOptions::WHOLE
 };
 
-/// A view of the map: the ranges of its two axes (the grid stays the configured one). A key
-/// it does not have is refused, not ignored (`x_points` would say the grid changes).
+/// A view of the map: the ranges of its two axes (the grid stays the configured one) and, for
+/// a volume, the value of its z parameter (the plane shown). A key it does not have is
+/// refused, not ignored (`x_points` would say the grid changes).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct View {
@@ -25,16 +26,19 @@ pub struct View {
     pub x_to: f64,
     pub y_from: f64,
     pub y_to: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub z: Option<f64>,
 }
 
 impl View {
-    /// The configured map's view.
+    /// The configured map's view (a volume's: its first slice).
     pub fn of(cfg: &Config) -> View {
         View {
             x_from: cfg.map.x_from,
             x_to: cfg.map.x_to,
             y_from: cfg.map.y_from,
             y_to: cfg.map.y_to,
+            z: cfg.z_axis().map(|z| z.values()[0]),
         }
     }
 
@@ -84,16 +88,8 @@ impl Explorer {
             base.source = Source::Text(text);
         }
         let loaded = base.load(Command::Map)?;
-        if loaded.cfg.z_axis().is_some() {
-            return Err(crate::error::OptionError::Unsuitable {
-                option: "config",
-                why: "explore shows one plane: a volume (map.z set) is not explored; remove \
-                      map.z, map.z_from, map.z_to and map.z_points, or set the slice's z value"
-                    .into(),
-            }
-            .into());
-        }
-        EXPLORE.check(&loaded.cfg)?;
+        // A volume is shown one plane at a time: each checked as `rattle map` at that z.
+        EXPLORE.check(&loaded.cfg.slice(0))?;
         let cfg = loaded.cfg.clone();
         let e = Explorer {
             base,
@@ -121,21 +117,55 @@ impl Explorer {
     }
 
     /// The map configuration of `view`, checked as `rattle map` checks its own (ranges, the
-    /// grid's memory): a bad view gets the command line's message.
+    /// grid's memory): a bad view gets the command line's message. Of a volume, the plane at
+    /// the view's z (its first slice where the view has none), as `rattle map` computes it
+    /// with that value set.
     pub fn map_config(&self, view: &View) -> crate::Result<Config> {
         let cfg = self.request(view, &[]).load(Command::Map)?.cfg;
+        let cfg = self.plane(cfg, view)?;
         EXPLORE.check(&cfg)?;
         Ok(cfg)
     }
 
-    /// The point at (`x`, `y`) of `view`'s axes, as `rattle point` reads it.
+    /// `cfg`'s plane at `view`'s z where the base is a volume (a z outside the volume's range
+    /// refused, naming it and the range); `cfg` itself otherwise.
+    fn plane(&self, cfg: Config, view: &View) -> crate::Result<Config> {
+        let Some(z) = self.cfg.z_axis() else {
+            return Ok(cfg);
+        };
+        let v = view.z.unwrap_or(z.values()[0]);
+        let (lo, hi) = (z.from.min(z.to), z.from.max(z.to));
+        if !(lo..=hi).contains(&v) {
+            return Err(crate::error::OptionError::Unsuitable {
+                option: "view z",
+                why: format!(
+                    "{} = {v:?} lies outside the volume's map.z_from .. map.z_to, [{lo}, {hi}]",
+                    z.param
+                ),
+            }
+            .into());
+        }
+        Ok(cfg.plane_at(v))
+    }
+
+    /// The view of `cfg` (a view's map configuration: [`Explorer::map_config`]), with its z
+    /// where the base is a volume.
+    pub fn view_of(&self, cfg: &Config) -> View {
+        let mut v = View::of(cfg);
+        v.z = self.cfg.z_axis().map(|z| z.param.get(&cfg.model.given()));
+        v
+    }
+
+    /// The point at (`x`, `y`) of `view`'s axes (at its z, in a volume), as `rattle point`
+    /// reads it.
     pub fn point_config(&self, view: &View, (x, y): (f64, f64)) -> crate::Result<Config> {
         let (px, py) = (self.cfg.map.x, self.cfg.map.y);
         let sets = [
             format!("model.{}={x:?}", px.name()),
             format!("model.{}={y:?}", py.name()),
         ];
-        Ok(self.request(view, &sets).load(Command::Point)?.cfg)
+        let cfg = self.request(view, &sets).load(Command::Point)?.cfg;
+        self.plane(cfg, view)
     }
 
     /// The shell commands that compute `view` as `rattle map` does, its files at `out`

@@ -155,6 +155,14 @@ macro_rules! define_params {
                 }
             }
 
+            /// This parameter's value in `p` (`Lambda`: the static coefficient).
+            pub fn get<F: Copy>(self, p: &Params<F>) -> F {
+                match self {
+                    $(Param::$variant => p.$field,)*
+                    Param::Lambda => p.fs,
+                }
+            }
+
             /// The [`Params`] field this parameter sets (`None` for `Lambda`, which sets two).
             pub fn field(self) -> Option<&'static str> {
                 match self {

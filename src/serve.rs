@@ -46,6 +46,9 @@ struct App {
     busy: AtomicBool,
     /// The last map computed at the configured grid, for the exports.
     last: Mutex<Option<Arc<MapResult>>>,
+    /// The maps computed at the configured grid, by view, newest last (at most [`KEPT`]): a
+    /// view shown before (a volume's slice the slider comes back to) is not computed again.
+    kept: Mutex<Vec<(View, Arc<MapResult>)>>,
     /// The boundaries located on the last map at the configured grid (its view's).
     bounds: Mutex<Option<(View, Arc<rattle::map::boundaries::Boundaries>)>>,
     /// The last clicked point's figure (PNG).
@@ -67,6 +70,9 @@ impl rattle::progress::Progress for App {
         self.total.fetch_add(n, Ordering::Relaxed);
     }
 }
+
+/// Full-grid maps kept for views shown again.
+const KEPT: usize = 64;
 
 /// What a computation is: a view's (a map, its boundaries) or a clicked point's.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -219,9 +225,27 @@ impl App {
         if let Outcome::Done(m) = &out
             && !is_coarse
         {
-            *self.last.lock().unwrap_or_else(|p| p.into_inner()) = Some(m.clone());
+            self.keep(m);
         }
         out
+    }
+
+    /// `m` (a map at the configured grid) is the last one, and kept for its view.
+    fn keep(&self, m: &Arc<MapResult>) {
+        *self.last.lock().unwrap_or_else(|p| p.into_inner()) = Some(m.clone());
+        let view = self.explorer.view_of(&m.cfg);
+        let mut kept = self.kept.lock().unwrap_or_else(|p| p.into_inner());
+        kept.retain(|(v, _)| *v != view);
+        kept.push((view, m.clone()));
+        if kept.len() > KEPT {
+            kept.remove(0);
+        }
+    }
+
+    /// The map of `view` at the configured grid, if one was computed.
+    fn kept(&self, view: &View) -> Option<Arc<MapResult>> {
+        let kept = self.kept.lock().unwrap_or_else(|p| p.into_inner());
+        kept.iter().find(|(v, _)| v == view).map(|(_, m)| m.clone())
     }
 
     /// The point `cfg` (at `xy` of the view's axes) as `rattle point` decides it, with its figure.
@@ -285,7 +309,7 @@ impl App {
             let why = "no map computed at the full grid yet";
             return Err(Refusal(StatusCode::CONFLICT, why.into()));
         };
-        let view = View::of(&m.cfg);
+        let view = self.explorer.view_of(&m.cfg);
         let text = |s: String| Ok(("text/plain; charset=utf-8", String::new(), s.into_bytes()));
         match what {
             // The served map's own configuration, carried whole.
@@ -401,8 +425,19 @@ async fn style() -> Response {
 
 async fn base(State(app): State<Arc<App>>) -> Response {
     let c = &app.explorer.cfg;
+    // A volume's z axis: the page's slider over its slices.
+    let z = c.z_axis().map(|z| {
+        serde_json::json!({
+            "param": z.param.name(),
+            "label": z.param.label(),
+            "values": z.values(),
+            "from": z.from,
+            "to": z.to,
+        })
+    });
     json_reply(&serde_json::json!({
         "view": View::of(c),
+        "z": z,
         "x_param": c.map.x.name(),
         "y_param": c.map.y.name(),
         "nx": c.map.x_points,
@@ -430,10 +465,18 @@ async fn map(State(app): State<Arc<App>>, body: Bytes) -> Response {
         Ok(c) => c,
         Err(e) => return error(StatusCode::BAD_REQUEST, e),
     };
+    let view = app.explorer.view_of(&cfg);
+    // A view shown before at the configured grid is answered from its map, coarse or not.
+    if let Some(m) = app.kept(&view) {
+        app.newest.fetch_add(1, Ordering::SeqCst);
+        app.stop_running(&[Kind::View, Kind::Point]);
+        app.keep(&m);
+        return out_map(Outcome::Done(m), false, view);
+    }
     let cfg = if req.coarse { coarse(&cfg) } else { cfg };
     let is_coarse = req.coarse;
     let out = newest_view(&app, move |worker, run| {
-        out_map(worker.compute_map(run, cfg, is_coarse), is_coarse)
+        out_map(worker.compute_map(run, cfg, is_coarse), is_coarse, view)
     })
     .await;
     out.unwrap_or_else(|e| error(StatusCode::INTERNAL_SERVER_ERROR, e))
@@ -468,11 +511,13 @@ async fn own_run<T: Send + 'static>(
     out
 }
 
-fn out_map(out: Outcome<Arc<MapResult>>, is_coarse: bool) -> Response {
+/// The page's reply of a map computed for `view`.
+fn out_map(out: Outcome<Arc<MapResult>>, is_coarse: bool, view: View) -> Response {
     match out {
         Outcome::Done(m) => {
-            let mut v =
-                serde_json::to_value(map_view(&m.cfg, &m.fields, is_coarse)).unwrap_or_default();
+            let mut mv = map_view(&m.cfg, &m.fields, is_coarse);
+            mv.view = view;
+            let mut v = serde_json::to_value(mv).unwrap_or_default();
             v["timings"] = serde_json::to_value(&m.report.timings).unwrap_or_default();
             json_reply(&v)
         }
@@ -518,7 +563,7 @@ async fn boundaries(State(app): State<Arc<App>>, body: Bytes) -> Response {
         Err(e) => return e.into_response(),
     };
     let last = app.last.lock().unwrap_or_else(|p| p.into_inner()).clone();
-    let Some(m) = last.filter(|m| View::of(&m.cfg) == req.view) else {
+    let Some(m) = last.filter(|m| app.explorer.view_of(&m.cfg) == req.view) else {
         let why = "the boundaries need that view's map at the configured grid first";
         return error(StatusCode::CONFLICT, why);
     };
@@ -718,6 +763,7 @@ pub fn serve(explorer: Explorer, addr: (std::net::IpAddr, u16), allowed: &[Strin
         total: AtomicU64::new(0),
         busy: AtomicBool::new(false),
         last: Mutex::new(None),
+        kept: Mutex::new(Vec::new()),
         bounds: Mutex::new(None),
         point_png: Mutex::new(None),
         exports: Mutex::new(None),

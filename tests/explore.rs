@@ -58,6 +58,7 @@ fn the_exported_command_line_computes_that_view() {
         x_to: 0.6125,
         y_from: 0.01,
         y_to: 0.0375,
+        z: None,
     };
     let line = e.command_line(&v, "out dir/view").unwrap();
     // The served configuration itself, in a here-document, then the map on it.
@@ -129,6 +130,53 @@ fn the_pages_map_is_the_maps_class_layer_with_every_cell_in_its_legend() {
 /// or a click replaces those ranges instead of being refused (round 7 M3: every view and click
 /// was refused, "both set `map.x_from`"), and the exported command line carries the view's
 /// ranges once.
+/// A volume is explored one plane at a time: a view's z names the plane, whose configuration is
+/// the slice `rattle map` computes at that z (any z of the volume's range; outside it refused
+/// with the range), its points are at that z, and the exported command carries that plane.
+#[test]
+fn a_volume_is_explored_one_plane_at_a_time() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let r = Request::new(
+        Source::File(format!("{root}/configs/atlas.toml").into()),
+        vec!["method.backend=cpu".into()],
+    );
+    let e = Explorer::new(r).unwrap().0;
+    let zs = e.cfg.z_axis().unwrap().values();
+    let home = View::of(&e.cfg);
+    assert_eq!(home.z, Some(zs[0]));
+    let v = View {
+        z: Some(zs[5]),
+        ..home
+    };
+    let cfg = e.map_config(&v).unwrap();
+    assert!(cfg.z_axis().is_none());
+    assert_eq!(cfg.model.eta, zs[5]);
+    assert!(same(&cfg, &e.cfg.slice(5)));
+    assert_eq!(e.view_of(&cfg), v);
+    assert!(same(&carried(&e.command_line(&v, "out").unwrap()), &cfg));
+    let between = View {
+        z: Some(1.5),
+        ..home
+    };
+    assert_eq!(e.map_config(&between).unwrap().model.eta, 1.5);
+    let outside = e
+        .map_config(&View {
+            z: Some(2.5),
+            ..home
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(
+        outside.contains("eta = 2.5") && outside.contains("[1, 2]"),
+        "{outside}"
+    );
+    let p = e.point_config(&v, (0.6, 0.02)).unwrap();
+    assert_eq!(
+        (p.model.restitution, p.model.lambda, p.model.eta),
+        (0.6, 0.02, zs[5])
+    );
+}
+
 #[test]
 fn a_base_with_ranges_set_takes_the_views_ranges() {
     let e = explorer(&["map.x_from=0.55", "map.y_to=0.05"]);
@@ -138,6 +186,7 @@ fn a_base_with_ranges_set_takes_the_views_ranges() {
         x_to: 0.65,
         y_from: 0.01,
         y_to: 0.02,
+        z: None,
     };
     let cfg = e.map_config(&v).unwrap();
     assert_eq!(View::of(&cfg), v);
@@ -442,6 +491,7 @@ fn very_large_coordinates_are_values() {
         x_to: 0.7,
         y_from: 0.0,
         y_to: 1e19,
+        z: None,
     };
     assert_eq!(e.map_config(&v).unwrap().map.y_to, 1e19);
     let p = e.point_config(&v, (0.6, 2.5e19)).unwrap();

@@ -345,3 +345,97 @@ def test_progress_names_its_phase_and_never_claims_100_percent_early(server, bro
     assert not any("100%" in s for s in seen), seen
     # The map takes long enough here for the page to have shown its progress at least once.
     assert any(re.search(r"map: (\d+%|looking)", s) for s in seen), seen
+
+
+VOLUME = CONFIG.replace("eta = 1.26\n", "") + """z = "eta"
+z_from = 1.2
+z_to = 1.5
+z_points = 3
+"""
+
+
+def test_a_volumes_slider_shows_each_slice_as_rattle_map_at_that_z(tmp_path, browser):
+    """A volume config: the page shows one plane with a slider over the slices; each slice shown
+    is `rattle map` at that z (the plane's config with the z value set), a dragged box keeps the
+    slice, the exported command reproduces the slice shown, and a slice shown before comes back
+    from the maps kept (no recomputation)."""
+    from selenium.webdriver.common.keys import Keys
+    b, d = browser, tmp_path
+    cfg = d / "vol.toml"
+    cfg.write_text(VOLUME)
+    plane = d / "plane.toml"
+    plane.write_text(CONFIG.replace("eta = 1.26\n", ""))
+    p = subprocess.Popen([str(BIN), "explore", "--config", str(cfg), "--port", "0"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        m = re.search(r"http://127\.0\.0\.1:\d+/", p.stdout.readline())
+        assert m
+        url = m.group(0)
+        st, base = get(url + "api/base")
+        base = json.loads(base)
+        zs = base["z"]["values"]
+        assert st == 200 and base["z"]["param"] == "eta" and len(zs) == 3
+        b.get(url)
+        slider = b.find_element("id", "z")
+        assert b.find_element("id", "zpick").is_displayed()
+
+        def cli(z, out):
+            run("map", "--config", str(plane), "--set", f"model.eta={z!r}", "--out", str(d / out))
+            return np.load(d / f"{out}-class.npy").reshape(-1)
+
+        shown = []
+        for k in range(3):
+            if k > 0:
+                # The keyboard moves the slider one slice, as a user's arrow key does.
+                slider.send_keys(Keys.ARROW_RIGHT)
+                t0 = time.time()
+                while b.execute_script("return window.rattle.map.view.z") != zs[k]:
+                    assert time.time() - t0 < 120, b.find_element("id", "status").text
+                    time.sleep(0.1)
+            m = settled(b)
+            assert m["view"]["z"] == zs[k]
+            assert f"eta = {zs[k]}" in b.find_element("id", "zval").text
+            assert f"z={zs[k]}" in b.current_url
+            assert np.array_equal(cli(zs[k], f"s{k}"), np.array(m["class"])), f"slice {k}"
+            shown.append(m["class"])
+            b.save_screenshot(str(SHOTS / f"explore-slice{k}.png"))
+        # The slices differ (the test compares more than one picture).
+        assert shown[0] != shown[2]
+        # The exported command computes the slice shown.
+        st, command = get(url + "api/export/command")
+        script = command.decode().replace("\nrattle map ", f"\n'{BIN}' map ")
+        r = subprocess.run(["bash", "-c", script], cwd=d, capture_output=True, text=True,
+                           timeout=600)
+        assert r.returncode == 0, r.stderr
+        assert np.array_equal(np.load(d / "view-class.npy").reshape(-1), np.array(shown[2]))
+        # A dragged box keeps the slice.
+        canvas = b.find_element("id", "map")
+        a, c = pixel(b, m, 0.2, 0.2), pixel(b, m, 0.7, 0.7)
+        ActionChains(b).move_to_element_with_offset(canvas, *a).click_and_hold() \
+            .move_to_element_with_offset(canvas, *c).release().perform()
+        t0 = time.time()
+        while b.execute_script("return window.rattle.map.view.x_from") == m["view"]["x_from"]:
+            assert time.time() - t0 < 60
+            time.sleep(0.1)
+        assert settled(b)["view"]["z"] == zs[2]
+        # Back to the first slice's full view: from the maps kept, at once.
+        b.back()
+        t0 = time.time()
+        while b.execute_script("return window.rattle.map.view.x_from") != m["view"]["x_from"]:
+            assert time.time() - t0 < 60
+            time.sleep(0.1)
+        slider.send_keys(Keys.HOME)
+        t0 = time.time()
+        back = settled(b)
+        while back["view"]["z"] != zs[0]:
+            assert time.time() - t0 < 60
+            time.sleep(0.1)
+            back = settled(b)
+        print(f"a kept slice back in {time.time() - t0:.2f} s")
+        assert back["class"] == shown[0] and not back["coarse"]
+        # A z outside the volume: refused with the range.
+        st, e = post(url + "api/map", {"view": {**base["view"], "z": 1.7}})
+        assert st == 400 and "[1.2, 1.5]" in e["error"], e
+    finally:
+        p.send_signal(signal.SIGINT)
+        p.wait(timeout=30)

@@ -297,9 +297,18 @@ impl Config {
     /// Slice `k` of a volume as the plane `rattle map` computes: the z parameter set to its
     /// k-th value, no z axis (a plane's config is its own only slice).
     pub fn slice(&self, k: usize) -> Config {
+        match self.z_axis() {
+            Some(z) => self.plane_at(z.values()[k]),
+            None => self.clone(),
+        }
+    }
+
+    /// The plane of a volume at `z` (any value of its z parameter, not only a slice's): the z
+    /// parameter set to it, no z axis.
+    pub fn plane_at(&self, v: f64) -> Config {
         let mut c = self.clone();
         if let Some(z) = self.z_axis() {
-            c.model.set(z.param, z.values()[k]);
+            c.model.set(z.param, v);
         }
         c.map.z = None;
         c.map.z_from = None;

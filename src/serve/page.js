@@ -46,13 +46,30 @@ function viewFromHash() {
   if (!keys.every((k) => h.has(k))) return null;
   const v = {};
   for (const k of keys) v[k] = Number(h.get(k));
-  return keys.every((k) => Number.isFinite(v[k])) ? v : null;
+  // A volume's plane: its z value.
+  if (h.has("z")) v.z = Number(h.get("z"));
+  return keys.concat(h.has("z") ? ["z"] : []).every((k) => Number.isFinite(v[k])) ? v : null;
 }
 
 function hashOf(v) {
-  return "#" + new URLSearchParams({
-    x_from: v.x_from, x_to: v.x_to, y_from: v.y_from, y_to: v.y_to,
-  }).toString();
+  const h = { x_from: v.x_from, x_to: v.x_to, y_from: v.y_from, y_to: v.y_to };
+  if (v.z !== undefined && v.z !== null) h.z = v.z;
+  return "#" + new URLSearchParams(h).toString();
+}
+
+function sameView(v, w) {
+  return v.x_from === w.x_from && v.x_to === w.x_to && v.y_from === w.y_from &&
+    v.y_to === w.y_to && (v.z ?? null) === (w.z ?? null);
+}
+
+// A volume's slider: one step per slice, showing the view's z.
+function syncSlider(v) {
+  const z = state.base && state.base.z;
+  if (!z) return;
+  const i = z.values.reduce((b, x, k) => (Math.abs(x - v.z) < Math.abs(z.values[b] - v.z) ? k : b), 0);
+  const s = document.getElementById("z");
+  s.value = String(i);
+  document.getElementById("zval").textContent = `${z.param} = ${v.z}`;
 }
 
 // Round ticks over [a, b].
@@ -230,6 +247,7 @@ function draw() {
   }));
   document.getElementById("where").textContent =
     `${m.x_param} ${v.x_from} .. ${v.x_to}, ${m.y_param} ${v.y_from} .. ${v.y_to}, ` +
+    (v.z !== undefined && state.base.z ? `${state.base.z.param} = ${v.z}, ` : "") +
     `${m.nx} x ${m.ny}${m.coarse ? " (coarse first picture, without the long look)" : ""}`;
 }
 
@@ -237,9 +255,7 @@ function draw() {
 function boundsOf(m) {
   const b = state.bounds;
   if (!b || !m || m.coarse || !document.getElementById("bounds").checked) return null;
-  const v = m.view, w = b.view;
-  return v.x_from === w.x_from && v.x_to === w.x_to && v.y_from === w.y_from && v.y_to === w.y_to
-    ? b : null;
+  return sameView(m.view, b.view) ? b : null;
 }
 
 function countTypes(b) {
@@ -320,6 +336,7 @@ async function watch(label, token, phase) {
 async function load(view, push) {
   if (push) history.pushState(null, "", hashOf(view));
   state.view = view;
+  syncSlider(view);
   const token = ++state.loads;
   state.busy = true;
   try {
@@ -505,6 +522,7 @@ window.addEventListener("mouseup", (ev) => {
     const py = (p) => v.y_from + ((a.y + a.h - Math.min(Math.max(p, a.y), a.y + a.h)) / a.h) * (v.y_to - v.y_from);
     const nv = { x_from: px(Math.min(x, x0)), x_to: px(Math.max(x, x0)),
       y_from: py(Math.max(y, y0)), y_to: py(Math.min(y, y0)) };
+    if (v.z !== undefined) nv.z = v.z;
     load(nv, true);
   } else {
     const c = cellAt(x, y);
@@ -529,12 +547,32 @@ document.getElementById("layer").addEventListener("change", (ev) => {
 });
 document.getElementById("back").addEventListener("click", () => history.back());
 document.getElementById("forward").addEventListener("click", () => history.forward());
-document.getElementById("home").addEventListener("click", () => load(state.base.view, true));
+// The configured ranges; a volume's plane stays where the slider is.
+document.getElementById("home").addEventListener("click", () => {
+  const v = { ...state.base.view };
+  if (state.view && state.view.z !== undefined) v.z = state.view.z;
+  load(v, true);
+});
+// The slider names the slice as it moves and loads it where it stops.
+document.getElementById("z").addEventListener("input", (ev) => {
+  const z = state.base.z;
+  document.getElementById("zval").textContent = `${z.param} = ${z.values[Number(ev.target.value)]}`;
+});
+document.getElementById("z").addEventListener("change", (ev) => {
+  const z = state.base.z.values[Number(ev.target.value)];
+  load({ ...(state.view || state.base.view), z }, true);
+});
 window.addEventListener("popstate", () => load(viewFromHash() || state.base.view, false));
 
 (async () => {
   try {
     state.base = await call("/api/base");
+    if (state.base.z) {
+      const s = document.getElementById("z");
+      s.max = String(state.base.z.values.length - 1);
+      document.getElementById("zname").textContent = state.base.z.label;
+      document.getElementById("zpick").hidden = false;
+    }
     const v = viewFromHash();
     if (!v) history.replaceState(null, "", hashOf(state.base.view));
     load(v || state.base.view, false);
