@@ -6,7 +6,9 @@
 //! the point along its edge.
 //!
 //! `cargo run --release --example judge_boundaries -- CONFIG PREFIX COUNT SEED [TYPE]`
-//! (TYPE: only the points of that type, e.g. `grazing`)
+//! (TYPE: only the points of that type, e.g. `grazing`). A volume's points are judged in the
+//! whole volume: its slices' along x or y, those between slices (`across`) along z; with
+//! `JUDGE_EDGES=slices` or `JUDGE_EDGES=across` only those.
 //!
 //! A located point says: the cycle of period n (`period`) continued from the cell `from`
 //! stops being stable here, of `type`. The judge continues its own cycle: Newton at the cell
@@ -68,17 +70,54 @@ fn main() -> anyhow::Result<()> {
     let bytes = std::fs::read(format!("{prefix}-class.npy"))?;
     let class: Vec<i32> = npyz::NpyFile::new(&bytes[..])?.into_vec()?;
     let m = &cfg.map;
-    let nx = m.x_points as usize;
+    let (nx, ny) = (m.x_points as usize, m.y_points as usize);
     let xs = Config::map_axis(m.x_from, m.x_to, m.x_points);
     let ys = Config::map_axis(m.y_from, m.y_to, m.y_points);
+    // A volume's z values (its slices' points carry their slice's z; those between slices,
+    // `across`, the z of their change).
+    let z = cfg.z_axis();
+    let zs = z.as_ref().map_or_else(|| vec![f64::NAN], |z| z.values());
+    let coords = |c: usize| -> [f64; 3] { [xs[c % nx], ys[(c / nx) % ny], zs[c / (nx * ny)]] };
     let zeno = cfg.settings().zeno_speed;
+    // Which points: JUDGE_EDGES=slices (within the slices), across (between them) or all.
+    let edges = std::env::var("JUDGE_EDGES").unwrap_or_else(|_| "all".into());
+    let empty = Vec::new();
+    let listed = |v: &serde_json::Value| v.as_array().unwrap_or(&empty).clone();
+    let (within, between) = (listed(&b["points"]), listed(&b["across"]["points"]));
+    // Each point with its cells in the whole volume and the axis of its edge.
+    let placed = |p: &serde_json::Value, across: bool| -> Pt {
+        let mut cells = [0, 1].map(|k| p["cells"][k].as_u64().unwrap() as usize);
+        if !across && let Some(z) = p["z"].as_f64() {
+            let k = zs.iter().position(|&v| v == z).expect("a slice's z");
+            cells = cells.map(|c| c + k * nx * ny);
+        }
+        let axis = match cells[1] - cells[0] {
+            1 => 0,
+            d if d == nx => 1,
+            _ => 2,
+        };
+        let z = p["z"].as_f64().unwrap_or(f64::NAN);
+        let pos = [p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap(), z];
+        Pt {
+            json: p.clone(),
+            cells,
+            axis,
+            pos,
+            across,
+        }
+    };
+    let mut all: Vec<Pt> = Vec::new();
+    if edges != "across" {
+        all.extend(within.iter().map(|p| placed(p, false)));
+    }
+    if edges != "slices" {
+        all.extend(between.iter().map(|p| placed(p, true)));
+    }
     // Located points and coexistence points are judged; the others say nothing to judge.
-    let mut pool: Vec<&serde_json::Value> = b["points"]
-        .as_array()
-        .unwrap()
+    let mut pool: Vec<&Pt> = all
         .iter()
-        .filter(|p| p["located"] == true || p["type"] == "coexistence")
-        .filter(|p| only.as_ref().is_none_or(|t| p["type"] == t.as_str()))
+        .filter(|q| q.json["located"] == true || q.json["type"] == "coexistence")
+        .filter(|q| only.as_ref().is_none_or(|t| q.json["type"] == t.as_str()))
         .collect();
     // Fisher-Yates with the fixed generator, then the first `count`.
     for i in (1..pool.len()).rev() {
@@ -86,20 +125,21 @@ fn main() -> anyhow::Result<()> {
         pool.swap(i, j);
     }
     pool.truncate(count);
-    let reference = |x: f64, y: f64| {
+    let reference = |at: [f64; 3]| {
         let mut p = cfg.params();
-        m.x.set(&mut p, x);
-        m.y.set(&mut p, y);
+        m.x.set(&mut p, at[0]);
+        m.y.set(&mut p, at[1]);
+        if let Some(z) = &z {
+            z.param.set(&mut p, at[2]);
+        }
         DryReference::new(&p, 1024, zeno).ok()
     };
     let cell_state = |c: usize| -> [f64; 4] { std::array::from_fn(|i| state[4 * c + i]) };
-    let judge = |p: &serde_json::Value| -> (Verdict, String) {
-        let cells = [0, 1].map(|k| p["cells"][k].as_u64().unwrap() as usize);
-        let along_x = cells[1] == cells[0] + 1;
-        let (x, y) = (p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap());
+    let judge = |q: &Pt| -> (Verdict, String) {
+        let (p, cells, axis, pos) = (&q.json, q.cells, q.axis, q.pos);
         let ty = p["type"].as_str().unwrap();
         if ty == "coexistence" {
-            let Some(r) = reference(x, y) else {
+            let Some(r) = reference(pos) else {
                 return (Verdict::CannotTell, "no reference".into());
             };
             // The side whose class is a cycle and whose cycle the reference finds stable here.
@@ -143,34 +183,25 @@ fn main() -> anyhow::Result<()> {
             );
         }
         let n = p["period"].as_u64().unwrap() as u32;
-        let from = p["from"].as_u64().unwrap() as usize;
+        // A slice's point names its cell in the slice: the same cell of the volume.
+        let from = p["from"].as_u64().unwrap() as usize
+            + (cells[0] - p["cells"][0].as_u64().unwrap() as usize);
         let other = if from == cells[0] { cells[1] } else { cells[0] };
-        let (cf, co) = if along_x {
-            (xs[from % nx], xs[other % nx])
-        } else {
-            (ys[from / nx], ys[other / nx])
-        };
+        let (cf, co) = (coords(from)[axis], coords(other)[axis]);
         let delta = (co - cf) / 64.0;
-        let at = |d: f64| {
-            if along_x {
-                reference(x + d, y)
-            } else {
-                reference(x, y + d)
-            }
+        let along = |v: f64| {
+            let mut at = pos;
+            at[axis] = v;
+            at
         };
+        let at = |d: f64| reference(along(pos[axis] + d));
         let Some(ra) = at(delta) else {
             return (Verdict::CannotTell, "no reference".into());
         };
         // The reference's own continuation from the `from` cell's attractor: Newton at the
         // cell from its final state, then 64 steps to 1/64 of a cell before the point.
-        let here = |v: f64| {
-            if along_x {
-                reference(v, y)
-            } else {
-                reference(x, v)
-            }
-        };
-        let v_point = if along_x { x } else { y };
+        let here = |v: f64| reference(along(v));
+        let v_point = pos[axis];
         // 1/64 of a cell before the point, or half way from the cell where the point lies
         // closer to the cell's centre than that.
         let v_before = if (v_point - cf).abs() > delta.abs() {
@@ -329,19 +360,10 @@ fn main() -> anyhow::Result<()> {
         // The class after the point (MODEL.md's full claim): what the motion reaches just
         // beyond it, 1/32 of a cell on (or half the way to the edge's next point), from the
         // point's own cycle and from the far cell's final state.
-        let next = b["points"]
-            .as_array()
-            .unwrap()
+        let next = all
             .iter()
-            .filter(|q| q["cells"] == p["cells"] && q["located"] == true)
-            .map(|q| {
-                let v = if along_x {
-                    q["x"].as_f64().unwrap()
-                } else {
-                    q["y"].as_f64().unwrap()
-                };
-                (v - v_point) * (co - cf).signum()
-            })
+            .filter(|o| o.cells == q.cells && o.json["located"] == true)
+            .map(|o| (o.pos[axis] - v_point) * (co - cf).signum())
             .filter(|&g| g > 0.0)
             .fold(f64::INFINITY, f64::min);
         let step = (delta.abs() / 2.0).min(0.5 * next) * (co - cf).signum();
@@ -365,13 +387,23 @@ fn main() -> anyhow::Result<()> {
         pool.par_iter().map(|p| judge(p)).collect()
     };
     let mut by_type: BTreeMap<(String, Verdict), usize> = BTreeMap::new();
-    for (p, (v, why)) in pool.iter().zip(&verdicts) {
+    for (q, (v, why)) in pool.iter().zip(&verdicts) {
+        let p = &q.json;
         let ty = p["type"].as_str().unwrap().to_string();
         *by_type.entry((ty.clone(), *v)).or_default() += 1;
+        let z = if q.pos[2].is_nan() {
+            String::new()
+        } else {
+            format!(
+                ", {:.6}{}",
+                q.pos[2],
+                if q.across { " between slices" } else { "" }
+            )
+        };
         println!(
-            "{ty} at ({:.6}, {:.6}) {} | {}: {v:?}: {why}",
-            p["x"].as_f64().unwrap(),
-            p["y"].as_f64().unwrap(),
+            "{ty} at ({:.6}, {:.6}{z}) {} | {}: {v:?}: {why}",
+            q.pos[0],
+            q.pos[1],
             p["classes"][0].as_str().unwrap(),
             p["classes"][1].as_str().unwrap(),
         );
@@ -390,6 +422,16 @@ fn main() -> anyhow::Result<()> {
         pool.len() - told
     );
     Ok(())
+}
+
+/// A point to judge: its JSON, its cells in the whole volume (a plane's own), the axis of its
+/// edge (0: x, 1: y, 2: z), where it lies, and whether it is between slices.
+struct Pt {
+    json: serde_json::Value,
+    cells: [usize; 2],
+    axis: usize,
+    pos: [f64; 3],
+    across: bool,
 }
 
 /// The names of [`features`]'s values.

@@ -69,27 +69,6 @@ fn read_ply(text: &str) -> Ply {
     Ply { elements, rows }
 }
 
-/// The distance from `p` to the triangle `t` (all in parameter values).
-fn to_triangle(p: [f64; 3], t: [[f64; 3]; 3]) -> f64 {
-    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let seg = |a: [f64; 3], b: [f64; 3]| {
-        let (ab, ap) = (sub(b, a), sub(p, a));
-        let t = (dot(ap, ab) / dot(ab, ab)).clamp(0.0, 1.0);
-        let q = [a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]];
-        dot(sub(p, q), sub(p, q)).sqrt()
-    };
-    let (u, v, w) = (sub(t[1], t[0]), sub(t[2], t[0]), sub(p, t[0]));
-    let (uu, uv, vv, wu, wv) = (dot(u, u), dot(u, v), dot(v, v), dot(w, u), dot(w, v));
-    let det = uu * vv - uv * uv;
-    let (s, r) = ((vv * wu - uv * wv) / det, (uu * wv - uv * wu) / det);
-    if s >= 0.0 && r >= 0.0 && s + r <= 1.0 {
-        let q: [f64; 3] = std::array::from_fn(|i| t[0][i] + s * u[i] + r * v[i]);
-        return dot(sub(p, q), sub(p, q)).sqrt();
-    }
-    seg(t[0], t[1]).min(seg(t[1], t[2])).min(seg(t[2], t[0]))
-}
-
 #[test]
 fn a_doubling_between_slices_is_located_judged_and_meshed_through_fig2s_point() {
     let d = scratch("surfaces");
@@ -242,7 +221,7 @@ fn a_doubling_between_slices_is_located_judged_and_meshed_through_fig2s_point() 
                 (0.0, 1.0),
                 "a period-1 doubling: type 0, period 1"
             );
-            nearest = nearest.min(to_triangle([0.6, 0.02, 1.37059], t));
+            nearest = nearest.min(rattle::map::surfaces::distance([0.6, 0.02, 1.37059], t));
         }
     }
     eprintln!("the doubling sheet passes {nearest:.2e} from Fig. 2's point");

@@ -177,6 +177,28 @@ def _warn(ws) -> None:
         _warnings.warn(w, RuntimeWarning, stacklevel=4)
 
 
+def _points(pts: list, with_z: bool) -> dict:
+    """Boundary points (JSON objects) as arrays by key."""
+    out = {
+        "x": np.asarray([p["x"] for p in pts], dtype=float),
+        "y": np.asarray([p["y"] for p in pts], dtype=float),
+        "type": np.asarray([p["type"] for p in pts], dtype=str),
+        "class_a": np.asarray([p["classes"][0] for p in pts], dtype=str),
+        "class_b": np.asarray([p["classes"][1] for p in pts], dtype=str),
+        "before": np.asarray([p["change"][0] for p in pts], dtype=str),
+        "after": np.asarray([p["change"][1] for p in pts], dtype=str),
+        "uncertainty": np.asarray([p["uncertainty"] for p in pts], dtype=float),
+        "located": np.asarray([p["located"] for p in pts], dtype=bool),
+        "period": np.asarray([p["period"] for p in pts], dtype=int),
+        "reason": np.asarray([p.get("reason", "") for p in pts], dtype=str),
+        "evidence": np.asarray([p.get("evidence", "") for p in pts], dtype=str),
+    }
+    if with_z:
+        # A volume's: each point with its slice's z, or the z of its change between slices.
+        out["z"] = np.asarray([p["z"] for p in pts], dtype=float)
+    return out
+
+
 def _npy(b: bytes) -> np.ndarray:
     return np.load(io.BytesIO(b), allow_pickle=False)
 
@@ -264,28 +286,17 @@ class Map:
         with `z`),
         `curves` as a list of dicts with `type`, `classes` (a volume's with `z`) and `points` (an array of
         shape (k, 2) in parameter values), and the counts (`edges`, `trials`,
-        `continuations`, `claims`, `continuation_s`, `coexistence_s`, `seconds`)."""
+        `continuations`, `claims`, `continuation_s`, `coexistence_s`, `seconds`). A volume's
+        also has `across` (the changes on the edges between its slices: its `points` as
+        arrays with `z`, and its counts) and `surfaces` (`sheets`: type, changing class,
+        period, vertices, triangles, extent; `codim2`: where sheets of two types meet)."""
         j = json.loads(self._data.boundaries())
-        pts = j["points"]
-        j["points"] = {
-            "x": np.asarray([p["x"] for p in pts], dtype=float),
-            "y": np.asarray([p["y"] for p in pts], dtype=float),
-            "type": np.asarray([p["type"] for p in pts], dtype=str),
-            "class_a": np.asarray([p["classes"][0] for p in pts], dtype=str),
-            "class_b": np.asarray([p["classes"][1] for p in pts], dtype=str),
-            "before": np.asarray([p["change"][0] for p in pts], dtype=str),
-            "after": np.asarray([p["change"][1] for p in pts], dtype=str),
-            "uncertainty": np.asarray([p["uncertainty"] for p in pts], dtype=float),
-            "located": np.asarray([p["located"] for p in pts], dtype=bool),
-            "period": np.asarray([p["period"] for p in pts], dtype=int),
-            "reason": np.asarray([p.get("reason", "") for p in pts], dtype=str),
-            "evidence": np.asarray([p.get("evidence", "") for p in pts], dtype=str),
-        }
-        if self.z_param is not None:
-            # A volume's slices: each point and curve with its slice's z value.
-            j["points"]["z"] = np.asarray([p["z"] for p in pts], dtype=float)
+        j["points"] = _points(j["points"], self.z_param is not None)
         for c in j["curves"]:
             c["points"] = np.asarray(c["points"], dtype=float).reshape(-1, 2)
+        if "across" in j:
+            # A volume's edges between slices: each point with the z of its change.
+            j["across"]["points"] = _points(j["across"]["points"], True)
         return j
 
     def to_dict(self) -> dict:

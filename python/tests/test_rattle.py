@@ -295,6 +295,20 @@ def test_a_volume_is_the_command_lines_z_y_x_arrays(tmp_path):
     assert "volume 3 x 5 x 6" in repr(m)
 
 
+def test_a_volumes_boundaries_between_slices_are_the_command_lines(tmp_path):
+    m = rattle.map(RL, **VOLUME)
+    b = m.boundaries()
+    r = cli("map", "--config", RL, *sets(VOLUME), "--boundaries", "--out", str(tmp_path / "cli"))
+    assert r.returncode == 0, r.stderr
+    j = json.loads((tmp_path / "cli-boundaries.json").read_text())
+    a = j["across"]["points"]
+    assert len(a) > 0 and b["across"]["edges"] == j["across"]["edges"]
+    np.testing.assert_array_equal(b["across"]["points"]["z"], [p["z"] for p in a])
+    np.testing.assert_array_equal(b["across"]["points"]["x"], [p["x"] for p in a])
+    assert list(b["across"]["points"]["type"]) == [p["type"] for p in a]
+    assert b["surfaces"] == j["surfaces"]
+
+
 def test_a_volume_is_refused_as_the_command_line_refuses_it():
     bad = dict(VOLUME, **{"map.z": "R"})
     with pytest.raises(rattle.ConfigError, match="map.z"):

@@ -420,6 +420,27 @@ impl Surfaces {
     }
 }
 
+/// The least distance from `p` to the triangle `t` (in the units of their coordinates).
+pub fn distance(p: [f64; 3], t: [[f64; 3]; 3]) -> f64 {
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let seg = |a: [f64; 3], b: [f64; 3]| {
+        let (ab, ap) = (sub(b, a), sub(p, a));
+        let s = (dot(ap, ab) / dot(ab, ab)).clamp(0.0, 1.0);
+        let q = [a[0] + s * ab[0], a[1] + s * ab[1], a[2] + s * ab[2]];
+        dot(sub(p, q), sub(p, q)).sqrt()
+    };
+    let (u, v, w) = (sub(t[1], t[0]), sub(t[2], t[0]), sub(p, t[0]));
+    let (uu, uv, vv, wu, wv) = (dot(u, u), dot(u, v), dot(v, v), dot(w, u), dot(w, v));
+    let det = uu * vv - uv * uv;
+    let (s, r) = ((vv * wu - uv * wv) / det, (uu * wv - uv * wu) / det);
+    if det > 0.0 && s >= 0.0 && r >= 0.0 && s + r <= 1.0 {
+        let q: [f64; 3] = std::array::from_fn(|i| t[0][i] + s * u[i] + r * v[i]);
+        return dot(sub(p, q), sub(p, q)).sqrt();
+    }
+    seg(t[0], t[1]).min(seg(t[1], t[2])).min(seg(t[2], t[0]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
