@@ -466,8 +466,9 @@ async fn map(State(app): State<Arc<App>>, body: Bytes) -> Response {
         Err(e) => return error(StatusCode::BAD_REQUEST, e),
     };
     let view = app.explorer.view_of(&cfg);
-    // A view shown before at the configured grid is answered from its map, coarse or not.
-    if let Some(m) = app.kept(&view) {
+    // A view shown before at the configured grid is answered from its map (the coarse picture
+    // is still the coarse picture: it costs little, and the API says what it is).
+    if let Some(m) = (!req.coarse).then(|| app.kept(&view)).flatten() {
         app.newest.fetch_add(1, Ordering::SeqCst);
         app.stop_running(&[Kind::View, Kind::Point]);
         app.keep(&m);
