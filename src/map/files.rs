@@ -1058,8 +1058,8 @@ fn surfaces_figure(
         .filter(|sh| sh.kind.ty.ty() == Type::Coexistence)
         .count();
     let note = format!(
-        "{} coexistence sheets not drawn\n{} codimension-two candidates\n(where sheets of two \
-         types cross one\ncube of cells: the JSON's codim2)",
+        "{} coexistence sheets not drawn\n{} codimension-two candidates\n(where a sheet ends on \
+         one of another\ntype: the JSON's codim2)",
         grouped(coexist),
         grouped(sf.codim2.len())
     );

@@ -61,15 +61,20 @@ pub struct Sheet {
     pub hi: [f64; 3],
 }
 
-/// Where sheets of two different types pass through one cube of the grid: a candidate point
-/// of codimension two (a curve where, say, a period-doubling sheet ends on a grazing sheet),
-/// at the mean of the two sheets' points in that cube.
+/// Where a sheet ends on a sheet of another type: a cube inside the grid (not on its outer
+/// layer, where every sheet ends with the grid) holding an edge of the first sheet's rim (a
+/// mesh edge of one triangle only) and a triangle of the second: a candidate point of
+/// codimension two (a period-doubling sheet ending on a grazing sheet, say), at the mean of
+/// the first sheet's rim points in that cube.
 #[derive(Clone, Debug, Serialize)]
 pub struct Meeting {
     pub x: f64,
     pub y: f64,
     pub z: f64,
+    /// The sheet that ends, then the one it ends on (their kinds, and their indices in
+    /// [`Surfaces::sheets`]).
     pub kinds: [Kind; 2],
+    pub sheets: [u32; 2],
 }
 
 /// The surfaces of a volume's boundaries.
@@ -197,22 +202,18 @@ pub fn of(cfg: &Config, b: &MapBoundaries) -> Surfaces {
     };
     let mut vertices: Vec<([f64; 3], u32)> = Vec::new();
     let mut sheets = Vec::new();
-    // Each cube's points of each kind (for the meetings).
-    let mut in_cube: BTreeMap<usize, Vec<(Kind, Vec<usize>)>> = BTreeMap::new();
+    // For the meetings: each cube's sheets, and the rim points of each sheet that ends there.
+    let mut passes: BTreeMap<usize, Vec<u32>> = BTreeMap::new();
+    let mut rims: BTreeMap<usize, Vec<(u32, Vec<usize>)>> = BTreeMap::new();
     for (kind, on_edge) in &by_kind {
         let mut faces: Vec<[usize; 3]> = Vec::new();
+        let mut face_cube: Vec<usize> = Vec::new();
         let mut seen: HashSet<[usize; 3]> = HashSet::new();
         for c in cubes() {
             let pts: Vec<usize> = cube_edges(c)
                 .iter()
                 .filter_map(|e| on_edge.get(e).copied())
                 .collect();
-            if pts.len() >= 2 {
-                in_cube
-                    .entry(c)
-                    .or_default()
-                    .push((kind.clone(), pts.clone()));
-            }
             if pts.len() < 3 {
                 continue;
             }
@@ -221,6 +222,7 @@ pub fn of(cfg: &Config, b: &MapBoundaries) -> Surfaces {
                 key.sort_unstable();
                 if seen.insert(key) {
                     faces.push(t);
+                    face_cube.push(c);
                 }
             }
         }
@@ -250,6 +252,27 @@ pub fn of(cfg: &Config, b: &MapBoundaries) -> Surfaces {
                 .strip_prefix("period-")
                 .and_then(|n| n.parse().ok())
                 .unwrap_or(0);
+            // The rim: mesh edges of one triangle only, by the cube of that triangle.
+            let mut uses: HashMap<(usize, usize), usize> = HashMap::new();
+            for &f in &part {
+                let t = faces[f];
+                for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                    *uses.entry((a.min(b), a.max(b))).or_default() += 1;
+                }
+            }
+            for &f in &part {
+                let (t, c) = (faces[f], face_cube[f]);
+                passes.entry(c).or_default().push(sheet);
+                for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                    if uses[&(a.min(b), a.max(b))] == 1 {
+                        let r = rims.entry(c).or_default();
+                        match r.iter_mut().find(|(s, _)| *s == sheet) {
+                            Some((_, pts)) => pts.extend([a, b]),
+                            None => r.push((sheet, vec![a, b])),
+                        }
+                    }
+                }
+            }
             sheets.push(Sheet {
                 kind: kind.clone(),
                 period,
@@ -261,22 +284,36 @@ pub fn of(cfg: &Config, b: &MapBoundaries) -> Surfaces {
             });
         }
     }
+    // Cubes off the grid's outer layer: there a sheet's rim is the grid's edge.
+    let inside = |c: usize| {
+        let (ix, iy, iz) = (c % nx, (c / nx) % ny, c / per);
+        (1..nx.saturating_sub(2)).contains(&ix)
+            && (1..ny.saturating_sub(2)).contains(&iy)
+            && (1..nz.saturating_sub(2)).contains(&iz)
+    };
+    for list in passes.values_mut() {
+        list.sort_unstable();
+        list.dedup();
+    }
+    // Bifurcations of two types; a coexistence is a basin's edge, not one.
+    let bifurcation = |k: &Kind| k.ty.ty() != Type::Coexistence;
     let mut codim2 = Vec::new();
-    for list in in_cube.values() {
-        for (i, (ka, pa)) in list.iter().enumerate() {
-            for (kb, pb) in &list[i + 1..] {
-                // Bifurcations of two types; a coexistence is a basin's edge, not one.
-                let bifurcation = |k: &Kind| k.ty.ty() != Type::Coexistence;
+    for (c, rim) in rims.iter().filter(|(c, _)| inside(**c)) {
+        for (a, pts) in rim {
+            let ka = &sheets[*a as usize].kind;
+            for &b in passes.get(c).into_iter().flatten() {
+                let kb = &sheets[b as usize].kind;
                 if ka.ty == kb.ty || !bifurcation(ka) || !bifurcation(kb) {
                     continue;
                 }
-                let all: Vec<[f64; 3]> = pa.iter().chain(pb).map(|&i| placed[i].1).collect();
-                let mean = |d: usize| all.iter().map(|p| p[d]).sum::<f64>() / all.len() as f64;
+                let mean =
+                    |d: usize| pts.iter().map(|&i| placed[i].1[d]).sum::<f64>() / pts.len() as f64;
                 codim2.push(Meeting {
                     x: mean(0),
                     y: mean(1),
                     z: mean(2),
                     kinds: [ka.clone(), kb.clone()],
+                    sheets: [*a, b],
                 });
             }
         }
