@@ -61,11 +61,11 @@ pub struct Sheet {
     pub hi: [f64; 3],
 }
 
-/// Where a sheet ends on a sheet of another type: a cube inside the grid (not on its outer
-/// layer, where every sheet ends with the grid) holding an edge of the first sheet's rim (a
-/// mesh edge of one triangle only) and a triangle of the second: a candidate point of
-/// codimension two (a period-doubling sheet ending on a grazing sheet, say), at the mean of
-/// the first sheet's rim points in that cube.
+/// Where a sheet ends on a sheet of another type: the first sheet's rim (its mesh edges of one
+/// triangle only) stops at a face of the grid's cubes, and the cube across that face (inside
+/// the grid: a rim on the grid's outer face is the grid's end) holds a triangle of the second:
+/// a candidate point of codimension two (a period-doubling sheet ending on a grazing sheet,
+/// say), at the mean of the first sheet's rim points there.
 #[derive(Clone, Debug, Serialize)]
 pub struct Meeting {
     pub x: f64,
@@ -200,6 +200,28 @@ pub fn of(cfg: &Config, b: &MapBoundaries) -> Surfaces {
             })
         })
     };
+    // The cube across the face of cube `c` that holds both grid edges `e` and `f` (`None` where
+    // that face is the grid's outer one); `c` itself where no face holds both.
+    let across = |c: usize, e: EdgeKey, f: EdgeKey| -> Option<usize> {
+        let at = |cell: usize| [cell % nx, (cell / nx) % ny, cell / per];
+        let (n, step) = ([nx, ny, nz], [1, nx, per]);
+        let c0 = at(c);
+        let on = |(cell, axis): EdgeKey, d: usize, v: usize| {
+            usize::from(axis) != d && at(cell)[d] == c0[d] + v
+        };
+        for d in 0..3 {
+            for v in 0..2 {
+                if on(e, d, v) && on(f, d, v) {
+                    return match v {
+                        0 if c0[d] > 0 => Some(c - step[d]),
+                        1 if c0[d] + 2 < n[d] => Some(c + step[d]),
+                        _ => None,
+                    };
+                }
+            }
+        }
+        Some(c)
+    };
     let mut vertices: Vec<([f64; 3], u32)> = Vec::new();
     let mut sheets = Vec::new();
     // For the meetings: each cube's sheets, and the rim points of each sheet that ends there.
@@ -252,7 +274,9 @@ pub fn of(cfg: &Config, b: &MapBoundaries) -> Surfaces {
                 .strip_prefix("period-")
                 .and_then(|n| n.parse().ok())
                 .unwrap_or(0);
-            // The rim: mesh edges of one triangle only, by the cube of that triangle.
+            // The rim: mesh edges of one triangle only, by the cube beyond it (the rim's two
+            // points lie on a face of the triangle's cube: the sheet stops at that face, and
+            // what stops it lies in the cube across; a rim through a cube's inside, that cube).
             let mut uses: HashMap<(usize, usize), usize> = HashMap::new();
             for &f in &part {
                 let t = faces[f];
@@ -265,7 +289,10 @@ pub fn of(cfg: &Config, b: &MapBoundaries) -> Surfaces {
                 passes.entry(c).or_default().push(sheet);
                 for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
                     if uses[&(a.min(b), a.max(b))] == 1 {
-                        let r = rims.entry(c).or_default();
+                        let Some(beyond) = across(c, placed[a].0, placed[b].0) else {
+                            continue;
+                        };
+                        let r = rims.entry(beyond).or_default();
                         match r.iter_mut().find(|(s, _)| *s == sheet) {
                             Some((_, pts)) => pts.extend([a, b]),
                             None => r.push((sheet, vec![a, b])),
@@ -284,13 +311,6 @@ pub fn of(cfg: &Config, b: &MapBoundaries) -> Surfaces {
             });
         }
     }
-    // Cubes off the grid's outer layer: there a sheet's rim is the grid's edge.
-    let inside = |c: usize| {
-        let (ix, iy, iz) = (c % nx, (c / nx) % ny, c / per);
-        (1..nx.saturating_sub(2)).contains(&ix)
-            && (1..ny.saturating_sub(2)).contains(&iy)
-            && (1..nz.saturating_sub(2)).contains(&iz)
-    };
     for list in passes.values_mut() {
         list.sort_unstable();
         list.dedup();
@@ -298,7 +318,7 @@ pub fn of(cfg: &Config, b: &MapBoundaries) -> Surfaces {
     // Bifurcations of two types; a coexistence is a basin's edge, not one.
     let bifurcation = |k: &Kind| k.ty.ty() != Type::Coexistence;
     let mut codim2 = Vec::new();
-    for (c, rim) in rims.iter().filter(|(c, _)| inside(**c)) {
+    for (c, rim) in &rims {
         for (a, pts) in rim {
             let ka = &sheets[*a as usize].kind;
             for &b in passes.get(c).into_iter().flatten() {
@@ -506,6 +526,107 @@ mod tests {
             .sum();
         let want = 3.0 * 3f64.sqrt() / 2.0 * 0.5;
         assert!((area - want).abs() < 1e-12, "{area} against {want}");
+    }
+
+    /// A horizontal doubling sheet (between slices 1 and 2, over x cells 0-2) that stops at a
+    /// vertical grazing sheet (between x cells 2 and 3, through the whole volume): each of the
+    /// doubling sheet's rim segments along the grazing sheet is a meeting, and no other rim
+    /// (those on the grid's outer faces, the grazing sheet's) is one.
+    #[test]
+    fn a_sheet_ending_on_another_is_a_meeting() {
+        use crate::map::boundaries::{Boundaries, Point};
+        use crate::model::Param;
+        let n = 5usize;
+        let mut cfg = Config::default();
+        cfg.map.x_points = n as u32;
+        cfg.map.y_points = n as u32;
+        cfg.map.z = Some(Param::Eta);
+        cfg.map.z_from = Some(1.0);
+        cfg.map.z_to = Some(2.0);
+        cfg.map.z_points = Some(n as u32);
+        let m = &cfg.map;
+        let xs = Config::map_axis(m.x_from, m.x_to, m.x_points);
+        let ys = Config::map_axis(m.y_from, m.y_to, m.y_points);
+        let zs = cfg.z_axis().unwrap().values();
+        let point = |at: [f64; 3], z: Option<f64>, ty, class: &str, cells| Point {
+            x: at[0],
+            y: at[1],
+            z,
+            ty,
+            classes: [class.into(), "chaotic".into()],
+            change: [class.into(), "chaotic".into()],
+            uncertainty: 0.0,
+            located: true,
+            period: 1,
+            cells,
+            from: Some(cells[0]),
+            section: None,
+            reason: "",
+            evidence: String::new(),
+            edge: 0,
+            after_by_default: false,
+        };
+        let empty = |points| Boundaries {
+            x_param: "R",
+            y_param: "lambda",
+            edges: 0,
+            curves: Vec::new(),
+            points,
+            trials: 0,
+            continuations: 0,
+            claims: 0,
+            continuation_s: 0.0,
+            coexistence_s: 0.0,
+            seconds: 0.0,
+        };
+        let per = n * n;
+        // The grazing sheet: in every slice, the edges between x cells 2 and 3.
+        let slices = (0..n)
+            .map(|_| {
+                empty(
+                    (0..n)
+                        .map(|iy| {
+                            let a = iy * n + 2;
+                            let at = [0.5 * (xs[2] + xs[3]), ys[iy], f64::NAN];
+                            point(at, None, Type::Grazing, "period-2", [a, a + 1])
+                        })
+                        .collect(),
+                )
+            })
+            .collect();
+        // The doubling sheet: between slices 1 and 2 over x cells 0-2.
+        let z = 0.5 * (zs[1] + zs[2]);
+        let across = (0..n)
+            .flat_map(|iy| (0..3).map(move |ix| (ix, iy)))
+            .map(|(ix, iy)| {
+                let a = per + iy * n + ix;
+                let at = [xs[ix], ys[iy], z];
+                point(at, Some(z), Type::PeriodDoubling, "period-1", [a, a + per])
+            })
+            .collect();
+        let sf = of(
+            &cfg,
+            &MapBoundaries {
+                slices,
+                across: Some(empty(across)),
+            },
+        );
+        let kinds: Vec<(&str, &str)> = sf
+            .sheets
+            .iter()
+            .map(|s| (s.kind.ty.ty().name(), &s.kind.class[..]))
+            .collect();
+        assert_eq!(
+            kinds,
+            [("period_doubling", "period-1"), ("grazing", "period-2")]
+        );
+        // One meeting per cube along y beside the grazing sheet, at x cell 2, between the slices.
+        assert_eq!(sf.codim2.len(), n - 1, "{:?}", sf.codim2);
+        for (k, c) in sf.codim2.iter().enumerate() {
+            assert_eq!(c.sheets, [0, 1]);
+            assert_eq!((c.x, c.z), (xs[2], z));
+            assert!((c.y - 0.5 * (ys[k] + ys[k + 1])).abs() < 1e-12, "{c:?}");
+        }
     }
 
     #[test]
