@@ -273,6 +273,14 @@ pub struct MapBoundaries {
 /// Python's `Map.boundaries()`): each slice's ([`of_slices`]) and, for a volume, those
 /// between slices ([`locate_across`]).
 pub fn of_map(engine: &Engine, cfg: &Config, f: &super::Fields) -> crate::Result<MapBoundaries> {
+    // After the map's progress bar: say what the minutes that follow are spent on.
+    match cfg.z_axis() {
+        Some(z) => log::info!(
+            "boundaries: locating them in each of {} slices, then on the edges between slices",
+            z.points
+        ),
+        None => log::info!("boundaries: locating them"),
+    }
     let slices = of_slices(engine, cfg, f)?;
     let across = match cfg.z_axis() {
         None => None,
