@@ -91,10 +91,11 @@ fn main() -> anyhow::Result<()> {
             let k = zs.iter().position(|&v| v == z).expect("a slice's z");
             cells = cells.map(|c| c + k * nx * ny);
         }
+        // y before x: a grid one cell wide has y edges of one cell's step.
         let axis = match cells[1] - cells[0] {
-            1 => 0,
+            d if d == nx * ny => 2,
             d if d == nx => 1,
-            _ => 2,
+            _ => 0,
         };
         let z = p["z"].as_f64().unwrap_or(f64::NAN);
         let pos = [p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap(), z];

@@ -1257,8 +1257,8 @@ fn stage_boundaries(
         for p in &b.points {
             let along = match zs {
                 None => "",
-                Some(_) if p.cells[1].abs_diff(p.cells[0]) == 1 => ",x",
-                Some(_) => ",y",
+                Some(_) if p.cells[1].abs_diff(p.cells[0]) == nx => ",y",
+                Some(_) => ",x",
             };
             row(&mut csv, z.clone(), p, along);
         }

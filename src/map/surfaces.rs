@@ -147,7 +147,8 @@ pub fn of(cfg: &Config, b: &MapBoundaries) -> Surfaces {
     for (k, s) in b.slices.iter().enumerate() {
         for p in &s.points {
             let (a, c) = (p.cells[0].min(p.cells[1]), p.cells[0].max(p.cells[1]));
-            let axis = if c == a + 1 { X } else { Y };
+            // (A grid one cell wide has y edges of one cell's step: tell y first.)
+            let axis = if c - a == nx { Y } else { X };
             placed.push(((k * per + a, axis), [p.x, p.y, zs[k]], p));
         }
     }
