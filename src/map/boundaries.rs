@@ -325,8 +325,16 @@ pub struct VolumeBoundaries<'a> {
 }
 
 impl<'a> VolumeBoundaries<'a> {
-    /// The boundaries `b` ([`of_map`]) of the volume `cfg`.
+    /// The boundaries `b` ([`of_map`]) of the volume `cfg`, with their surfaces.
     pub fn of(cfg: &Config, b: &'a MapBoundaries) -> VolumeBoundaries<'a> {
+        VolumeBoundaries {
+            surfaces: b.across.as_ref().map(|_| super::surfaces::of(cfg, b)),
+            ..VolumeBoundaries::summed(cfg, b)
+        }
+    }
+
+    /// The same without the surfaces (the terminal's line needs only the sums).
+    fn summed(cfg: &Config, b: &'a MapBoundaries) -> VolumeBoundaries<'a> {
         let slices = &b.slices[..];
         let zs = cfg.z_axis().map_or_else(|| vec![f64::NAN], |z| z.values());
         let sum = |f: &dyn Fn(&Boundaries) -> f64| slices.iter().map(f).sum::<f64>();
@@ -346,7 +354,7 @@ impl<'a> VolumeBoundaries<'a> {
             coexistence_s: sum(&|b| b.coexistence_s),
             seconds: sum(&|b| b.seconds),
             across: b.across.as_ref(),
-            surfaces: b.across.as_ref().map(|_| super::surfaces::of(cfg, b)),
+            surfaces: None,
         }
     }
 }
@@ -371,7 +379,7 @@ pub fn summary_of(cfg: &Config, b: &MapBoundaries) -> String {
     match (cfg.z_axis(), &b.slices[..]) {
         (None, [one]) => summary_line(one),
         (_, slices) => {
-            let v = VolumeBoundaries::of(cfg, b);
+            let v = VolumeBoundaries::summed(cfg, b);
             let across = b.across.as_ref().map_or(String::new(), |a| {
                 let line = summary_line(a);
                 format!(

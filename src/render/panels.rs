@@ -672,6 +672,15 @@ mod tests {
             .collect()
     }
 
+    /// Each slice with its panel title (an eta value).
+    fn titled<T>(slices: &[Vec<T>]) -> Vec<(String, &[T])> {
+        slices
+            .iter()
+            .enumerate()
+            .map(|(k, s)| (format!("eta = {:.4}", 1.0 + k as f64 / 15.0), &s[..]))
+            .collect()
+    }
+
     /// Pixel centre of cell `(ix, iy)` in a panel whose cell area starts at `at`.
     fn cell_pixel((px, py): (i32, i32), s: i32, ix: usize, iy: usize) -> (u32, u32) {
         let c = (ix as f64 + 0.5) / NX as f64 * f64::from(s);
@@ -681,11 +690,7 @@ mod tests {
 
     fn category_figure(n: usize, name: &str) -> (Geometry, Vec<Vec<u16>>) {
         let slices: Vec<Vec<u16>> = (0..n).map(|k| slice(k, n)).collect();
-        let panels: Vec<(String, &[u16])> = slices
-            .iter()
-            .enumerate()
-            .map(|(k, s)| (format!("eta = {:.4}", 1.0 + k as f64 / 15.0), &s[..]))
-            .collect();
+        let panels = titled(&slices);
         let line: Vec<[f64; 2]> = (0..=20)
             .map(|j| [0.1 * j as f64, -1.2 + 0.12 * j as f64])
             .collect();
@@ -808,11 +813,7 @@ mod tests {
     fn frames_gif_one_slice_a_frame_legend_fixed() {
         let n = 5;
         let slices: Vec<Vec<u16>> = (0..n).map(|k| slice(k, n)).collect();
-        let panels: Vec<(String, &[u16])> = slices
-            .iter()
-            .enumerate()
-            .map(|(k, s)| (format!("eta = {:.4}", 1.0 + k as f64 / 15.0), &s[..]))
-            .collect();
+        let panels = titled(&slices);
         let p = CategoryPanels {
             title: "attractor class over (a, b) at 5 values of eta",
             x_label: "a (forcing amplitude)",
@@ -896,11 +897,7 @@ mod tests {
                     .collect()
             })
             .collect();
-        let panels: Vec<(String, &[f64])> = slices
-            .iter()
-            .enumerate()
-            .map(|(k, s)| (format!("eta = {:.4}", 1.0 + k as f64 / 15.0), &s[..]))
-            .collect();
+        let panels = titled(&slices);
         let p = ScalarPanels {
             title: "largest Lyapunov exponent over (a, b) at 16 values of eta",
             x_label: "a (forcing amplitude)",
