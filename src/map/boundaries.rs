@@ -48,17 +48,18 @@ const NO_CYCLE: &str = "no stable cycle on either side to continue";
 /// Why an edge between impact-free motion and an impacting attractor is `undetermined` where
 /// the impact-free motion does not graze between the cells: the impacting side's motion at the
 /// edge's midpoint, run from its own state for twice the map's periods with its look,
-/// still impacts in its last period (the first) or
-/// ends impact-free (the second). Near such a crisis chaotic transients outlast any fixed look
+/// still impacts in the last [`SETTLE_WINDOW`] periods (the first) or ends impact-free, none
+/// in them (the second; one period alone took a chaotic motion's period without an impact,
+/// one in several at 1.6 impacts a period, for its end). Near such a crisis chaotic transients outlast any fixed look
 /// (the reference finds some that end impact-free after thousands of periods), so neither is
 /// called a coexistence.
 const CRISIS_IMPACTS: &str = "the impact-free motion exists on both sides (no grazing between \
-     the cells) and the impacting side's motion still impacts at the edge's midpoint after twice \
-     the map's periods: its attractor ends between the cells in a crisis, or it is a \
+     the cells) and the impacting side's motion still impacts at the edge's midpoint in the \
+     last 128 of twice the map's periods: its attractor ends between the cells in a crisis, or it is a \
      transient longer than that; not located";
 const CRISIS_ENDS: &str = "the impact-free motion exists on both sides (no grazing between the \
-     cells) and the impacting side's motion ends impact-free at the edge's midpoint within twice \
-     the map's periods: its attractor ends between the cells in a crisis; not located";
+     cells) and the impacting side's motion ends impact-free at the edge's midpoint (no impact \
+     in the last 128 of twice the map's periods): its attractor ends between the cells in a crisis; not located";
 
 /// The type of a boundary point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -608,52 +609,103 @@ impl<'a> Grid<'a> {
     }
 
     /// Runs each side's motion from its state at its edge's midpoint for `periods` periods
-    /// on the map's engine, all at once: where it ends, and whether its last period held an
-    /// impact (`None`: it left the finite range).
+    /// on the map's engine, all at once, in stages ([`stage_ends`]): a motion that `stop`s
+    /// (where it stands after a stage), or that has reached a cycle by a stage's end (its last
+    /// [`SETTLE_WINDOW`] periods recur at a period the kernel's detector saw and Newton confirms
+    /// stable at the midpoint), stays there, so that only the others run on. Where each ends,
+    /// and whether its last window held an impact (`None`: it left the finite range).
     fn settle(
         &self,
         engine: &Engine,
+        settings: &crate::method::Settings,
         runs: &[((usize, usize), PointState<f64>)],
         periods: u32,
+        stop: &(dyn Fn(usize, &Settled) -> bool + Sync),
     ) -> crate::Result<Vec<Option<Settled>>> {
-        if runs.is_empty() {
-            return Ok(Vec::new());
-        }
-        let mut spec = crate::spec::RunSpec::new(self.cfg);
-        spec.transient = periods.max(2) - 1;
-        spec.samples = 1;
-        spec.settings.lyapunov = false;
+        use rayon::prelude::*;
+        let mut out: Vec<Option<Settled>> = runs.iter().map(|(_, s)| Some((*s, false))).collect();
+        let mut open: Vec<usize> = (0..runs.len()).collect();
+        let mut done = 0;
         let vary = self.vary();
-        let values: Vec<f64> = runs
-            .iter()
-            .flat_map(|&((a, b), _)| self.values(self.midpoint(a, b)))
-            .collect();
-        let y0s: Vec<[f64; 4]> = runs.iter().map(|(_, s)| s.y).collect();
-        let modes: Vec<Mode> = runs.iter().map(|(_, s)| s.mode).collect();
-        let points = crate::spec::Points {
-            vary: &vary,
-            values: &values,
-            y0s: Some(&y0s),
-            modes: Some(&modes),
-        };
-        let mut out = vec![None; runs.len()];
-        engine.run_lean(
-            &spec,
-            &points,
-            &crate::progress::Silent,
-            &mut |start, rs| {
-                for (k, r) in rs.into_iter().enumerate() {
-                    out[start + k] = (!r.diag.nonfinite).then_some((
-                        PointState {
-                            y: r.final_y,
-                            mode: r.final_mode,
-                            diag: Default::default(),
-                        },
-                        r.sample_impacts > 0,
-                    ));
+        for end in stage_ends(periods.max(2), SETTLE_WINDOW) {
+            if open.is_empty() {
+                break;
+            }
+            let mut spec = crate::spec::RunSpec::new(self.cfg);
+            let window = SETTLE_WINDOW.min(end - done);
+            spec.transient = end - done - window;
+            spec.samples = window;
+            spec.settings.lyapunov = false;
+            done = end;
+            let values: Vec<f64> = open
+                .iter()
+                .flat_map(|&i| {
+                    let (a, b) = runs[i].0;
+                    self.values(self.midpoint(a, b))
+                })
+                .collect();
+            let from: Vec<PointState<f64>> = open
+                .iter()
+                .map(|&i| out[i].expect("an open run is finite").0)
+                .collect();
+            let y0s: Vec<[f64; 4]> = from.iter().map(|s| s.y).collect();
+            let modes: Vec<Mode> = from.iter().map(|s| s.mode).collect();
+            let points = crate::spec::Points {
+                vary: &vary,
+                values: &values,
+                y0s: Some(&y0s),
+                modes: Some(&modes),
+            };
+            let mut ended: Vec<Option<(Settled, Option<u32>)>> = vec![None; open.len()];
+            engine.run_lean(
+                &spec,
+                &points,
+                &crate::progress::Silent,
+                &mut |start, rs| {
+                    for (k, r) in rs.into_iter().enumerate() {
+                        ended[start + k] = (!r.diag.nonfinite).then_some((
+                            (
+                                PointState {
+                                    y: r.final_y,
+                                    mode: r.final_mode,
+                                    diag: Default::default(),
+                                },
+                                r.sample_impacts > 0,
+                            ),
+                            r.detector.and_then(|(_, p)| p),
+                        ));
+                    }
+                },
+            )?;
+            // Which runs stand still now: stopped by the caller, or on a cycle Newton confirms.
+            let stays: Vec<bool> = ended
+                .par_iter()
+                .zip(&open)
+                .map(|(e, &i)| {
+                    crate::progress::poll();
+                    let Some((settled, recurs)) = e else {
+                        return true;
+                    };
+                    if stop(i, settled) {
+                        return true;
+                    }
+                    recurs.is_some_and(|n| {
+                        let (a, b) = runs[i].0;
+                        let it = Integrator::<f64>::new(&self.midpoint_params(a, b), settings);
+                        let c = crate::cycles::refine(&it, &settled.0, n);
+                        c.is_stable() && c.period == n
+                    })
+                })
+                .collect();
+            let mut next = Vec::new();
+            for ((i, e), stays) in open.into_iter().zip(ended).zip(stays) {
+                out[i] = e.map(|(s, _)| s);
+                if !stays {
+                    next.push(i);
                 }
-            },
-        )?;
+            }
+            open = next;
+        }
         Ok(out)
     }
 
@@ -1115,33 +1167,17 @@ fn coexistences(
             whose.push(None);
         }
     }
-    // In two stages: a motion already on the cycle after an eighth of the run stays on it (an
-    // attractor), so that only the others run on for the rest (more than half of the claims
-    // refused on R x lambda and eta x lambda end on the cycle).
-    let look = grid.look();
-    let early = look / 8;
-    let first = grid.settle(engine, &runs, early)?;
-    let on_cycle = |w: &Option<usize>, s: &Option<Settled>| match (w, s) {
-        (Some(i), Some((st, _))) => match &here[*i] {
-            Ok((c, orbit)) => on_orbit(c, orbit, &st.y),
+    // In stages: a motion already on the cycle stays on it (an attractor; more than half of
+    // the claims refused on R x lambda and eta x lambda end on the cycle within an eighth of
+    // the run), as one on another stable cycle stays there.
+    let on_cycle = |r: usize, s: &Settled| match whose[r] {
+        Some(i) => match &here[i] {
+            Ok((c, orbit)) => on_orbit(c, orbit, &s.0.y),
             Err(_) => false,
         },
-        _ => false,
+        None => false,
     };
-    let rest: Vec<usize> = (0..runs.len())
-        .filter(|&r| first[r].is_some() && !on_cycle(&whose[r], &first[r]))
-        .collect();
-    let again: Vec<((usize, usize), PointState<f64>)> = rest
-        .iter()
-        .map(|&r| (runs[r].0, first[r].as_ref().expect("a finite end").0))
-        .collect();
-    let mut settled = first;
-    for (r, s) in rest
-        .into_iter()
-        .zip(grid.settle(engine, &again, look - early)?)
-    {
-        settled[r] = s;
-    }
+    let settled = grid.settle(engine, settings, &runs, grid.look(), &on_cycle)?;
     let mut ends: HashMap<usize, Option<Settled>> = HashMap::new();
     let mut crisis_ends = Vec::new();
     for (w, s) in whose.into_iter().zip(settled) {
@@ -1354,6 +1390,24 @@ fn edge_points(
     )]
 }
 
+/// Where the stages of a run of `whole` periods end: at an eighth, a quarter, a half and the
+/// whole, each stage at least `least` periods long (fewer stages where the run is short).
+fn stage_ends(whole: u32, least: u32) -> Vec<u32> {
+    let mut ends: Vec<u32> = Vec::new();
+    for end in [whole / 8, whole / 4, whole / 2] {
+        let from = ends.last().copied().unwrap_or(0);
+        if end >= from + least && whole >= end + least {
+            ends.push(end);
+        }
+    }
+    ends.push(whole);
+    ends
+}
+
+/// Periods of each stage of [`Grid::settle`] whose section values the kernel's detector reads
+/// (periods up to 64 seen twice over).
+const SETTLE_WINDOW: u32 = 128;
+
 /// Samples read past a point by [`check_after`]: recurrences up to half as many periods.
 const AFTER_SAMPLES: u32 = 128;
 
@@ -1398,23 +1452,9 @@ fn check_after(
         })
         .collect();
     let mut spec = crate::spec::RunSpec::new(grid.cfg);
-    // The map's own look: what the map would have called the motion there.
-    spec.transient = grid.look() / 2;
     spec.samples = AFTER_SAMPLES;
     spec.settings.lyapunov = false;
     let vary = grid.vary();
-    let values: Vec<f64> = past
-        .iter()
-        .flat_map(|(at, _, _)| grid.values(*at))
-        .collect();
-    let y0s: Vec<[f64; 4]> = past.iter().map(|(_, y, _)| *y).collect();
-    let points_run = crate::spec::Points {
-        vary: &vary,
-        values: &values,
-        y0s: Some(&y0s),
-        modes: None,
-    };
-    let (results, _) = engine.run(&spec, &points_run, &crate::progress::Silent)?;
     // The least lag (up to half the samples) at which the samples recur.
     let lag = |s: &[[f64; 4]]| {
         let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
@@ -1422,41 +1462,96 @@ fn check_after(
             (n..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() < 1e-4 * scale))
         })
     };
-    let verdicts: Vec<Option<String>> = results
-        .par_iter()
-        .zip(&past)
-        .map(|(r, (at, _, claim))| {
-            crate::progress::poll();
-            if r.diag.nonfinite || r.samples.is_empty() {
-                return Some(UNRESOLVED.to_string());
-            }
-            let claim = *claim;
-            let found = lag(&r.samples);
-            let holds = match claim {
-                Class::Periodic(n) if n as usize > r.samples.len() / 2 => true,
-                Class::Periodic(n) => found == Some(n as usize),
-                Class::Chaotic | Class::QuasiPeriodic => found.is_none(),
-                Class::NoImpact => r.sample_impacts == 0,
-                _ => true,
-            };
-            if holds {
-                return None;
-            }
-            // A recurrence Newton confirms: the cycle that follows (a window).
-            let named = found.and_then(|k| {
-                let it = Integrator::<f64>::new(&grid.params_at(*at), settings);
-                let last = *r.samples.last()?;
-                let st = PointState {
-                    y: last,
-                    mode: r.final_mode,
-                    diag: Default::default(),
-                };
-                let c = crate::cycles::refine(&it, &st, k as u32);
-                (c.is_stable() && c.period == k as u32).then(|| Class::Periodic(c.period).name())
-            });
-            Some(named.unwrap_or_else(|| UNRESOLVED.to_string()))
+    // The map's own look (what the map would have called the motion there), in stages: a
+    // motion that has reached a cycle by a stage's end stays on it (the claimed one, or a
+    // window Newton confirms stable), so that only the others run on.
+    let whole = grid.look() / 2 + AFTER_SAMPLES;
+    let ends = stage_ends(whole, AFTER_SAMPLES);
+    let mut verdicts: Vec<Option<Option<String>>> = vec![None; past.len()];
+    let mut starts: Vec<PointState<f64>> = past
+        .iter()
+        .map(|(_, y, _)| PointState {
+            y: *y,
+            mode: Mode::SlipPos,
+            diag: Default::default(),
         })
         .collect();
+    let mut done = 0;
+    for (stage, &end) in ends.iter().enumerate() {
+        let last = stage + 1 == ends.len();
+        let open: Vec<usize> = (0..past.len()).filter(|&i| verdicts[i].is_none()).collect();
+        if open.is_empty() {
+            break;
+        }
+        spec.transient = end - done - AFTER_SAMPLES;
+        done = end;
+        let values: Vec<f64> = open.iter().flat_map(|&i| grid.values(past[i].0)).collect();
+        let y0s: Vec<[f64; 4]> = open.iter().map(|&i| starts[i].y).collect();
+        // The first stage starts from the point's section (its mode derived, as a run's is);
+        // later ones from where the stage before ended.
+        let modes: Vec<Mode> = open.iter().map(|&i| starts[i].mode).collect();
+        let points_run = crate::spec::Points {
+            vary: &vary,
+            values: &values,
+            y0s: Some(&y0s),
+            modes: (stage > 0).then_some(&modes[..]),
+        };
+        let (results, _) = engine.run(&spec, &points_run, &crate::progress::Silent)?;
+        let judged: Vec<Option<Option<String>>> = results
+            .par_iter()
+            .zip(&open)
+            .map(|(r, &i)| {
+                crate::progress::poll();
+                let (at, _, claim) = &past[i];
+                if r.diag.nonfinite || r.samples.is_empty() {
+                    return Some(Some(UNRESOLVED.to_string()));
+                }
+                let found = lag(&r.samples);
+                let holds = match *claim {
+                    Class::Periodic(n) if n as usize > r.samples.len() / 2 => true,
+                    Class::Periodic(n) => found == Some(n as usize),
+                    Class::Chaotic | Class::QuasiPeriodic => found.is_none(),
+                    Class::NoImpact => r.sample_impacts == 0,
+                    _ => true,
+                };
+                // A motion without a recurrence yet is judged at the whole look only.
+                if found.is_none() && !last {
+                    return None;
+                }
+                if holds {
+                    return Some(None);
+                }
+                // A recurrence Newton confirms: the cycle that follows (a window).
+                let named = found.and_then(|k| {
+                    let it = Integrator::<f64>::new(&grid.params_at(*at), settings);
+                    let end = *r.samples.last()?;
+                    let st = PointState {
+                        y: end,
+                        mode: r.final_mode,
+                        diag: Default::default(),
+                    };
+                    let c = crate::cycles::refine(&it, &st, k as u32);
+                    (c.is_stable() && c.period == k as u32)
+                        .then(|| Class::Periodic(c.period).name())
+                });
+                match named {
+                    Some(n) => Some(Some(n)),
+                    None if last => Some(Some(UNRESOLVED.to_string())),
+                    // A recurrence that is not yet a stable cycle: the motion runs on.
+                    None => None,
+                }
+            })
+            .collect();
+        for ((&i, v), r) in open.iter().zip(judged).zip(&results) {
+            verdicts[i] = v;
+            starts[i] = PointState {
+                y: r.final_y,
+                mode: r.final_mode,
+                diag: Default::default(),
+            };
+        }
+    }
+    let verdicts: Vec<Option<String>> = verdicts.into_iter().map(Option::flatten).collect();
     for (&i, v) in todo.iter().zip(verdicts) {
         if let Some(after) = v {
             points[i].change[1] = after;

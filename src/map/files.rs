@@ -1327,7 +1327,10 @@ fn volume_boundaries_caption(cfg: &Config, b: &super::boundaries::MapBoundaries)
         .sum();
     let across = b.across.as_ref().map_or(String::new(), |a| {
         format!(
-            " The {} edges between neighbouring slices (along {}) are located and typed the              same way, each side's cycle continued in z ({} points located; `across`, each              point with the z of its change or of the edge's midpoint); the points of one type              on neighbouring edges of the volume join into surfaces (PREFIX-surfaces.ply).",
+            " The {} edges between neighbouring slices (along {}) are located and typed the \
+             same way, each side's cycle continued in z ({} points located; `across`, each \
+             point with the z of its change or of the edge's midpoint); the points of one type \
+             on neighbouring edges of the volume join into surfaces (PREFIX-surfaces.ply).",
             a.edges,
             cfg.z_axis().map_or("z", |z| z.param.name()),
             a.points.iter().filter(|p| p.located).count()
