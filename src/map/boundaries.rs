@@ -612,8 +612,9 @@ impl<'a> Grid<'a> {
     /// on the map's engine, all at once, in stages ([`stage_ends`]): a motion that `stop`s
     /// (where it stands after a stage), or that has reached a cycle by a stage's end (its last
     /// [`SETTLE_WINDOW`] periods recur at a period the kernel's detector saw and Newton confirms
-    /// stable at the midpoint), stays there, so that only the others run on. Where each ends,
-    /// and whether its last window held an impact (`None`: it left the finite range).
+    /// stable at the midpoint), stays there, so that only the others run on. Where each ends
+    /// (the confirmed cycle's section point where it reached one), and whether its last window
+    /// held an impact (`None`: it left the finite range).
     fn settle(
         &self,
         engine: &Engine,
@@ -678,30 +679,38 @@ impl<'a> Grid<'a> {
                 },
             )?;
             // Which runs stand still now: stopped by the caller, or on a cycle Newton confirms.
-            let stays: Vec<bool> = ended
+            // Which runs stand still now (`Some`): stopped by the caller, or on a cycle Newton
+            // confirms, whose section point then stands for where the motion ends (a motion
+            // closing in slowly on the caller's cycle is on it, not on another).
+            let stays: Vec<Option<Option<PointState<f64>>>> = ended
                 .par_iter()
                 .zip(&open)
                 .map(|(e, &i)| {
                     crate::progress::poll();
                     let Some((settled, recurs)) = e else {
-                        return true;
+                        return Some(None);
                     };
                     if stop(i, settled) {
-                        return true;
+                        return Some(None);
                     }
-                    recurs.is_some_and(|n| {
-                        let (a, b) = runs[i].0;
-                        let it = Integrator::<f64>::new(&self.midpoint_params(a, b), settings);
-                        let c = crate::cycles::refine(&it, &settled.0, n);
-                        c.is_stable() && c.period == n
-                    })
+                    let n = (*recurs)?;
+                    let (a, b) = runs[i].0;
+                    let it = Integrator::<f64>::new(&self.midpoint_params(a, b), settings);
+                    let c = crate::cycles::refine(&it, &settled.0, n);
+                    (c.is_stable() && c.period == n).then(|| Some(c.state()))
                 })
                 .collect();
             let mut next = Vec::new();
             for ((i, e), stays) in open.into_iter().zip(ended).zip(stays) {
                 out[i] = e.map(|(s, _)| s);
-                if !stays {
-                    next.push(i);
+                match stays {
+                    Some(Some(on)) => {
+                        if let Some(s) = &mut out[i] {
+                            s.0 = on;
+                        }
+                    }
+                    Some(None) => {}
+                    None => next.push(i),
                 }
             }
             open = next;
