@@ -326,7 +326,32 @@ fn a_volumes_boundaries_are_each_slices_own() {
         .arg(&vol)
         .arg("--out")
         .arg(d.join("w")));
-    ok(rattle().arg("boundaries").arg(d.join("w")));
+    let out = rattle()
+        .arg("boundaries")
+        .arg(d.join("w"))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
     let again = std::fs::read_to_string(d.join("w-boundaries.csv")).unwrap();
     assert_eq!(again, csv);
+    // The minutes after the map are told: each slice's line as it ends, in order, then the
+    // phases between slices, with the counts the JSON holds.
+    let log = String::from_utf8_lossy(&out.stderr);
+    let mut at = 0;
+    for (k, z) in zs.iter().enumerate() {
+        let line = format!("boundaries: slice {} of {} (eta = {z}): ", k + 1, zs.len());
+        let found = log[at..]
+            .find(&line)
+            .unwrap_or_else(|| panic!("no `{line}` in\n{log}"));
+        at += found + line.len();
+    }
+    let across = format!(
+        "boundaries between slices: {} edges between classes",
+        j["across"]["edges"]
+    );
+    assert!(
+        log[at..].contains(&across),
+        "no `{across}` after the slices in\n{log}"
+    );
+    assert!(log[at..].contains(&format!("{} coexistences checked", j["across"]["claims"])));
 }

@@ -246,22 +246,6 @@ fn with_cells<T>(f: &super::Fields, then: impl FnOnce(&Cells) -> T) -> T {
     })
 }
 
-/// The boundaries of each slice of a map in memory: the plane's own for a plane; for a volume
-/// each slice's, located in its own plane as `rattle map --boundaries` at that z locates them.
-pub fn of_slices(
-    engine: &Engine,
-    cfg: &Config,
-    f: &super::Fields,
-) -> crate::Result<Vec<Boundaries>> {
-    let per = super::plane_cells(cfg);
-    match cfg.z_axis() {
-        None => Ok(vec![of_fields(engine, cfg, f)?]),
-        Some(z) => (0..z.points as usize)
-            .map(|k| of_fields(engine, &cfg.slice(k), &f.range(k * per..(k + 1) * per)))
-            .collect(),
-    }
-}
-
 /// A map's boundaries: each slice's in its own plane (one for a plane), and a volume's on the
 /// edges between its slices.
 #[derive(Clone, Debug)]
@@ -270,23 +254,69 @@ pub struct MapBoundaries {
     pub across: Option<Boundaries>,
 }
 
-/// The boundaries of a map in memory (`rattle map --boundaries`, `rattle boundaries`,
-/// Python's `Map.boundaries()`): each slice's ([`of_slices`]) and, for a volume, those
-/// between slices ([`locate_across`]).
+/// The boundaries of a map in memory (`rattle map --boundaries`, Python's
+/// `Map.boundaries()`): [`of_cells`] of its layers.
 pub fn of_map(engine: &Engine, cfg: &Config, f: &super::Fields) -> crate::Result<MapBoundaries> {
-    // After the map's progress bar: say what the minutes that follow are spent on.
-    match cfg.z_axis() {
-        Some(z) => log::info!(
-            "boundaries: locating them in each of {} slices, then on the edges between slices",
-            z.points
-        ),
-        None => log::info!("boundaries: locating them"),
+    with_cells(f, |cells| of_cells(engine, cfg, cells))
+}
+
+impl Cells<'_> {
+    /// The cells `r` (a slice of a volume).
+    fn range(&self, r: std::ops::Range<usize>) -> Cells<'_> {
+        Cells {
+            class: &self.class[r.clone()],
+            coexist: &self.coexist[r.clone()],
+            state: &self.state[4 * r.start..4 * r.end],
+            mode: &self.mode[r.clone()],
+            inferred: &self.inferred[r],
+        }
     }
-    let slices = of_slices(engine, cfg, f)?;
-    let across = match cfg.z_axis() {
-        None => None,
-        Some(_) => Some(with_cells(f, |cells| locate_across(engine, cfg, cells))?),
+}
+
+/// The boundaries of a map from its cells' layers (the one path of `rattle map --boundaries`,
+/// `rattle boundaries` and Python): each slice's located in its own plane, as `rattle map
+/// --boundaries` at that z locates them, and for a volume those between slices
+/// ([`locate_across`]). What the minutes after the map's bar are spent on is logged: a plane's
+/// phases, a volume's slices one line each, then the phases between slices.
+pub fn of_cells(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<MapBoundaries> {
+    let Some(z) = cfg.z_axis() else {
+        log::info!("boundaries: locating them");
+        return Ok(MapBoundaries {
+            slices: vec![locate(engine, cfg, cells)?],
+            across: None,
+        });
     };
+    log::info!(
+        "boundaries: locating them in each of {} slices, then on the edges between slices",
+        z.points
+    );
+    let per = super::plane_cells(cfg);
+    let slices = (0..z.points as usize)
+        .map(|k| {
+            let plane = cfg.slice(k);
+            let part = cells.range(k * per..(k + 1) * per);
+            let b = located(
+                engine,
+                &Grid::new(&plane),
+                &part,
+                &[Axis::X, Axis::Y],
+                false,
+            )?;
+            log::info!(
+                "boundaries: slice {} of {} ({} = {}): {} edges between classes, {} changes \
+                 located in {:.1} s",
+                k + 1,
+                z.points,
+                z.param.name(),
+                z.values()[k],
+                b.edges,
+                b.points.iter().filter(|p| p.located).count(),
+                b.seconds
+            );
+            Ok(b)
+        })
+        .collect::<crate::Result<Vec<_>>>()?;
+    let across = Some(locate_across(engine, cfg, cells)?);
     Ok(MapBoundaries { slices, across })
 }
 
@@ -752,7 +782,7 @@ impl<'a> Grid<'a> {
 /// Locates and types the boundaries of the map of `cfg` from its cells' layers; the sides'
 /// motions at the edges' midpoints run on `engine` (the map's).
 pub fn locate(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Boundaries> {
-    located(engine, &Grid::new(cfg), cells, &[Axis::X, Axis::Y])
+    located(engine, &Grid::new(cfg), cells, &[Axis::X, Axis::Y], true)
 }
 
 /// Locates and types the changes on the edges between a volume's slices (along z), from the
@@ -761,26 +791,46 @@ pub fn locate(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Bou
 /// their z (the located value, or the edge's midpoint); no curves (a volume's changes on
 /// neighbouring edges join into surfaces: [`super::surfaces`]).
 pub fn locate_across(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Boundaries> {
-    located(engine, &Grid::volume(cfg), cells, &[Axis::Z])
+    located(engine, &Grid::volume(cfg), cells, &[Axis::Z], true)
 }
 
-/// The boundaries on the edges of `grid` along `axes`.
+/// The boundaries on the edges of `grid` along `axes`; `loud`: each phase logged as it ends.
 fn located(
     engine: &Engine,
     grid: &Grid,
     cells: &Cells,
     axes: &[Axis],
+    loud: bool,
 ) -> crate::Result<Boundaries> {
     let t0 = std::time::Instant::now();
     let cfg = grid.cfg;
     let settings = cfg.settings();
     let edges = grid.edges(cells.class, axes);
+    // What the minutes are spent on, phase by phase (`loud`; each slice of a volume says one
+    // line when done instead).
+    let what = if axes.contains(&Axis::Z) {
+        "between slices"
+    } else {
+        "in the plane"
+    };
+    let say = |line: String| {
+        if loud {
+            log::info!("boundaries {what}: {line}");
+        }
+    };
+    say(format!(
+        "{} edges between classes; continuing each side's cycle towards the other",
+        edges.len()
+    ));
     let (trials, cycles, jacobians) = side_cycles(grid, &settings, cells, &edges);
     let t1 = std::time::Instant::now();
     let (mut per_edge, continuations) =
         continuations(grid, &settings, cells, &edges, &cycles, &jacobians);
     let both_sides = impact_free_grazings(grid, &settings, cells, &edges, &mut per_edge);
     let continuation_s = t1.elapsed().as_secs_f64();
+    say(format!(
+        "{continuations} continuations in {continuation_s:.1} s; checking coexistences"
+    ));
     let t2 = std::time::Instant::now();
     let (coexists, claims, free) = coexistences(
         engine,
@@ -805,6 +855,9 @@ fn located(
             ps
         })
         .collect();
+    say(format!(
+        "{claims} coexistences checked in {coexistence_s:.1} s; checking the classes after the changes"
+    ));
     check_after(engine, grid, &settings, cells, &edges, &mut points)?;
     // Curves within a plane; across slices the points join into surfaces instead.
     let curves = match axes.contains(&Axis::Z) {

@@ -935,44 +935,19 @@ pub fn add_boundaries(prefix: &Path) -> crate::Result<(Vec<PathBuf>, String)> {
     let inferred: Vec<u8> = values(&layer("inferred")?, n, &dims).ok_or_else(|| bad("inferred"))?;
     let attractors: Vec<u8> =
         values(&layer("attractors")?, n, &dims).ok_or_else(|| bad("attractors"))?;
-    // Each slice of a volume in its own plane, as `rattle map --boundaries` locates them.
-    let per = super::plane_cells(&cfg);
     // The sides' motions at the edges' midpoints run on the engine the map's config names.
     let engine = crate::engine::Engine::open(cfg.method.backend)?;
-    let slices: Vec<super::boundaries::Boundaries> = (0..cfg.z_count())
-        .map(|k| {
-            let r = k * per..(k + 1) * per;
-            super::boundaries::locate(
-                &engine,
-                &cfg.slice(k),
-                &super::boundaries::Cells {
-                    class: &class[r.clone()],
-                    coexist: &coexist[r.clone()],
-                    state: &state[4 * r.start..4 * r.end],
-                    mode: &mode[r.clone()],
-                    inferred: &inferred[r],
-                },
-            )
-        })
-        .collect::<crate::Result<_>>()?;
-    // A volume's edges between slices, from the whole volume's layers.
-    let across = cfg
-        .z_axis()
-        .map(|_| {
-            super::boundaries::locate_across(
-                &engine,
-                &cfg,
-                &super::boundaries::Cells {
-                    class: &class,
-                    coexist: &coexist,
-                    state: &state,
-                    mode: &mode,
-                    inferred: &inferred,
-                },
-            )
-        })
-        .transpose()?;
-    let b = super::boundaries::MapBoundaries { slices, across };
+    let b = super::boundaries::of_cells(
+        &engine,
+        &cfg,
+        &super::boundaries::Cells {
+            class: &class,
+            coexist: &coexist,
+            state: &state,
+            mode: &mode,
+            inferred: &inferred,
+        },
+    )?;
     let mut st = Staged::new();
     stage_boundaries(&mut st, prefix, &cfg, &class, &attractors, &b)?;
     // The map's own files stay as they are, listed (with their sums) beside the new ones.
