@@ -1764,3 +1764,30 @@ fn curves(points: &[Point], edges: &[Edge], nx: usize) -> Vec<Curve> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::stage_ends;
+
+    /// The stages end at an eighth, a quarter, a half and the whole run, each at least the
+    /// window long, the last at the whole run; a short run has fewer stages, never one shorter
+    /// than the window (its detector's periods would not be seen twice over).
+    #[test]
+    fn stages_end_on_the_whole_run_and_are_never_shorter_than_the_window() {
+        assert_eq!(stage_ends(7200, 128), vec![900, 1800, 3600, 7200]);
+        assert_eq!(stage_ends(3728, 128), vec![466, 932, 1864, 3728]);
+        assert_eq!(stage_ends(100, 128), vec![100]);
+        for whole in [2, 127, 128, 255, 256, 300, 600, 1000, 1024, 1500, 40_000] {
+            let ends = stage_ends(whole, 128);
+            assert_eq!(*ends.last().unwrap(), whole);
+            let mut from = 0;
+            for (k, &e) in ends.iter().enumerate() {
+                assert!(e > from, "{whole}: {ends:?}");
+                if whole >= 128 {
+                    assert!(e - from >= 128, "{whole}: stage {k} of {ends:?}");
+                }
+                from = e;
+            }
+        }
+    }
+}
