@@ -11,8 +11,7 @@ use common::{json, npy, ok, rattle, scratch};
 /// Fig. 2's model (lambda 0.02, R 0.6, N = 256) on a narrow eta x lambda map through its line:
 /// 64 x 4 cells, eta 1.30-1.80, lambda 0.0185-0.0215 (rows at 0.018875 ... 0.021125).
 fn line_config(dir: &Path) -> std::path::PathBuf {
-    let fig2 = std::fs::read_to_string(common::config("fig2.toml")).unwrap();
-    let model: String = fig2.split("[sweep]").next().unwrap().to_string();
+    let model = common::fig2_model();
     let path = dir.join("line.toml");
     std::fs::write(
         &path,

@@ -16,8 +16,7 @@ use common::{json, npy, ok, rattle, scratch};
 /// 1.385: the period-1 cycle's doubling (eta 1.37059 at R 0.6, lambda 0.02) lies between the
 /// slices.
 fn volume(dir: &Path) -> std::path::PathBuf {
-    let fig2 = std::fs::read_to_string(common::config("fig2.toml")).unwrap();
-    let model: String = fig2.split("[sweep]").next().unwrap().to_string();
+    let model = common::fig2_model();
     let path = dir.join("v.toml");
     std::fs::write(
         &path,
@@ -73,19 +72,8 @@ fn read_ply(text: &str) -> Ply {
 fn a_doubling_between_slices_is_located_judged_and_meshed_through_fig2s_point() {
     let d = scratch("surfaces");
     let cfg_path = volume(&d);
-    ok(rattle()
-        .args([
-            "map",
-            "--backend",
-            "cpu",
-            "--precision",
-            "f64",
-            "--boundaries",
-            "--config",
-        ])
-        .arg(&cfg_path)
-        .arg("--out")
-        .arg(d.join("v")));
+    let run = common::map(&cfg_path, &d.join("v"), &["--boundaries"]);
+    assert!(run.status.success(), "{}", common::stderr(&run));
     let j = json(&d.join("v-boundaries.json"));
     let across = j["across"]["points"].as_array().unwrap();
     let doublings: Vec<&serde_json::Value> = across
@@ -229,11 +217,8 @@ fn a_doubling_between_slices_is_located_judged_and_meshed_through_fig2s_point() 
 
     // `rattle boundaries PREFIX` on the volume written without them: the same points between
     // the slices and the same meshes.
-    ok(rattle()
-        .args(["map", "--backend", "cpu", "--precision", "f64", "--config"])
-        .arg(&cfg_path)
-        .arg("--out")
-        .arg(d.join("w")));
+    let run = common::map(&cfg_path, &d.join("w"), &[]);
+    assert!(run.status.success(), "{}", common::stderr(&run));
     ok(rattle().arg("boundaries").arg(d.join("w")));
     let w = json(&d.join("w-boundaries.json"));
     assert_eq!(w["across"]["points"], j["across"]["points"]);

@@ -149,6 +149,13 @@ pub fn setup(name: &str) -> (Scratch, PathBuf) {
     (d, cfg)
 }
 
+/// Fig. 2's model (its config without the sweep), to which a test adds its own `[map]`.
+pub fn fig2_model() -> String {
+    let fig2 = std::fs::read_to_string(config("fig2.toml")).unwrap();
+    fig2.split("[sweep]").next().unwrap().to_string()
+}
+
+/// `rattle map` on the CPU in f64 (deterministic across machines), its output.
 pub fn map(cfg: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
     rattle()
         .args(["map", "--backend", "cpu", "--precision", "f64", "--config"])
