@@ -791,6 +791,59 @@ fn boundaries_of_a_map_replaced_meanwhile_are_not_committed() {
     ok(rattle().arg("boundaries").arg(d.join("p")));
 }
 
+/// Two neighbouring cells (i, j) and (i + 1, j) of tests/data/r_lambda_128.toml as a map of
+/// their own, with the classes, final states and modes the 128 x 128 map gave them: their
+/// located boundaries on the CPU.
+fn two_cells_of_r_lambda_128(
+    name: &str,
+    (i, j): (u32, u32),
+    class: [i32; 2],
+    state: &[f64; 8],
+    mode: [u8; 2],
+) -> (Config, rattle::map::boundaries::Boundaries) {
+    use rattle::map::boundaries::{Cells, locate};
+    let d = scratch(name);
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml"),
+    )
+    .unwrap();
+    let model = text.split("[map]").next().unwrap();
+    let path = d.join("edge.toml");
+    let (i, j) = (f64::from(i), f64::from(j));
+    std::fs::write(
+        &path,
+        format!(
+            "{model}[map]\nx = \"R\"\nx_from = {}\nx_to = {}\nx_points = 2\ny = \"lambda\"\n\
+             y_from = {}\ny_to = {}\ny_points = 1\n",
+            0.5 + 0.2 * i / 128.0,
+            0.5 + 0.2 * (i + 2.0) / 128.0,
+            0.1 * j / 128.0,
+            0.1 * (j + 1.0) / 128.0
+        ),
+    )
+    .unwrap();
+    let cfg = Config::load(&path, &[]).unwrap();
+    let b = locate(
+        &rattle::engine::Engine::Cpu,
+        &cfg,
+        &Cells {
+            class: &class,
+            coexist: &[0, 0],
+            state,
+            mode: &mode,
+            inferred: &[0, 0],
+        },
+    )
+    .unwrap();
+    for p in &b.points {
+        eprintln!(
+            "{:?} at R {:.7} ({:.1e}): {:?}, from {:?}",
+            p.ty, p.x, p.uncertainty, p.change, p.from
+        );
+    }
+    (cfg, b)
+}
+
 /// An edge that holds two changes holds two points, in order from the side continued, each
 /// with the classes just before and after it: between cell (103, 15) (chaotic) and cell
 /// (104, 15) (period-13) of tests/data/r_lambda_128.toml (lambda 0.012109375), the period-13
@@ -803,53 +856,17 @@ fn boundaries_of_a_map_replaced_meanwhile_are_not_committed() {
 /// motion that repeats at no lag up to 128 after 4,000 periods.
 #[test]
 fn an_edge_with_a_doubling_then_chaos_holds_both_changes() {
-    use rattle::map::boundaries::{Cells, Type, locate};
-    let d = scratch("doubling_then_chaos");
-    let text = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml"),
-    )
-    .unwrap();
-    let model = text.split("[map]").next().unwrap();
-    // Two cells whose centres are those of cells 103 and 104 of the 128 x 128 grid.
-    let path = d.join("edge.toml");
-    std::fs::write(
-        &path,
-        format!(
-            "{model}[map]\nx = \"R\"\nx_from = {}\nx_to = {}\nx_points = 2\ny = \"lambda\"\n\
-             y_from = {}\ny_to = {}\ny_points = 1\n",
-            0.5 + 0.2 * 103.0 / 128.0,
-            0.5 + 0.2 * 105.0 / 128.0,
-            0.1 * 15.0 / 128.0,
-            0.1 * 16.0 / 128.0
-        ),
-    )
-    .unwrap();
-    let cfg = Config::load(&path, &[]).unwrap();
-    let mut state = vec![f64::NAN; 4];
-    state.extend([
+    use rattle::map::boundaries::Type;
+    // Cells 103 and 104 of row 15.
+    let mut state = [f64::NAN; 8];
+    state[4..].copy_from_slice(&[
         -0.20033179223537445,
         0.7233232855796814,
         -0.28210800886154175,
         -0.6059635877609253,
     ]);
-    let b = locate(
-        &rattle::engine::Engine::Cpu,
-        &cfg,
-        &Cells {
-            class: &[-4, 13],
-            coexist: &[0, 0],
-            state: &state,
-            mode: &[0, 0],
-            inferred: &[0, 0],
-        },
-    )
-    .unwrap();
-    for p in &b.points {
-        eprintln!(
-            "{:?} at R {:.7} ({:.1e}): {:?}, from {:?}",
-            p.ty, p.x, p.uncertainty, p.change, p.from
-        );
-    }
+    let (cfg, b) =
+        two_cells_of_r_lambda_128("doubling_then_chaos", (103, 15), [-4, 13], &state, [0, 0]);
     assert_eq!(b.points.len(), 2, "{:?}", b.points);
     let (first, second) = (&b.points[0], &b.points[1]);
     assert_eq!(first.ty, Type::PeriodDoubling);
@@ -913,6 +930,88 @@ fn an_edge_with_a_doubling_then_chaos_holds_both_changes() {
         (n..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() < 1e-6 * scale))
     });
     assert_eq!(lag, None, "the motion after the second point repeats");
+}
+
+/// A daughter close to her mother is found and followed: between cells (51, 60) and (52, 60)
+/// of tests/data/r_lambda_128.toml (R 0.58046875 and 0.58203125, lambda 0.047265625), a
+/// period-3 cell and a period-6 cell, the period-3 cycle doubles, and what follows is the
+/// period-6 cycle, whose points three periods apart lie about 1e-3 apart (relative) just past
+/// the doubling: the switch once took her for her mother traversed twice and said
+/// `unresolved`. The judge, the reference (exact motion between events, its own Newton by central
+/// differences): 1/64 of a cell past the point, where the switch looks, the motion from the
+/// period-3 cycle reaches a stable cycle of least period 6 whose points three periods apart
+/// differ by more than 1e-6 (not the mother traversed twice) and less than 2e-3 of the state's
+/// scale (1.06e-3).
+#[test]
+fn a_daughter_close_to_her_mother_follows_the_doubling() {
+    use rattle::map::boundaries::Type;
+    // The map's final states of the two cells.
+    let state = [
+        -0.3906182646751404,
+        -0.009525429457426071,
+        -1.005226492881775,
+        0.5018075108528137,
+        -0.2953665852546692,
+        -0.054313234984874725,
+        -0.9469003081321716,
+        0.46591660380363464,
+    ];
+    let (cfg, b) = two_cells_of_r_lambda_128("close_daughter", (51, 60), [3, 6], &state, [1, 1]);
+    assert_eq!(b.points.len(), 1, "{:?}", b.points);
+    let p = &b.points[0];
+    assert_eq!(p.ty, Type::PeriodDoubling);
+    assert_eq!(p.change, ["period-3", "period-6"]);
+    assert!(p.located && p.from == Some(0));
+    let cell = 0.2 / 128.0;
+    let (c0, c1) = (0.5 + 0.2 * 51.5 / 128.0, 0.5 + 0.2 * 52.5 / 128.0);
+    assert!(p.x > c0 && p.x < c1 && p.uncertainty <= cell / 64.0);
+
+    let settings = cfg.settings();
+    let at = |v: f64| {
+        let mut q = cfg.params();
+        cfg.map.x.set(&mut q, v);
+        cfg.map.y.set(&mut q, 0.1 * 60.5 / 128.0);
+        DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
+    };
+    // Half way to the period-6 cell the motion settles on the daughter; continued from there
+    // towards the point by the reference's Newton, 16 steps to 1/64 of a cell past it.
+    let (far, near) = (0.5 * (p.x + c1), p.x + cell / 64.0);
+    let r = at(far);
+    let mut st = r.start(p.section.unwrap());
+    r.run(&mut st, 3000, None).unwrap();
+    let end = *r.run(&mut st, 1, None).unwrap().last().unwrap();
+    let mut daughter = r.cycle(end, 6).expect("a period-6 cycle past the doubling");
+    for k in 1..=16 {
+        let v = far + (near - far) * f64::from(k) / 16.0;
+        assert!(
+            daughter.stable() && daughter.period == 6,
+            "at R {v}: period {} lead {:?}",
+            daughter.period,
+            daughter.lead()
+        );
+        daughter = at(v)
+            .cycle(daughter.point, 6)
+            .expect("the daughter continued");
+    }
+    assert!(
+        daughter.stable() && daughter.period == 6,
+        "period {} lead {:?}",
+        daughter.period,
+        daughter.lead()
+    );
+    let r = at(near);
+    let mut st = r.start(daughter.point);
+    let half = *r.run(&mut st, 3, None).unwrap().last().unwrap();
+    let scale = daughter.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+    let apart = (0..4)
+        .map(|i| (half[i] - daughter.point[i]).abs())
+        .fold(0.0, f64::max)
+        / scale;
+    eprintln!(
+        "the reference's daughter: lead {:?}, points 3 periods apart {apart:.2e}",
+        daughter.lead()
+    );
+    assert!(apart > 1e-6 && apart < 2e-3, "{apart:e}");
 }
 
 /// An abrupt end is typed by its evidence, followed close enough: the period-20 cycle of cell

@@ -532,7 +532,13 @@ type Pending = (
 
 /// Branch switches followed along one edge from one side at most (a cascade of doublings
 /// to 32 times the cell's period).
-const MAX_SWITCHES: u32 = 5;
+pub(crate) const MAX_SWITCHES: u32 = 5;
+/// The longest daughter a switch looks for: past a doubling of a longer cycle the edge's
+/// chain ends `unresolved`. (Every daughter followed, cascades on tests/data/r_lambda_128.toml
+/// run to periods of 2,304 within an edge and the continuations take twice as long, 36 s
+/// against 18 s, for changes closer together than the map resolves; 256 is also the longest
+/// cycle the escapes' copies recognise.)
+pub(crate) const MAX_SWITCH_PERIOD: u32 = 256;
 
 /// Whether each side's cycle coexists across its edge: keyed by (a, b, the cycle's cell).
 type Verdicts = HashMap<(usize, usize, usize), Result<(), &'static str>>;
@@ -1034,7 +1040,10 @@ fn continuations(
                 let Found::Located(p) = f else {
                     return None;
                 };
-                if p.kind != Kind::PeriodDoubling || step >= MAX_SWITCHES {
+                if p.kind != Kind::PeriodDoubling
+                    || step >= MAX_SWITCHES
+                    || 2 * p.period > MAX_SWITCH_PERIOD
+                {
                     return None;
                 }
                 let edge = c.to - c.from;

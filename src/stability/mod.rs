@@ -999,6 +999,14 @@ const SWITCH_EPS: [f64; 10] = [
     1e-2, -1e-2, 3e-2, -3e-2, 3e-3, -3e-3, 1e-1, -1e-1, 1e-3, -1e-3,
 ];
 
+/// A stable cycle of least period 2n found off the mother is her daughter where its points n
+/// periods apart differ by more than this (relative): the mother traversed twice returns after
+/// n periods to Newton's tolerance (1e-9) over |1 - mu^2|, far below it. Not [`DOUBLED`]: a
+/// strongly contracting daughter (leading multiplier 0.07-0.9) can still lie within 4e-5 to
+/// 9e-4 of her mother at the switch's distance (tests/data/r_lambda_128.toml), and refusing
+/// her there ended the edge's chain at the doubling, the far cell's class said to follow.
+const SEPARATE: f64 = 1e-6;
+
 /// Where a [`Switch`] stands.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Stage {
@@ -1099,19 +1107,43 @@ impl Switch {
         self.newton = Refine::new(self.it.clone(), &st, 2 * self.n);
     }
 
+    /// From the mother's monodromy matrix `m`: the eigenvector of its multiplier beyond -1,
+    /// then Newton for the daughter off the mother along it.
+    fn critical(&mut self, m: &Matrix4<f64>) {
+        let lambda = crate::cycles::eigenvalues(m)
+            .into_iter()
+            .filter(|e| e[1] == 0.0 && e[0] < 0.0)
+            .min_by(|a, b| (a[0] + 1.0).abs().total_cmp(&(b[0] + 1.0).abs()));
+        // The eigenvector: the right singular vector of M - lambda I of the least singular
+        // value.
+        let shifted = lambda.map(|l| m - Matrix4::identity() * l[0]);
+        let Some(vt) = shifted.and_then(|s| {
+            let svd = s.svd(false, true);
+            let k = (0..4)
+                .min_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]))
+                .unwrap_or(3);
+            svd.v_t.map(|vt| std::array::from_fn(|i| vt[(k, i)]))
+        }) else {
+            self.done = true;
+            return;
+        };
+        self.v = vt;
+        self.daughter(0);
+    }
+
     /// The period of the branch switched from.
     pub fn period(&self) -> u32 {
         self.n
     }
 
     /// Whether the cycle `c` of period 2n is not the mother traversed twice: its points n
-    /// periods apart differ.
+    /// periods apart differ by more than [`SEPARATE`].
     fn apart(&self, c: &Cycle) -> bool {
         let mut st = c.state();
         for _ in 0..c.period / 2 {
             self.it.period(&mut st);
         }
-        (0..4).any(|i| (st.y[i] - c.point[i]).abs() > DOUBLED * self.scale)
+        (0..4).any(|i| (st.y[i] - c.point[i]).abs() > SEPARATE * self.scale)
     }
 }
 
@@ -1130,26 +1162,7 @@ impl FlowTask for Switch {
 
     fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
         if self.stage == Stage::Tangent {
-            let m = tan.matrix();
-            let lambda = crate::cycles::eigenvalues(&m)
-                .into_iter()
-                .filter(|e| e[1] == 0.0 && e[0] < 0.0)
-                .min_by(|a, b| (a[0] + 1.0).abs().total_cmp(&(b[0] + 1.0).abs()));
-            // The eigenvector: the right singular vector of M - lambda I of the least
-            // singular value.
-            let shifted = lambda.map(|l| m - nalgebra::Matrix4::identity() * l[0]);
-            let Some(vt) = shifted.and_then(|s| {
-                let svd = s.svd(false, true);
-                let k = (0..4)
-                    .min_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]))
-                    .unwrap_or(3);
-                svd.v_t.map(|vt| std::array::from_fn(|i| vt[(k, i)]))
-            }) else {
-                self.done = true;
-                return;
-            };
-            self.v = vt;
-            self.daughter(0);
+            self.critical(&tan.matrix());
             return;
         }
         self.newton.ended(end, tan);
@@ -1166,12 +1179,15 @@ impl FlowTask for Switch {
                 self.stage = Stage::Mother;
                 self.newton = Refine::new(self.it.clone(), &self.start, self.n);
             }
-            Stage::Mother => {
-                if c.converged && c.period == self.n {
+            Stage::Mother => match self.newton.monodromy().copied() {
+                // Newton's last flow started from the converged mother: its monodromy matrix
+                // is the mother's, no further flow needed.
+                Some(m) if c.converged && c.period == self.n => {
                     self.at_mother = c.state();
+                    self.critical(&m);
                 }
-                self.stage = Stage::Tangent;
-            }
+                _ => self.stage = Stage::Tangent,
+            },
             Stage::Daughter(k) => {
                 if c.is_stable() && c.period == 2 * self.n && self.apart(&c) {
                     self.out_m = self.newton.monodromy().copied();
