@@ -1127,7 +1127,8 @@ fn stage_boundaries(
         .iter()
         .filter(|&&t| drawn(t) && count(t) > 0)
         .map(|&t| {
-            let label = format!("{}: {} points", t.name(), count(t));
+            let n = count(t);
+            let label = format!("{}: {n} point{}", t.name(), if n == 1 { "" } else { "s" });
             (label, t.rgb(), t.marker())
         })
         .collect();
