@@ -714,7 +714,6 @@ impl<'a> Grid<'a> {
                     }
                 },
             )?;
-            // Which runs stand still now: stopped by the caller, or on a cycle Newton confirms.
             // Which runs stand still now (`Some`): stopped by the caller, or on a cycle Newton
             // confirms, whose section point then stands for where the motion ends (a motion
             // closing in slowly on the caller's cycle is on it, not on another).
