@@ -1338,7 +1338,7 @@ fn caption_of_boundaries(cfg: &Config, edges: usize, located: usize) -> String {
          the circle) is a period doubling (through -1), a fold (+1) or a Neimark-Sacker point \
          (a complex pair); beyond a period doubling the branch that follows (the doubled \
          cycle, from the critical eigenvector, up to period {max_period} and {max_switches} \
-         doublings along an edge; or the half a doubled cycle merged into) is \
+         switches from each side of an edge; or the half a doubled cycle merged into) is \
          continued on, so that an edge holds each change in order, each point with the \
          class just before and just after it (unresolved where nothing names it); a \
          cycle that ends without one is a fold where 1 - mu shrinks like the square root of \

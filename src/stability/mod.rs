@@ -1002,9 +1002,9 @@ const SWITCH_EPS: [f64; 10] = [
 /// A stable cycle of least period 2n found off the mother is her daughter where its points n
 /// periods apart differ by more than this (relative): the mother traversed twice returns after
 /// n periods to Newton's tolerance (1e-9) over |1 - mu^2|, far below it. Not [`DOUBLED`]: a
-/// strongly contracting daughter (leading multiplier 0.07-0.9) can still lie within 4e-5 to
-/// 9e-4 of her mother at the switch's distance (tests/data/r_lambda_128.toml), and refusing
-/// her there ended the edge's chain at the doubling, the far cell's class said to follow.
+/// daughter (leading multiplier 0.07-0.97) can still lie within 4e-5 to 9e-4 of her mother at
+/// the switch's distance (tests/data/r_lambda_128.toml), and refusing her there ended the
+/// edge's chain at the doubling with `unresolved` after it.
 const SEPARATE: f64 = 1e-6;
 
 /// Where a [`Switch`] stands.
