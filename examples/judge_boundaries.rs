@@ -29,9 +29,11 @@
 //! and the class after the point (the JSON's `change[1]`) is what the reference's motion
 //! reaches 1/32 of a cell past it (or half the way to the edge's next point), run 3,156 periods
 //! from the point's own cycle or from the far cell's final state: `period-m` where Newton
-//! there finds a stable cycle of least period m; `no_impact` where the last 256 periods hold no
-//! impact; any other class where the motion repeats at no lag up to 128 (a check of "not
-//! periodic", weaker than the class's own claim); `unresolved` is never wrong.
+//! there finds a stable cycle of least period m, or the motion's last 256 periods repeat at
+//! least lag m within 1e-6 (past a doubling the daughter's multiplier is near +1, where the
+//! central differences' multipliers may not confirm it); `no_impact` where the last 256
+//! periods hold no impact; any other class where the motion repeats at no lag up to 128 (a
+//! check of "not periodic", weaker than the class's own claim); `unresolved` is never wrong.
 //!
 //! `coexistence` points: at the edge's midpoint the reference's Newton from the `from` cell's
 //! final state finds a stable cycle of the cell's period, and the other cell's final state,
@@ -505,8 +507,12 @@ fn reaches(r: &DryReference, claim: &str, starts: &[[f64; 4]]) -> (bool, String)
         let impacts = log.iter().any(|e| e.kind.starts_with("impact"));
         let right = match claim.strip_prefix("period-") {
             Some(m) => {
+                // Newton's stable cycle, or the motion itself on a cycle of least period m:
+                // just past a doubling the daughter's multiplier is near +1, where the
+                // multipliers by central differences cannot confirm what the motion shows.
                 let m: u32 = m.parse().unwrap_or(0);
-                r.cycle(end, m).is_some_and(|c| c.stable() && c.period == m)
+                lag == Some(m as usize)
+                    || r.cycle(end, m).is_some_and(|c| c.stable() && c.period == m)
             }
             None if claim == "no_impact" => !impacts,
             None => lag.is_none(),

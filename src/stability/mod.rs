@@ -991,14 +991,6 @@ impl FlowTask for Locate<'_> {
 /// edge it is well apart from its mother while a further change within the edge stays ahead.
 pub const SWITCH_AT: f64 = 1.0 / 64.0;
 
-/// Signed distances off the unstable mother, along the eigenvector of its multiplier beyond
-/// -1 (in units of the state's scale), from which Newton looks for the daughter, most likely
-/// first. (The daughter's points near the mother lie on both sides of it, but Newton from one
-/// side may converge where from the other it does not.)
-const SWITCH_EPS: [f64; 10] = [
-    1e-2, -1e-2, 3e-2, -3e-2, 3e-3, -3e-3, 1e-1, -1e-1, 1e-3, -1e-3,
-];
-
 /// A stable cycle of least period 2n found off the mother is her daughter where its points n
 /// periods apart differ by more than this (relative): the mother traversed twice returns after
 /// n periods to Newton's tolerance (1e-9) over |1 - mu^2|, far below it. Not [`DOUBLED`]: a
@@ -1006,6 +998,10 @@ const SWITCH_EPS: [f64; 10] = [
 /// the switch's distance (tests/data/r_lambda_128.toml), and refusing her there ended the
 /// edge's chain at the doubling with `unresolved` after it.
 const SEPARATE: f64 = 1e-6;
+
+/// Distances off the mother (units of the state's scale) at which [`Switch`] probes the
+/// critical direction's return with plain flows, on each side, until it changes sign.
+const PROBE_EPS: [f64; 6] = [1e-3, 3e-3, 1e-2, 3e-2, 1e-1, 2e-1];
 
 /// Where a [`Switch`] stands.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -1016,19 +1012,25 @@ enum Stage {
     Mother,
     /// The mother's flow with its tangent, for the critical eigenvector.
     Tangent,
-    /// Newton for the daughter from the `k`-th distance of [`SWITCH_EPS`].
-    Daughter(usize),
+    /// A plain flow of 2n periods from the `k`-th distance of [`PROBE_EPS`] off the mother,
+    /// on the side `sign`, for the sign of the critical direction's return.
+    Probe { k: usize, sign: f64 },
+    /// Newton for the daughter from the predicted distance, on the side `sign`.
+    Predicted { sign: f64 },
 }
 
 /// The stable cycle that follows a located period doubling `p` at the parameter value `at`
 /// just beyond it (the other parameters `base`'s), without a run: seen from the mother's side,
 /// the doubled cycle, from Newton for period 2n started off the unstable mother along the
-/// eigenvector of its multiplier beyond -1; seen from the doubled side (a cycle of period 2m
-/// merged into its half), the stable cycle of period m. `None` where Newton finds no stable
-/// cycle of that period (a subcritical doubling: nothing stable nearby follows).
+/// eigenvector of its multiplier beyond -1, at the distance where the critical component of
+/// 2n periods' return changes sign (probed with plain flows at growing distances, one side then
+/// the other; at the daughter's point the return is nil); seen from the doubled side (a cycle
+/// of period 2m merged into its half), the stable cycle of period m. `None` where no sign
+/// change is found up to the last probe or Newton finds no stable cycle of that period there
+/// (a subcritical doubling: nothing stable nearby follows).
 ///
-/// A task for the lanes ([`run_parallel`]): its Newton solutions and the mother's tangent flow,
-/// one after another; the branch in `out` once done.
+/// A task for the lanes ([`run_parallel`]): its Newton solutions, the mother's tangent flow and
+/// the probes, one after another; the branch in `out` once done.
 pub struct Switch {
     it: Integrator<f64>,
     start: PointState<f64>,
@@ -1038,6 +1040,13 @@ pub struct Switch {
     newton: Refine,
     at_mother: PointState<f64>,
     v: [f64; 4],
+    /// The left eigenvector of the critical multiplier, `w . v = 1`: the critical component
+    /// of a return.
+    w: [f64; 4],
+    /// The critical direction's return per unit distance, `mu^2 - 1`, at no distance.
+    r0: f64,
+    /// The last probe on the current side short of the sign change: (distance^2, return).
+    lo: (f64, f64),
     done: bool,
     /// The branch found, once done.
     pub out: Option<Cycle>,
@@ -1087,48 +1096,101 @@ impl Switch {
             newton,
             at_mother: start,
             v: [0.0; 4],
+            w: [0.0; 4],
+            r0: 0.0,
+            lo: (0.0, 0.0),
             done: false,
             out: None,
             out_m: None,
         }
     }
 
-    /// Newton for the daughter from the `k`-th distance off the mother, if any is left.
-    fn daughter(&mut self, k: usize) {
-        let Some(eps) = SWITCH_EPS.get(k) else {
-            self.done = true;
-            return;
-        };
+    /// The mother's point moved `eps` (in units of the state's scale) along the critical
+    /// eigenvector.
+    fn off_mother(&self, eps: f64) -> PointState<f64> {
         let mut st = self.at_mother;
         for (y, d) in st.y.iter_mut().zip(self.v) {
             *y += eps * self.scale * d;
         }
-        self.stage = Stage::Daughter(k);
-        self.newton = Refine::new(self.it.clone(), &st, 2 * self.n);
+        st
     }
 
-    /// From the mother's monodromy matrix `m`: the eigenvector of its multiplier beyond -1,
-    /// then Newton for the daughter off the mother along it.
+    /// The first probe of the side `sign`.
+    fn probe(&mut self, sign: f64) {
+        self.lo = (0.0, self.r0);
+        self.stage = Stage::Probe { k: 0, sign };
+    }
+
+    /// After the side `sign` gave no daughter: the other side, if not yet probed.
+    fn next_side(&mut self, sign: f64) {
+        if sign > 0.0 {
+            self.probe(-1.0);
+        } else {
+            self.done = true;
+        }
+    }
+
+    /// A probe's return `end` from the distance `eps` on the side `sign`: where the critical
+    /// component's return per unit distance has changed sign since the last probe, the
+    /// daughter's distance lies between them (the cubic normal form: the return is
+    /// `(mu^2 - 1) + c eps^2` per unit distance, interpolated in eps^2), and Newton starts there.
+    fn probed(&mut self, k: usize, sign: f64, end: &PointState<f64>) {
+        let eps = PROBE_EPS[k];
+        let h: f64 = (0..4)
+            .map(|i| self.w[i] * (end.y[i] - self.at_mother.y[i]))
+            .sum::<f64>()
+            / self.scale
+            - sign * eps;
+        let r = h / (sign * eps);
+        if end.diag.nonfinite || !r.is_finite() {
+            return self.next_side(sign);
+        }
+        let (s_lo, r_lo) = self.lo;
+        if r * r_lo <= 0.0 {
+            let s = s_lo + (eps * eps - s_lo) * r_lo / (r_lo - r);
+            let st = self.off_mother(sign * s.sqrt());
+            self.stage = Stage::Predicted { sign };
+            self.newton = Refine::new(self.it.clone(), &st, 2 * self.n);
+        } else if k + 1 < PROBE_EPS.len() {
+            self.lo = (eps * eps, r);
+            self.stage = Stage::Probe { k: k + 1, sign };
+        } else {
+            self.next_side(sign);
+        }
+    }
+
+    /// From the mother's monodromy matrix `m`: the eigenvectors (right and left) of its
+    /// multiplier beyond -1, then the probes along it.
     fn critical(&mut self, m: &Matrix4<f64>) {
         let lambda = crate::cycles::eigenvalues(m)
             .into_iter()
             .filter(|e| e[1] == 0.0 && e[0] < 0.0)
             .min_by(|a, b| (a[0] + 1.0).abs().total_cmp(&(b[0] + 1.0).abs()));
         // The eigenvector: the right singular vector of M - lambda I of the least singular
-        // value.
-        let shifted = lambda.map(|l| m - Matrix4::identity() * l[0]);
-        let Some(vt) = shifted.and_then(|s| {
-            let svd = s.svd(false, true);
+        // value; the left one its left singular vector.
+        let Some((l, v, w)) = lambda.and_then(|l| {
+            let svd = (m - Matrix4::identity() * l[0]).svd(true, true);
             let k = (0..4)
                 .min_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]))
                 .unwrap_or(3);
-            svd.v_t.map(|vt| std::array::from_fn(|i| vt[(k, i)]))
+            let (u, vt) = (svd.u?, svd.v_t?);
+            let v: [f64; 4] = std::array::from_fn(|i| vt[(k, i)]);
+            let w: [f64; 4] = std::array::from_fn(|i| u[(i, k)]);
+            Some((l[0], v, w))
         }) else {
             self.done = true;
             return;
         };
-        self.v = vt;
-        self.daughter(0);
+        self.v = v;
+        let wv: f64 = (0..4).map(|i| w[i] * v[i]).sum();
+        if wv.abs() < 1e-6 {
+            // No critical component to measure a return by (a defective multiplier).
+            self.done = true;
+            return;
+        }
+        self.w = w.map(|x| x / wv);
+        self.r0 = l * l - 1.0;
+        self.probe(1.0);
     }
 
     /// The period of the branch switched from.
@@ -1152,6 +1214,7 @@ impl FlowTask for Switch {
         match self.stage {
             _ if self.done => None,
             Stage::Tangent => Some((self.at_mother, self.n)),
+            Stage::Probe { k, sign } => Some((self.off_mother(sign * PROBE_EPS[k]), 2 * self.n)),
             _ => self.newton.flow(),
         }
     }
@@ -1160,10 +1223,15 @@ impl FlowTask for Switch {
         &self.it
     }
 
+    fn tangent(&self) -> bool {
+        !matches!(self.stage, Stage::Probe { .. })
+    }
+
     fn ended(&mut self, end: &PointState<f64>, tan: &Tangent<f64>) {
-        if self.stage == Stage::Tangent {
-            self.critical(&tan.matrix());
-            return;
+        match self.stage {
+            Stage::Tangent => return self.critical(&tan.matrix()),
+            Stage::Probe { k, sign } => return self.probed(k, sign, end),
+            _ => {}
         }
         self.newton.ended(end, tan);
         let Some(c) = self.newton.result().cloned() else {
@@ -1188,16 +1256,16 @@ impl FlowTask for Switch {
                 }
                 _ => self.stage = Stage::Tangent,
             },
-            Stage::Daughter(k) => {
+            Stage::Predicted { sign } => {
                 if c.is_stable() && c.period == 2 * self.n && self.apart(&c) {
                     self.out_m = self.newton.monodromy().copied();
                     self.out = Some(c);
                     self.done = true;
                 } else {
-                    self.daughter(k + 1);
+                    self.next_side(sign);
                 }
             }
-            Stage::Tangent => unreachable!("handled above"),
+            Stage::Tangent | Stage::Probe { .. } => unreachable!("handled above"),
         }
     }
 }
