@@ -222,6 +222,7 @@ fn a_newton_failure_from_afar_is_not_the_cycles_end() {
             to,
             bisections: rattle::stability::BISECTIONS,
             crossing_bisections: rattle::stability::BISECTIONS,
+            first_step: None,
         }],
     );
     assert!(matches!(found[0], Found::StableThere), "{:?}", found[0]);
@@ -283,6 +284,7 @@ fn end_along(
             to,
             bisections: rattle::stability::BISECTIONS,
             crossing_bisections: rattle::stability::BISECTIONS,
+            first_step: None,
         }],
     );
     let Found::Located(b) = &found[0] else {

@@ -519,7 +519,8 @@ const EDGE_CROSSING_BISECTIONS: u32 = 10;
 type Settled = (PointState<f64>, bool);
 
 /// A continuation to run: (edge, from cell, the value continued from, the cycle, switches
-/// before it, the value of the change it follows, the cycle's monodromy matrix where known).
+/// before it, the value of the change it follows, the cycle's monodromy matrix where known,
+/// the march's first step where the next change is predicted).
 type Pending = (
     usize,
     usize,
@@ -528,7 +529,16 @@ type Pending = (
     u32,
     Option<f64>,
     Option<Matrix4<f64>>,
+    Option<f64>,
 );
+
+/// Where a branch switch stands: (its pending continuation, the value it starts at, the value
+/// of the doubling it follows, the march's first step where predicted).
+type Placed = (usize, f64, f64, Option<f64>);
+
+/// Feigenbaum's ratio: in a cascade of period doublings each spacing is this many times the
+/// next.
+const FEIGENBAUM: f64 = 4.669;
 
 /// Branch switches followed along one edge from one side at most (a cascade of doublings
 /// to 32 times the cell's period).
@@ -955,6 +965,7 @@ fn continuations(
             0,
             None,
             jacobians.get(&from).copied(),
+            None,
         ))
     };
     // The side of the smaller parameter value first (the side whose chain the edge reports),
@@ -1012,7 +1023,7 @@ fn continuations(
         let param = |k: usize| grid.param(edges[k].2);
         let changes: Vec<Change> = pending
             .iter()
-            .map(|(k, from, v, cycle, _, _, m)| {
+            .map(|(k, from, v, cycle, _, _, m, first)| {
                 let mut base = grid.params(*from);
                 param(*k).set(&mut base, *v);
                 Change {
@@ -1024,18 +1035,19 @@ fn continuations(
                     to: to(*k, *from),
                     bisections: EDGE_BISECTIONS,
                     crossing_bisections: EDGE_CROSSING_BISECTIONS,
+                    first_step: *first,
                 }
             })
             .collect();
         let found = locate_changes(settings, &changes);
         ran += changes.len();
         // The branch switches after this round's doublings, all at once on the host's lanes.
-        let switches: Vec<((usize, f64, f64), Switch)> = pending
+        let switches: Vec<(Placed, Switch)> = pending
             .iter()
             .zip(&found)
             .zip(&changes)
             .enumerate()
-            .filter_map(|(i, ((&(_, _, _, ref cycle, step, prev, _), f), c))| {
+            .filter_map(|(i, ((&(_, _, _, ref cycle, step, prev, _, _), f), c))| {
                 let Found::Located(p) = f else {
                     return None;
                 };
@@ -1055,8 +1067,10 @@ fn continuations(
                 if (c.to - at) * dir <= 0.0 {
                     return None;
                 }
+                // The march's first step: twice the predicted spacing, from the switch on.
+                let first = prev.map(|v: f64| 2.0 * (p.value - v).abs() / FEIGENBAUM);
                 Some((
-                    (i, at, p.value),
+                    (i, at, p.value, first),
                     Switch::new(&c.base, c.param, settings, p, cycle.mode, at),
                 ))
             })
@@ -1065,12 +1079,13 @@ fn continuations(
         let next: Vec<Pending> = placed
             .into_iter()
             .zip(run_parallel(tasks, |t| u64::from(t.period())))
-            .filter_map(|((i, at, value), t)| {
-                let (k, from, _, _, step, _, _) = pending[i];
-                Some((k, from, at, t.out?, step + 1, Some(value), t.out_m))
+            .filter_map(|((i, at, value, first), t)| {
+                let (k, from, ..) = pending[i];
+                let step = pending[i].4;
+                Some((k, from, at, t.out?, step + 1, Some(value), t.out_m, first))
             })
             .collect();
-        for ((k, from, _, cycle, step, _, _), f) in pending.into_iter().zip(found) {
+        for ((k, from, _, cycle, step, ..), f) in pending.into_iter().zip(found) {
             per_edge[k].push(Link {
                 found: f,
                 period: cycle.period,

@@ -157,6 +157,7 @@ pub fn bifurcation_points(
                 to: to.value,
                 bisections: BISECTIONS,
                 crossing_bisections: BISECTIONS,
+                first_step: None,
             }
         })
         .collect();
@@ -198,6 +199,9 @@ pub struct Change<'a> {
     /// The same where a crossing was seen (a multiplier outside the circle beyond): no
     /// approach types it, so that its location needs no finer bracket than the caller's.
     pub crossing_bisections: u32,
+    /// The march's first step (its size; towards `to`), where the caller predicts the change
+    /// closer than `to`; else the whole way.
+    pub first_step: Option<f64>,
 }
 
 /// What the continuation of a [`Change`] found.
@@ -437,7 +441,15 @@ impl<'a> Locate<'a> {
         let (bisections, crossing_bisections) = (change.bisections, change.crossing_bisections);
         let from = change.from;
         let last_m = change.monodromy;
-        let it = integrator_at(base, param, settings, to);
+        // The first solve is the march's first step: the whole way unless a shorter one is
+        // asked for.
+        let (step_size, mid) = match change.first_step {
+            Some(s) if s < (to - from).abs() => {
+                (s.copysign(to - from), from + s.copysign(to - from))
+            }
+            _ => (to - from, to),
+        };
+        let it = integrator_at(base, param, settings, mid);
         let newton = Solve::new(it, &start.state(), start.period, last_m.as_ref(), false);
         Some(Locate {
             base,
@@ -448,11 +460,11 @@ impl<'a> Locate<'a> {
             bisections,
             crossing_bisections,
             bisecting: false,
-            step_size: to - from,
+            step_size,
             step: 0,
             good: from,
             bad: to,
-            mid: to,
+            mid,
             last: start.clone(),
             last_m,
             beyond: None,
