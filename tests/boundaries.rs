@@ -179,7 +179,7 @@ fn a_newton_failure_from_afar_is_not_the_cycles_end() {
     use rattle::cycles::refine;
     use rattle::method::{Integrator, PointState};
     use rattle::model::Mode;
-    use rattle::stability::{Change, Found, locate_changes};
+    use rattle::stability::Found;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
     let cfg = Config::load(&path, &[]).unwrap();
     let settings = cfg.settings();
@@ -211,21 +211,8 @@ fn a_newton_failure_from_afar_is_not_the_cycles_end() {
         !direct.converged,
         "Newton's first try from afar must fail for this test to bite"
     );
-    let found = locate_changes(
-        &settings,
-        &[Change {
-            base: p,
-            param: cfg.map.y,
-            from,
-            cycle: &cycle,
-            monodromy: None,
-            to,
-            bisections: rattle::stability::BISECTIONS,
-            crossing_bisections: rattle::stability::BISECTIONS,
-            first_step: None,
-        }],
-    );
-    assert!(matches!(found[0], Found::StableThere), "{:?}", found[0]);
+    let found = locate_one(&settings, &p, cfg.map.y, (from, to), &cycle);
+    assert!(matches!(found, Found::StableThere), "{found:?}");
     let r = DryReference::new(&q, 1024, settings.zeno_speed).unwrap();
     let mut st = r.start(cycle.point);
     r.run(&mut st, 20_000, None).unwrap();
@@ -235,6 +222,31 @@ fn a_newton_failure_from_afar_is_not_the_cycles_end() {
         (n..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - n][c]).abs() < 1e-6 * scale))
     });
     assert_eq!(lag, Some(14));
+}
+
+/// What the continuation of the stable `cycle` at `from` (the other parameters `base`'s)
+/// towards `to` along `param` found, with a sweep's resolution.
+fn locate_one(
+    settings: &rattle::method::Settings,
+    base: &rattle::model::Params<f64>,
+    param: rattle::model::Param,
+    (from, to): (f64, f64),
+    cycle: &rattle::cycles::Cycle,
+) -> rattle::stability::Found {
+    let change = rattle::stability::Change {
+        base: *base,
+        param,
+        from,
+        cycle,
+        monodromy: None,
+        to,
+        bisections: rattle::stability::BISECTIONS,
+        crossing_bisections: rattle::stability::BISECTIONS,
+        first_step: None,
+    };
+    rattle::stability::locate_changes(settings, &[change])
+        .pop()
+        .expect("one change, one answer")
 }
 
 /// The change located when the stable period-`n` cycle of tests/data/r_lambda_128.toml at
@@ -254,7 +266,7 @@ fn end_along(
 ) {
     use rattle::cycles::refine;
     use rattle::method::{Integrator, PointState};
-    use rattle::stability::{Change, Found, locate_changes};
+    use rattle::stability::Found;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
     let cfg = Config::load(&path, &[]).unwrap();
     let settings = cfg.settings();
@@ -273,22 +285,9 @@ fn end_along(
     };
     let cycle = refine(&Integrator::<f64>::new(&p, &settings), &st, n);
     assert!(cycle.is_stable() && cycle.period == n, "{cycle:?}");
-    let found = locate_changes(
-        &settings,
-        &[Change {
-            base: p,
-            param,
-            from,
-            cycle: &cycle,
-            monodromy: None,
-            to,
-            bisections: rattle::stability::BISECTIONS,
-            crossing_bisections: rattle::stability::BISECTIONS,
-            first_step: None,
-        }],
-    );
-    let Found::Located(b) = &found[0] else {
-        panic!("{:?}", found[0]);
+    let found = locate_one(&settings, &p, param, (from, to), &cycle);
+    let Found::Located(b) = &found else {
+        panic!("{found:?}");
     };
     let b = b.clone();
     (cfg, p, b)
@@ -1120,7 +1119,7 @@ fn the_branch_beyond_a_doubling_is_the_exact_systems_daughter() {
     use rattle::cycles::refine;
     use rattle::method::{FlowTask, Integrator, PointState};
     use rattle::model::initial_mode;
-    use rattle::stability::{Change, Found, Kind, Switch, locate_changes};
+    use rattle::stability::{Found, Kind, Switch};
     let cfg = Config::load(&common::config("fig2.toml"), &[]).unwrap();
     let settings = cfg.settings();
     let param = cfg.sweep.param;
@@ -1139,22 +1138,9 @@ fn the_branch_beyond_a_doubling_is_the_exact_systems_daughter() {
     }
     let cycle = refine(&it, &st, 1);
     assert!(cycle.is_stable() && cycle.period == 1, "{cycle:?}");
-    let found = locate_changes(
-        &settings,
-        &[Change {
-            base: p,
-            param,
-            from,
-            cycle: &cycle,
-            monodromy: None,
-            to,
-            bisections: rattle::stability::BISECTIONS,
-            crossing_bisections: rattle::stability::BISECTIONS,
-            first_step: None,
-        }],
-    );
-    let Found::Located(b) = &found[0] else {
-        panic!("{:?}", found[0]);
+    let found = locate_one(&settings, &p, param, (from, to), &cycle);
+    let Found::Located(b) = &found else {
+        panic!("{found:?}");
     };
     assert_eq!(b.kind, Kind::PeriodDoubling, "{b:?}");
     assert!((b.value - 1.37059).abs() < 1e-4, "{b:?}");
