@@ -1172,11 +1172,15 @@ impl Switch {
     }
 
     /// From the mother's monodromy matrix `m`: the eigenvectors (right and left) of its
-    /// multiplier beyond -1, then the probes along it.
+    /// multiplier beyond -1 (none: no daughter), then the probes along it.
     fn critical(&mut self, m: &Matrix4<f64>) {
+        // Past a doubling the mother's critical multiplier lies beyond -1; a mother without
+        // one (its multipliers all inside, or complex) has no daughter here (on
+        // tests/data/r_lambda_128.toml 43 switches met such a mother, nearest negative multiplier
+        // about 0, and all but one found no stable cycle of twice her period).
         let lambda = crate::cycles::eigenvalues(m)
             .into_iter()
-            .filter(|e| e[1] == 0.0 && e[0] < 0.0)
+            .filter(|e| e[1] == 0.0 && e[0] < -1.0)
             .min_by(|a, b| (a[0] + 1.0).abs().total_cmp(&(b[0] + 1.0).abs()));
         // The eigenvector: the right singular vector of M - lambda I of the least singular
         // value; the left one its left singular vector.
