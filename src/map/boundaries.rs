@@ -518,19 +518,23 @@ const EDGE_CROSSING_BISECTIONS: u32 = 10;
 /// impact ([`Grid::settle`]).
 type Settled = (PointState<f64>, bool);
 
-/// A continuation to run: (edge, from cell, the value continued from, the cycle, switches
-/// before it, the value of the change it follows, the cycle's monodromy matrix where known,
-/// the march's first step where the next change is predicted).
-type Pending = (
-    usize,
-    usize,
-    f64,
-    Cycle,
-    u32,
-    Option<f64>,
-    Option<Matrix4<f64>>,
-    Option<f64>,
-);
+/// A continuation to run.
+struct Pending {
+    edge: usize,
+    /// The cell continued from.
+    from: usize,
+    /// The parameter value continued from.
+    value: f64,
+    cycle: Cycle,
+    /// Branch switches before it along this edge.
+    step: u32,
+    /// The value of the change it follows (a doubling), where it follows one.
+    prev: Option<f64>,
+    /// The cycle's monodromy matrix, where known.
+    monodromy: Option<Matrix4<f64>>,
+    /// The march's first step, where the next change is predicted.
+    first: Option<f64>,
+}
 
 /// Where a branch switch stands: (its pending continuation, the value it starts at, the value
 /// of the doubling it follows, the march's first step where predicted).
@@ -950,23 +954,21 @@ fn continuations(
     cycles: &HashMap<usize, Cycle>,
     jacobians: &HashMap<usize, Matrix4<f64>>,
 ) -> (Vec<EdgeFound>, usize) {
-    // (edge, from cell, the value continued from, the cycle, switches before it, the value of
-    // the change it follows).
     let start = |k: usize, from: usize, to: usize| -> Option<Pending> {
         let cycle = cycles.get(&from)?;
         if cells.coexist[to] == cells.class[from] {
             return None;
         }
-        Some((
-            k,
+        Some(Pending {
+            edge: k,
             from,
-            grid.along(from, edges[k].2),
-            cycle.clone(),
-            0,
-            None,
-            jacobians.get(&from).copied(),
-            None,
-        ))
+            value: grid.along(from, edges[k].2),
+            cycle: cycle.clone(),
+            step: 0,
+            prev: None,
+            monodromy: jacobians.get(&from).copied(),
+            first: None,
+        })
     };
     // The side of the smaller parameter value first (the side whose chain the edge reports),
     // the other where it has a cycle of its own and none was continued first.
@@ -1023,19 +1025,19 @@ fn continuations(
         let param = |k: usize| grid.param(edges[k].2);
         let changes: Vec<Change> = pending
             .iter()
-            .map(|(k, from, v, cycle, _, _, m, first)| {
-                let mut base = grid.params(*from);
-                param(*k).set(&mut base, *v);
+            .map(|q| {
+                let mut base = grid.params(q.from);
+                param(q.edge).set(&mut base, q.value);
                 Change {
                     base,
-                    param: param(*k),
-                    from: *v,
-                    cycle,
-                    monodromy: *m,
-                    to: to(*k, *from),
+                    param: param(q.edge),
+                    from: q.value,
+                    cycle: &q.cycle,
+                    monodromy: q.monodromy,
+                    to: to(q.edge, q.from),
                     bisections: EDGE_BISECTIONS,
                     crossing_bisections: EDGE_CROSSING_BISECTIONS,
-                    first_step: *first,
+                    first_step: q.first,
                 }
             })
             .collect();
@@ -1047,12 +1049,12 @@ fn continuations(
             .zip(&found)
             .zip(&changes)
             .enumerate()
-            .filter_map(|(i, ((&(_, _, _, ref cycle, step, prev, _, _), f), c))| {
+            .filter_map(|(i, ((q, f), c))| {
                 let Found::Located(p) = f else {
                     return None;
                 };
                 if p.kind != Kind::PeriodDoubling
-                    || step >= MAX_SWITCHES
+                    || q.step >= MAX_SWITCHES
                     || 2 * p.period > MAX_SWITCH_PERIOD
                 {
                     return None;
@@ -1061,17 +1063,17 @@ fn continuations(
                 let dir = edge.signum();
                 // In a cascade the next doubling comes about 4.7 times closer than the last
                 // spacing (Feigenbaum's ratio): the switch starts at a tenth of it.
-                let room = prev.map_or(f64::INFINITY, |v: f64| 0.1 * (p.value - v).abs());
+                let room = q.prev.map_or(f64::INFINITY, |v| 0.1 * (p.value - v).abs());
                 let at =
                     p.value + dir * (SWITCH_AT * edge.abs()).min(room).max(4.0 * p.uncertainty);
                 if (c.to - at) * dir <= 0.0 {
                     return None;
                 }
                 // The march's first step: twice the predicted spacing, from the switch on.
-                let first = prev.map(|v: f64| 2.0 * (p.value - v).abs() / FEIGENBAUM);
+                let first = q.prev.map(|v| 2.0 * (p.value - v).abs() / FEIGENBAUM);
                 Some((
                     (i, at, p.value, first),
-                    Switch::new(&c.base, c.param, settings, p, cycle.mode, at),
+                    Switch::new(&c.base, c.param, settings, p, q.cycle.mode, at),
                 ))
             })
             .collect();
@@ -1080,17 +1082,25 @@ fn continuations(
             .into_iter()
             .zip(run_parallel(tasks, |t| u64::from(t.period())))
             .filter_map(|((i, at, value, first), t)| {
-                let (k, from, ..) = pending[i];
-                let step = pending[i].4;
-                Some((k, from, at, t.out?, step + 1, Some(value), t.out_m, first))
+                let q = &pending[i];
+                Some(Pending {
+                    edge: q.edge,
+                    from: q.from,
+                    value: at,
+                    cycle: t.out?,
+                    step: q.step + 1,
+                    prev: Some(value),
+                    monodromy: t.out_m,
+                    first,
+                })
             })
             .collect();
-        for ((k, from, _, cycle, step, ..), f) in pending.into_iter().zip(found) {
-            per_edge[k].push(Link {
+        for (q, f) in pending.into_iter().zip(found) {
+            per_edge[q.edge].push(Link {
                 found: f,
-                period: cycle.period,
-                from,
-                step,
+                period: q.cycle.period,
+                from: q.from,
+                step: q.step,
             });
         }
         pending = next;
