@@ -321,7 +321,7 @@ pub fn compute(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result
             engine,
             &spec,
             &Points::states(&y0s),
-            cfg.run.early_stop,
+            (cfg.run.early_stop, crate::adaptive::look::Copies::None),
             &crate::carry::Neighbours::none(y0s.len()),
             progress,
         )?;

@@ -166,6 +166,20 @@ fn on(orbit: &[[f64; 4]], y: &[f64; 4]) -> bool {
         .any(|p| (0..4).all(|i| (p[i] - y[i]).abs() <= 1e-4 * scale))
 }
 
+/// Whether a point runs copies of its motion: it looks chaotic after its look, and a stable
+/// cycle of period `carried` was carried to it from a neighbour (`neighbours`: their classes)
+/// that landed on that cycle. The one rule of maps and sweeps: a cycle carried on through
+/// chaotic points in later rounds of the carry rarely ends a transient there (on two maps
+/// judged, 32 of 34 escapes were beside a point on their cycle, 82 of 196 candidates).
+pub fn beside(
+    class: crate::class::Class,
+    carried: Option<u32>,
+    mut neighbours: impl Iterator<Item = crate::class::Class>,
+) -> bool {
+    use crate::class::Class;
+    class == Class::Chaotic && carried.is_some_and(|n| neighbours.any(|c| c == Class::Periodic(n)))
+}
+
 /// Runs [`COPIES`] copies of each motion `(it, from)` (its integrator and its last state) and
 /// says what each came to. The copies' periods are work the first count did not hold:
 /// announced to `progress` before they run, reported as they do (a copy that ends early

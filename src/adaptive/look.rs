@@ -54,6 +54,135 @@ pub trait Looked: Keep {
     /// `ran` periods after the point's first `from`, of the point of `params`. The exponent
     /// is then the cycle's own (ln |mu| over its period), its settle time `from`.
     fn recurred(&self, p: &mut Self::Point, c: Cycle, at: (u32, u32), params: &Params<f64>);
+    /// The stable cycle carried to the point that coexists with its attractor, as
+    /// [`Self::coexists`] recorded it.
+    fn carried(&self, p: &Self::Point) -> Option<Carried>;
+    /// Makes the stable cycle of `cycle` (with its impacts per period) that copies of the point's
+    /// motion landed on its attractor ([`escape`]): rule `escaped`, on it after `settle`
+    /// periods, with `beside` another stable cycle known there. The window's observables were
+    /// the transient's: they become the cycle's where the point keeps samples, NaN otherwise.
+    fn escaped(
+        &self,
+        p: &mut Self::Point,
+        cycle: (Cycle, f64),
+        settle: u32,
+        beside: Option<Carried>,
+        params: &Params<f64>,
+    );
+}
+
+/// Which points run copies of their chaotic-looking motion ([`escape`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Copies {
+    /// Those beside a neighbour on a stable cycle carried to them ([`crate::escape::beside`]):
+    /// maps and sweeps.
+    Beside,
+    /// Every one: a single point's neighbours are unknown, so (as for the look) nothing says
+    /// that no cycle is near (`point`).
+    Every,
+    /// None: the starts of a basin are not neighbours in parameter space, and a copy 1e-4
+    /// away says where a trajectory near the start's goes, not where the start's own does.
+    None,
+}
+
+/// What [`escape`] did.
+#[derive(Clone, Debug, Default)]
+pub struct Escapes {
+    /// Points whose motion ran copies.
+    pub candidates: usize,
+    /// Of those, the points whose copies landed on a stable cycle.
+    pub escaped: usize,
+    /// Rounds (an escape makes its chaotic-looking neighbours candidates of the next).
+    pub rounds: usize,
+    /// Each point's settle time's standard error where it escaped (the copies' mean lifetime's).
+    pub settle_se: Vec<Option<f64>>,
+}
+
+/// Transients beyond the look ([`crate::escape`]), decided as a map decides its cells: every
+/// chaotic-looking point that [`Copies`] names runs copies of its motion from its last state;
+/// where copies land on stable cycles, the one most landed on is the point's attractor, its
+/// settle time the periods run plus the copies' mean lifetime. In rounds: a point that escaped
+/// onto a cycle makes its chaotic-looking neighbours, where that cycle was carried, candidates
+/// of the next round, until none is left. Run after [`coexist`].
+pub fn escape<K: Looked>(
+    spec: &RunSpec,
+    points: &Points,
+    nb: &Neighbours,
+    copies: Copies,
+    keep: &K,
+    (done, periods): (&mut [K::Point], &[u32]),
+    progress: &dyn Progress,
+) -> Escapes {
+    let n = done.len();
+    let mut out = Escapes {
+        settle_se: vec![None; n],
+        ..Escapes::default()
+    };
+    let mut tried = vec![copies == Copies::None; n];
+    if look_stages(spec, spec.periods()).is_empty() {
+        // With the look off, the classifier of the configured run decides alone.
+        return out;
+    }
+    loop {
+        let classes: Vec<Class> = done.iter().map(|p| keep.verdict(p).0).collect();
+        let idx: Vec<usize> = (0..n)
+            .filter(|&i| {
+                !tried[i]
+                    && match copies {
+                        Copies::Every => classes[i] == Class::Chaotic,
+                        _ => crate::escape::beside(
+                            classes[i],
+                            keep.carried(&done[i]).map(|c| c.period),
+                            nb.of[i].iter().map(|&j| classes[j]),
+                        ),
+                    }
+            })
+            .collect();
+        let mut motions = Vec::with_capacity(idx.len());
+        let mut run = Vec::with_capacity(idx.len());
+        for &i in &idx {
+            tried[i] = true;
+            let (y, mode, _) = keep.state(&done[i]);
+            if y.iter().all(|v| v.is_finite()) {
+                let it = Integrator::<f64>::new(&points.params(&spec.params, i), &spec.settings);
+                let start = it.start_in(y, Some(mode));
+                motions.push((it, start));
+                run.push(i);
+            }
+        }
+        if run.is_empty() {
+            break;
+        }
+        out.rounds += 1;
+        out.candidates += run.len();
+        let found = crate::escape::escapes(&motions, progress);
+        for (&i, e) in run.iter().zip(&found) {
+            let (Some((mean, se)), Some((cycle, _, ipp))) = (e.lifetime(), e.cycles.first()) else {
+                continue;
+            };
+            out.escaped += 1;
+            let beside = keep
+                .carried(&done[i])
+                .filter(|c| c.period != cycle.period)
+                .or_else(|| {
+                    e.cycles.get(1).map(|c| Carried {
+                        period: c.0.period,
+                        multiplier: c.0.leading_modulus(),
+                    })
+                });
+            let settle = periods[i].saturating_add(mean.round() as u32);
+            let params = points.params(&spec.params, i);
+            keep.escaped(&mut done[i], (cycle.clone(), *ipp), settle, beside, &params);
+            out.settle_se[i] = Some(se);
+        }
+    }
+    log::debug!(
+        "escapes: {} chaotic-looking points in {} rounds, {} of them transients",
+        out.candidates,
+        out.rounds,
+        out.escaped
+    );
+    out
 }
 
 /// The look's counts, for logs and reports.

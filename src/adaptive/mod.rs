@@ -58,6 +58,9 @@ pub struct Adaptive {
     pub periods: Vec<u32>,
     /// Periods until each point was on its attractor ([`Ended::settle`]).
     pub settle: Vec<u32>,
+    /// The standard error of each settle time where the point's chaotic-looking motion escaped
+    /// onto a cycle (the copies' mean lifetime's, [`look::escape`]); None elsewhere.
+    pub settle_se: Vec<Option<f64>>,
     /// The stable cycle carried to each point that coexists with its attractor
     /// ([`look`]).
     pub coexist: Vec<Option<Carried>>,
@@ -640,8 +643,33 @@ impl Looked for Samples {
     }
 
     fn recurred(&self, p: &mut Sampled, c: Cycle, (from, _): (u32, u32), params: &Params<f64>) {
-        // The window shown is one on the cycle: the sampled periods again from its point (on
-        // the host, f64).
+        self.on_cycle(p, c, Rule::StableCycle, params);
+        p.2 = from;
+    }
+
+    fn carried(&self, p: &Sampled) -> Option<Carried> {
+        p.3
+    }
+
+    fn escaped(
+        &self,
+        p: &mut Sampled,
+        (c, _): (Cycle, f64),
+        settle: u32,
+        beside: Option<Carried>,
+        params: &Params<f64>,
+    ) {
+        self.on_cycle(p, c, Rule::Escaped, params);
+        p.2 = settle;
+        p.3 = beside;
+    }
+}
+
+impl Samples {
+    /// Makes the stable cycle `c`, found by `rule` after the run, the point's attractor. The
+    /// window shown is one on the cycle: the sampled periods again from its point (on the
+    /// host, f64).
+    fn on_cycle(&self, p: &mut Sampled, c: Cycle, rule: Rule, params: &Params<f64>) {
         let it = crate::method::Integrator::<f64>::new(params, &self.settings);
         let samples = p.0.samples.len().max(1) as u32;
         let mut st = it.start_in(c.point, Some(c.mode));
@@ -652,11 +680,10 @@ impl Looked for Samples {
         p.1 = Some(Verdict {
             class: Class::Periodic(c.period),
             cycle: Some(c),
-            rule: Rule::StableCycle,
+            rule,
             tried,
         });
         p.0 = r;
-        p.2 = from;
     }
 }
 
@@ -718,16 +745,24 @@ pub fn run(
     nb: &Neighbours,
     progress: &dyn Progress,
 ) -> Result<Adaptive, EngineError> {
-    run_samples(engine, spec, points, true, nb, progress)
+    run_samples(
+        engine,
+        spec,
+        points,
+        (true, look::Copies::Beside),
+        nb,
+        progress,
+    )
 }
 
 /// [`run`] with the early rounds only where `early` is set (`point` runs the configured
-/// stretch, then the adaptive horizon, then the long look).
+/// stretch, then the adaptive horizon, then the long look), and copies of the chaotic-looking
+/// motions that `copies` names ([`look::escape`]).
 pub fn run_samples(
     engine: &Engine,
     spec: &RunSpec,
     points: &Points,
-    early: bool,
+    (early, copies): (bool, look::Copies),
     nb: &Neighbours,
     progress: &dyn Progress,
 ) -> Result<Adaptive, EngineError> {
@@ -759,6 +794,16 @@ pub fn run_samples(
         &keep,
         &mut done,
     );
+    // The carried cycles, then the copies of the motions that look chaotic beside them.
+    let escapes = look::escape(
+        spec,
+        points,
+        nb,
+        copies,
+        &keep,
+        (&mut done, &periods),
+        progress,
+    );
     timings.parts.carry_s = t_carry.elapsed().as_secs_f64();
     timings.transfers = engine.transfers().since(&transfers0);
     let mut settle = Vec::with_capacity(done.len());
@@ -776,6 +821,7 @@ pub fn run_samples(
         verdicts,
         periods,
         settle,
+        settle_se: escapes.settle_se,
         coexist,
         look,
         timings,
@@ -867,19 +913,47 @@ impl Looked for Summaries {
     }
 
     fn recurred(&self, s: &mut Summary, c: Cycle, (from, ran): (u32, u32), params: &Params<f64>) {
-        s.class = Class::Periodic(c.period);
-        s.rule = Rule::StableCycle;
-        s.multiplier = c.leading_modulus();
-        s.lyapunov = Exponent {
-            value: floquet_exponent(s.multiplier, c.period, params),
-            se: 0.0,
-        };
-        s.tried[1] = s.tried[0];
-        s.tried[0] = c.period;
-        (s.final_y, s.final_mode) = (c.point, c.mode);
+        on_cycle(s, &c, Rule::StableCycle, params);
         s.settle = from;
         s.periods = from + ran;
     }
+
+    fn carried(&self, s: &Summary) -> Option<Carried> {
+        s.coexist
+    }
+
+    fn escaped(
+        &self,
+        s: &mut Summary,
+        (c, ipp): (Cycle, f64),
+        settle: u32,
+        beside: Option<Carried>,
+        params: &Params<f64>,
+    ) {
+        on_cycle(s, &c, Rule::Escaped, params);
+        s.impacts_per_period = ipp;
+        s.torus = f64::NAN;
+        s.impact_speed = [f64::NAN; 2];
+        s.dissipation = [f64::NAN; 2];
+        s.stick_fraction = f64::NAN;
+        s.settle = settle;
+        s.coexist = beside;
+    }
+}
+
+/// Makes the stable cycle `c`, found by `rule` after the run, the summary's attractor: its
+/// class, multiplier, exponent (the cycle's own) and state.
+fn on_cycle(s: &mut Summary, c: &Cycle, rule: Rule, params: &Params<f64>) {
+    s.class = Class::Periodic(c.period);
+    s.rule = rule;
+    s.multiplier = c.leading_modulus();
+    s.lyapunov = Exponent {
+        value: floquet_exponent(s.multiplier, c.period, params),
+        se: 0.0,
+    };
+    s.tried[1] = s.tried[0];
+    s.tried[0] = c.period;
+    (s.final_y, s.final_mode) = (c.point, c.mode);
 }
 
 /// [`run`] for maps and studies: no samples are kept, and the summaries of each block the

@@ -219,6 +219,15 @@ struct PointJson {
     period: Option<u32>,
     /// Forcing periods integrated (early termination ends decided points sooner).
     periods: u32,
+    /// The rule that decided the class (docs/classes.md).
+    rule: crate::classify::Rule,
+    /// Periods until on the attractor (as `point`'s `settle`); absent for continuation.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    settle: Option<u32>,
+    /// The error of `settle` where copies of a chaotic-looking motion landed on a cycle (rule
+    /// `escaped`), null elsewhere; absent for continuation.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    settle_se: Option<Option<f64>>,
     value: f64,
 }
 
@@ -299,6 +308,9 @@ impl Serialize for Chain<'_> {
                     .map(|c| c.multipliers.clone()),
                 period: pt.class.period(),
                 periods: pt.periods,
+                rule: pt.rule,
+                settle: pt.settle.map(|s| s.0),
+                settle_se: pt.settle.map(|s| s.1),
                 value: pt.value,
             }
         }))

@@ -34,6 +34,13 @@ pub struct SweepPoint {
     /// Forcing periods integrated (fewer than transient + samples where the point left the
     /// run early, see [`crate::adaptive`]).
     pub periods: u32,
+    /// The rule that decided the class.
+    pub rule: crate::classify::Rule,
+    /// Periods until the motion from `initial.y` was on its attractor, and the error of that
+    /// where copies of a chaotic-looking motion landed on a cycle (rule `escaped`,
+    /// [`crate::adaptive::look::escape`]); None for a continuation's points, which follow a
+    /// branch instead.
+    pub settle: Option<(u32, Option<f64>)>,
 }
 
 impl SweepPoint {
@@ -74,6 +81,8 @@ pub fn finish(cfg: &Config, results: Vec<RunResult>) -> Vec<SweepPoint> {
             result,
             cycle: v.cycle,
             periods: cfg.run.transient_periods + cfg.run.sample_periods,
+            rule: v.rule,
+            settle: None,
         })
         .collect()
 }
@@ -249,7 +258,7 @@ pub fn run(
                 engine,
                 &spec,
                 &points,
-                cfg.run.early_stop,
+                (cfg.run.early_stop, crate::adaptive::look::Copies::Beside),
                 &nb,
                 progress,
             )?;
@@ -259,12 +268,15 @@ pub fn run(
                 .zip(a.results)
                 .zip(a.verdicts)
                 .zip(a.periods)
-                .map(|(((&value, result), v), periods)| SweepPoint {
+                .zip(a.settle.into_iter().zip(a.settle_se))
+                .map(|((((&value, result), v), periods), settle)| SweepPoint {
                     value,
                     class: v.class,
                     result,
                     cycle: v.cycle,
                     periods,
+                    rule: v.rule,
+                    settle: Some(settle),
                 })
                 .collect();
             (vec![(None, points)], Some(a.timings))

@@ -57,6 +57,10 @@ pub struct PointReport {
     /// look (chaos is known to last that long, no longer); otherwise the periods before the
     /// window that showed the attractor (an upper bound).
     pub settle: u32,
+    /// Where the motion still looked chaotic after the look and copies of it landed on a
+    /// stable cycle (rule `escaped`): the standard error of `settle`, the copies' mean
+    /// lifetime's. Null elsewhere.
+    pub settle_se: Option<f64>,
     /// The long look asked for (`run.look`; 0: none, the configured run decides).
     pub look: u32,
     /// All four Lyapunov exponents per unit time (tangent dynamics, CPU f64, over the sampled
@@ -92,7 +96,14 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
     // The configured run, then the adaptive horizon where it is undecided, as a map cell.
     // A single point's neighbours are unknown: a chaotic-looking point gets the whole look.
     let nb = crate::carry::Neighbours::none(1);
-    let a = crate::adaptive::run_samples(engine, &spec, &Points::single(), false, &nb, progress)?;
+    let a = crate::adaptive::run_samples(
+        engine,
+        &spec,
+        &Points::single(),
+        (false, crate::adaptive::look::Copies::Every),
+        &nb,
+        progress,
+    )?;
     let (r, verdict) = (a.results[0].clone(), a.verdicts[0].clone());
     let t_host = Instant::now();
     let class: Class = verdict.class;
@@ -142,6 +153,7 @@ pub fn run(engine: &Engine, cfg: &Config, progress: &dyn Progress) -> Result<Poi
         tried_periods: verdict.tried.clone(),
         periods: a.periods[0],
         settle: a.settle[0],
+        settle_se: a.settle_se[0],
         look: cfg.run.look,
         lyapunov_spectrum,
         multipliers: verdict
@@ -284,6 +296,15 @@ impl PointReport {
                 f,
                 "settled            still chaotic after a look of {} periods",
                 self.settle
+            )?;
+        } else if let Some(se) = self.settle_se {
+            writeln!(
+                f,
+                "settled            on its attractor after {} +- {se:.0} periods (a chaotic \
+                 transient: the {} periods run, then the mean lifetime of {} copies of it)",
+                self.settle,
+                self.periods,
+                crate::escape::COPIES
             )?;
         } else {
             writeln!(
