@@ -166,18 +166,26 @@ fn on(orbit: &[[f64; 4]], y: &[f64; 4]) -> bool {
         .any(|p| (0..4).all(|i| (p[i] - y[i]).abs() <= 1e-4 * scale))
 }
 
-/// Whether a point runs copies of its motion: it looks chaotic after its look, and a stable
-/// cycle of period `carried` was carried to it from a neighbour (`neighbours`: their classes)
-/// that landed on that cycle. The one rule of maps and sweeps: a cycle carried on through
-/// chaotic points in later rounds of the carry rarely ends a transient there (on two maps
-/// judged, 32 of 34 escapes were beside a point on their cycle, 82 of 196 candidates).
+/// Whether a motion of this class may be a transient that copies decide: it looks chaotic, or
+/// nothing decided it (`unresolved`; `aperiodic` where no exponent was asked for). A cycle, a
+/// torus that passed its test, or impact-free motion is not looked at again.
+pub fn may_be_transient(class: crate::class::Class) -> bool {
+    use crate::class::Class;
+    matches!(class, Class::Chaotic | Class::Unresolved | Class::Aperiodic)
+}
+
+/// Whether a point runs copies of its motion: it [`may_be_transient`], and a stable cycle of
+/// period `carried` was carried to it from a neighbour (`neighbours`: their classes) that
+/// landed on that cycle. The one rule of maps and sweeps: a cycle carried on through chaotic
+/// points in later rounds of the carry rarely ends a transient there (on two maps judged, 32 of
+/// 34 escapes were beside a point on their cycle, 82 of 196 candidates).
 pub fn beside(
     class: crate::class::Class,
     carried: Option<u32>,
     mut neighbours: impl Iterator<Item = crate::class::Class>,
 ) -> bool {
     use crate::class::Class;
-    class == Class::Chaotic && carried.is_some_and(|n| neighbours.any(|c| c == Class::Periodic(n)))
+    may_be_transient(class) && carried.is_some_and(|n| neighbours.any(|c| c == Class::Periodic(n)))
 }
 
 /// Runs [`COPIES`] copies of each motion `(it, from)` (its integrator and its last state) and

@@ -80,6 +80,16 @@ pub fn lags(states: &[[f64; 4]]) -> Vec<Candidate> {
     };
     let worst = |ks: std::ops::Range<usize>, n: usize| ks.map(|k| diff(k, n)).fold(0.0, f64::max);
     let most = (MAX_LONG_PERIOD as usize).min(len.saturating_sub(2 * W) / 2);
+    if log::log_enabled!(log::Level::Trace) {
+        let mut all: Vec<(usize, f64, f64)> = (1..=most)
+            .map(|n| (n, worst(len - W..len, n), worst(n..n + W, n)))
+            .collect();
+        all.sort_by(|a, b| a.1.total_cmp(&b.1));
+        log::trace!(
+            "recurrence: closest returns (lag, recent, early): {:?}",
+            &all[..all.len().min(6)]
+        );
+    }
     let found: Vec<Candidate> = (1..=most)
         .filter_map(|n| {
             let recent = worst(len - W..len, n);
@@ -151,6 +161,16 @@ pub fn search(it: &Integrator<f64>, from: &PointState<f64>, progress: &dyn Progr
     for cand in lags(&states) {
         out.best = Some(cand);
         let c = refine(it, &st, cand.period);
+        log::trace!(
+            "recurrence: lag {}: Newton converged {} stable {} |mu| {:.6} at {:.3e} of the state",
+            cand.period,
+            c.converged,
+            c.is_stable(),
+            c.leading_modulus(),
+            (0..4)
+                .map(|i| (c.point[i] - st.y[i]).abs())
+                .fold(0.0, f64::max)
+        );
         if c.is_stable() && approaches(&y1, &st.y, &cand, &c.point, c.leading_modulus()) {
             out.found = Some(c);
             break;

@@ -266,3 +266,63 @@ fn a_sweep_decides_its_transients_as_a_map() {
     }
     assert!(seen >= 2, "{seen} judged cells on the column");
 }
+
+/// An undecided motion is a transient that copies decide too (`escape::may_be_transient`):
+/// cell (30, 46) of tests/data/r_lambda_128.toml, where the reference (exact motion between
+/// events, from the map's start, 2 x 10^4 periods) settles on a stable period-8 cycle, is
+/// `unresolved` after the look and the adaptive horizon on lavapipe in f32 (4000 periods);
+/// `rattle point` there runs copies, which land on that cycle. On the CPU in f64 the point's
+/// own run reaches it.
+#[test]
+fn an_undecided_motion_is_decided_by_its_copies() {
+    let base = Config::load(&data("r_lambda_128.toml"), &[]).unwrap();
+    let xs = Config::map_axis(base.map.x_from, base.map.x_to, base.map.x_points);
+    let ys = Config::map_axis(base.map.y_from, base.map.y_to, base.map.y_points);
+    let mut cfg = base.clone();
+    cfg.model.restitution = xs[30];
+    cfg.model.lambda = ys[46];
+    // The reference's verdict: the lag at which its states repeat to 1e-6, and its cycle there.
+    let zeno = rattle::spec::RunSpec::new(&cfg).settings.zeno_speed;
+    let r = rattle::reference::dry::DryReference::new(&cfg.params(), 1024, zeno).unwrap();
+    let mut st = r.start(cfg.initial.y);
+    r.run(&mut st, 20_000, None).unwrap();
+    let s = r.run(&mut st, 64, None).unwrap();
+    let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
+    let lag = (1..=16).find(|&m| {
+        (m..s.len()).all(|k| (0..4).all(|i| (s[k][i] - s[k - m][i]).abs() < 1e-6 * scale))
+    });
+    let c = r
+        .cycle(*s.last().unwrap(), lag.unwrap_or(1) as u32)
+        .unwrap();
+    let lead = c.lead()[0].hypot(c.lead()[1]);
+    assert_eq!((lag, c.period, c.stable()), (Some(8), 8, true), "the judge");
+    let mut engines = vec![(rattle::engine::Engine::Cpu, Precision::F64)];
+    if let Some(g) = common::gpu_engine() {
+        engines.push((g, Precision::F32));
+    }
+    for (engine, precision) in &engines {
+        let mut p = cfg.clone();
+        p.method.precision = *precision;
+        let got = rattle::point::run(engine, &p, &rattle::progress::Silent).unwrap();
+        let what = format!("{} {precision:?}", engine.name());
+        assert_eq!(got.class, "period-8", "{what}");
+        let mu = got.multipliers.as_ref().expect("its multipliers")[0];
+        assert!(
+            (mu[0].hypot(mu[1]) - lead).abs() < 2e-3,
+            "{what}: {mu:?} against {lead}"
+        );
+        if *precision == Precision::F32 {
+            // Undecided through the look and the horizon (10 x the configured periods).
+            assert_eq!(got.rule, Rule::Escaped, "{what}");
+            assert!(
+                got.periods > cfg.run.look,
+                "{what}: {} periods",
+                got.periods
+            );
+            assert!(
+                got.settle > got.periods && got.settle_se.unwrap() > 0.0,
+                "{what}"
+            );
+        }
+    }
+}

@@ -71,14 +71,14 @@ pub trait Looked: Keep {
     );
 }
 
-/// Which points run copies of their chaotic-looking motion ([`escape`]).
+/// Which points run copies of a motion that may be a transient (chaotic-looking or undecided) ([`escape`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Copies {
     /// Those beside a neighbour on a stable cycle carried to them ([`crate::escape::beside`]):
     /// maps and sweeps.
     Beside,
-    /// Every one: a single point's neighbours are unknown, so (as for the look) nothing says
-    /// that no cycle is near (`point`).
+    /// Every one that [`crate::escape::may_be_transient`]: a single point's neighbours are
+    /// unknown, so (as for the look) nothing says that no cycle is near (`point`).
     Every,
     /// None: the starts of a basin are not neighbours in parameter space, and a copy 1e-4
     /// away says where a trajectory near the start's goes, not where the start's own does.
@@ -92,18 +92,19 @@ pub struct Escapes {
     pub candidates: usize,
     /// Of those, the points whose copies landed on a stable cycle.
     pub escaped: usize,
-    /// Rounds (an escape makes its chaotic-looking neighbours candidates of the next).
+    /// Rounds (an escape makes its neighbours that may be transients candidates of the next).
     pub rounds: usize,
     /// Each point's settle time's standard error where it escaped (the copies' mean lifetime's).
     pub settle_se: Vec<Option<f64>>,
 }
 
 /// Transients beyond the look ([`crate::escape`]), decided as a map decides its cells: every
-/// chaotic-looking point that [`Copies`] names runs copies of its motion from its last state;
-/// where copies land on stable cycles, the one most landed on is the point's attractor, its
-/// settle time the periods run plus the copies' mean lifetime. In rounds: a point that escaped
-/// onto a cycle makes its chaotic-looking neighbours, where that cycle was carried, candidates
-/// of the next round, until none is left. Run after [`coexist`].
+/// point that may be a transient ([`crate::escape::may_be_transient`]) and that [`Copies`]
+/// names runs copies of its motion from its last state; where copies land on stable cycles,
+/// the one most landed on is the point's attractor, its settle time the periods run plus the
+/// copies' mean lifetime. In rounds: a point that escaped onto a cycle makes its neighbours that
+/// may be transients, where that cycle was carried, candidates of the next round, until none
+/// is left. Run after [`coexist`].
 pub fn escape<K: Looked>(
     spec: &RunSpec,
     points: &Points,
@@ -129,7 +130,7 @@ pub fn escape<K: Looked>(
             .filter(|&i| {
                 !tried[i]
                     && match copies {
-                        Copies::Every => classes[i] == Class::Chaotic,
+                        Copies::Every => crate::escape::may_be_transient(classes[i]),
                         _ => crate::escape::beside(
                             classes[i],
                             keep.carried(&done[i]).map(|c| c.period),
@@ -177,7 +178,7 @@ pub fn escape<K: Looked>(
         }
     }
     log::debug!(
-        "escapes: {} chaotic-looking points in {} rounds, {} of them transients",
+        "escapes: {} chaotic-looking or undecided points in {} rounds, {} of them transients",
         out.candidates,
         out.rounds,
         out.escaped

@@ -75,8 +75,8 @@ pub(super) fn caption(
     });
     let escaped = match rules.get("escaped") {
         Some(e) => format!(
-            " A cell still chaotic-looking beside a neighbour on a stable cycle carried \
-                     to it then ran {n} copies of its motion for up to {span} periods each \
+            " A cell still chaotic-looking or undecided beside a neighbour on a stable \
+                     cycle carried to it then ran {n} copies of its motion for up to {span} periods each \
                      (f64, on the host): in {e} cells copies landed on a stable cycle, which the \
                      cell names (rule escaped: its chaos was a transient; PREFIX-settle.npy: the \
                      periods run plus the copies' mean lifetime, PREFIX-settle_se.npy: its \

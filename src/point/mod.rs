@@ -300,7 +300,7 @@ impl PointReport {
         } else if let Some(se) = self.settle_se {
             writeln!(
                 f,
-                "settled            on its attractor after {} +- {se:.0} periods (a chaotic \
+                "settled            on its attractor after {} +- {se:.0} periods (a \
                  transient: the {} periods run, then the mean lifetime of {} copies of it)",
                 self.settle,
                 self.periods,
