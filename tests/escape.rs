@@ -281,21 +281,8 @@ fn an_undecided_motion_is_decided_by_its_copies() {
     let mut cfg = base.clone();
     cfg.model.restitution = xs[30];
     cfg.model.lambda = ys[46];
-    // The reference's verdict: the lag at which its states repeat to 1e-6, and its cycle there.
-    let zeno = rattle::spec::RunSpec::new(&cfg).settings.zeno_speed;
-    let r = rattle::reference::dry::DryReference::new(&cfg.params(), 1024, zeno).unwrap();
-    let mut st = r.start(cfg.initial.y);
-    r.run(&mut st, 20_000, None).unwrap();
-    let s = r.run(&mut st, 64, None).unwrap();
-    let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
-    let lag = (1..=16).find(|&m| {
-        (m..s.len()).all(|k| (0..4).all(|i| (s[k][i] - s[k - m][i]).abs() < 1e-6 * scale))
-    });
-    let c = r
-        .cycle(*s.last().unwrap(), lag.unwrap_or(1) as u32)
-        .unwrap();
-    let lead = c.lead()[0].hypot(c.lead()[1]);
-    assert_eq!((lag, c.period, c.stable()), (Some(8), 8, true), "the judge");
+    let (lag, period, lead, stable) = common::reference_cycle(&cfg);
+    assert_eq!((lag, period, stable), (Some(8), 8, true), "the judge");
     let mut engines = vec![(rattle::engine::Engine::Cpu, Precision::F64)];
     if let Some(g) = common::gpu_engine() {
         engines.push((g, Precision::F32));

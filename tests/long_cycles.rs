@@ -6,7 +6,6 @@
 mod common;
 use common::{config, npy, ok, rattle, scratch};
 use rattle::config::Config;
-use rattle::reference::dry::DryReference;
 
 /// Fig. 2's model at R = 0.8, lambda = 0.02, eta = 1 + 73/299 (a point of an eta sweep from 1
 /// to 2 in 300 values): after 3,600 periods rattle said `unresolved` (Newton tried period 66).
@@ -20,25 +19,7 @@ const SETS: [&str; 3] = [
 /// after 2 x 10^4 periods, and its own cycle there (least period, leading |mu|).
 fn judged() -> (Option<usize>, u32, f64, bool) {
     let sets: Vec<String> = SETS.iter().map(|s| s.to_string()).collect();
-    judged_at(&Config::load(&config("fig2.toml"), &sets).unwrap())
-}
-
-/// [`judged`] of the point of `cfg`.
-fn judged_at(cfg: &Config) -> (Option<usize>, u32, f64, bool) {
-    let zeno = rattle::spec::RunSpec::new(cfg).settings.zeno_speed;
-    let r = DryReference::new(&cfg.params(), 1024, zeno).unwrap();
-    let mut st = r.start([0.0; 4]);
-    r.run(&mut st, 20_000, None).unwrap();
-    let s = r.run(&mut st, 2 * 1024 + 8, None).unwrap();
-    let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
-    let lag = (1..=1024).find(|&m| {
-        (m..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - m][c]).abs() < 1e-6 * scale))
-    });
-    let c = r
-        .cycle(*s.last().unwrap(), lag.unwrap_or(1) as u32)
-        .unwrap();
-    let lead = c.lead()[0].hypot(c.lead()[1]);
-    (lag, c.period, lead, c.stable())
+    common::reference_cycle(&Config::load(&config("fig2.toml"), &sets).unwrap())
 }
 
 #[test]
@@ -141,7 +122,7 @@ fn a_slow_cycle_left_unresolved_is_named() {
     let mut at = base.clone();
     at.model.restitution = xs[ix];
     at.model.lambda = ys[iy];
-    let (lag, period, lead, stable) = judged_at(&at);
+    let (lag, period, lead, stable) = common::reference_cycle(&at);
     assert_eq!(
         (lag, period, stable),
         (Some(8), 8, true),

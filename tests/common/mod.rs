@@ -243,3 +243,24 @@ pub fn within(cmd: &mut std::process::Command, secs: f64) -> Option<std::process
     child.wait().unwrap();
     None
 }
+
+/// The independent reference's verdict at the point of `cfg` (`reference::dry`: exact motion
+/// between events, its own Newton and multipliers), from the config's start: the lag at which
+/// its stroboscopic states repeat to 1e-6 after 2 x 10^4 periods, and its own cycle there
+/// (least period, leading |mu|, stable).
+pub fn reference_cycle(cfg: &rattle::config::Config) -> (Option<usize>, u32, f64, bool) {
+    let zeno = rattle::spec::RunSpec::new(cfg).settings.zeno_speed;
+    let r = rattle::reference::dry::DryReference::new(&cfg.params(), 1024, zeno).unwrap();
+    let mut st = r.start(cfg.initial.y);
+    r.run(&mut st, 20_000, None).unwrap();
+    let s = r.run(&mut st, 2 * 1024 + 8, None).unwrap();
+    let scale = s.iter().flatten().fold(1.0f64, |a, v| a.max(v.abs()));
+    let lag = (1..=1024).find(|&m| {
+        (m..s.len()).all(|k| (0..4).all(|c| (s[k][c] - s[k - m][c]).abs() < 1e-6 * scale))
+    });
+    let c = r
+        .cycle(*s.last().unwrap(), lag.unwrap_or(1) as u32)
+        .unwrap();
+    let lead = c.lead()[0].hypot(c.lead()[1]);
+    (lag, c.period, lead, c.stable())
+}
