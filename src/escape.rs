@@ -166,26 +166,34 @@ fn on(orbit: &[[f64; 4]], y: &[f64; 4]) -> bool {
         .any(|p| (0..4).all(|i| (p[i] - y[i]).abs() <= 1e-4 * scale))
 }
 
-/// Whether a motion of this class may be a transient that copies decide: it looks chaotic, or
-/// nothing decided it (`unresolved`; `aperiodic` where no exponent was asked for). A cycle, a
-/// torus that passed its test, or impact-free motion is not looked at again.
-pub fn may_be_transient(class: crate::class::Class) -> bool {
+/// Whether a motion of this class, integrated for `ran` periods under a look of `look`
+/// periods (`run.look`), may be a transient that copies decide: it looks chaotic after its
+/// look, or nothing decided it (`unresolved`; `aperiodic` where no exponent was asked for)
+/// though it ran at least as long as the look would have. A cycle, a torus that passed its
+/// test, or impact-free motion is not looked at again; nor is a motion left undecided by a
+/// short run (a survey of a few dozen periods), which is no transient beyond the look.
+pub fn may_be_transient(class: crate::class::Class, ran: u32, look: u32) -> bool {
     use crate::class::Class;
-    matches!(class, Class::Chaotic | Class::Unresolved | Class::Aperiodic)
+    match class {
+        Class::Chaotic => true,
+        Class::Unresolved | Class::Aperiodic => ran >= look,
+        _ => false,
+    }
 }
 
-/// Whether a point runs copies of its motion: it [`may_be_transient`], and a stable cycle of
-/// period `carried` was carried to it from a neighbour (`neighbours`: their classes) that
-/// landed on that cycle. The one rule of maps and sweeps: a cycle carried on through chaotic
-/// points in later rounds of the carry rarely ends a transient there (on two maps judged, 32 of
-/// 34 escapes were beside a point on their cycle, 82 of 196 candidates).
+/// Whether a point runs copies of its motion: it may be a transient (`transient`, from
+/// [`may_be_transient`]), and a stable cycle of period `carried` was carried to it from a
+/// neighbour (`neighbours`: their classes) that landed on that cycle. The one rule of maps and
+/// sweeps: a cycle carried on through chaotic points in later rounds of the carry rarely ends
+/// a transient there (on two maps judged, 32 of 34 escapes were beside a point on their
+/// cycle, 82 of 196 candidates).
 pub fn beside(
-    class: crate::class::Class,
+    transient: bool,
     carried: Option<u32>,
     mut neighbours: impl Iterator<Item = crate::class::Class>,
 ) -> bool {
     use crate::class::Class;
-    may_be_transient(class) && carried.is_some_and(|n| neighbours.any(|c| c == Class::Periodic(n)))
+    transient && carried.is_some_and(|n| neighbours.any(|c| c == Class::Periodic(n)))
 }
 
 /// Runs [`COPIES`] copies of each motion `(it, from)` (its integrator and its last state) and

@@ -270,7 +270,8 @@ fn a_sweep_decides_its_transients_as_a_map() {
 /// An undecided motion is a transient that copies decide too (`escape::may_be_transient`):
 /// cell (30, 46) of tests/data/r_lambda_128.toml, where the reference (exact motion between
 /// events, from the map's start, 2 x 10^4 periods) settles on a stable period-8 cycle, is
-/// `unresolved` after the look and the adaptive horizon on lavapipe in f32 (4000 periods);
+/// `unresolved` after the look and the adaptive horizon on lavapipe in f32 (4000 periods, more
+/// than the look: an undecided motion of a short run runs none);
 /// `rattle point` there runs copies, which land on that cycle. On the CPU in f64 the point's
 /// own run reaches it.
 #[test]

@@ -130,9 +130,11 @@ pub fn escape<K: Looked>(
             .filter(|&i| {
                 !tried[i]
                     && match copies {
-                        Copies::Every => crate::escape::may_be_transient(classes[i]),
+                        Copies::Every => {
+                            crate::escape::may_be_transient(classes[i], periods[i], spec.look)
+                        }
                         _ => crate::escape::beside(
-                            classes[i],
+                            crate::escape::may_be_transient(classes[i], periods[i], spec.look),
                             keep.carried(&done[i]).map(|c| c.period),
                             nb.of[i].iter().map(|&j| classes[j]),
                         ),

@@ -251,8 +251,10 @@ fn escape_transients(
         for (k, &c) in computed.iter().enumerate() {
             // The cycle known nearby: a neighbour's own attractor, carried here.
             let n = carried[k].as_ref().map(|c| c.period);
+            let transient =
+                crate::escape::may_be_transient(classes[k], fields.periods[c], spec.look);
             if tried[k]
-                || !crate::escape::beside(classes[k], n, nb.of[k].iter().map(|&j| classes[j]))
+                || !crate::escape::beside(transient, n, nb.of[k].iter().map(|&j| classes[j]))
             {
                 continue;
             }
