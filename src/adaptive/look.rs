@@ -57,10 +57,11 @@ pub trait Looked: Keep {
     /// The stable cycle carried to the point that coexists with its attractor, as
     /// [`Self::coexists`] recorded it.
     fn carried(&self, p: &Self::Point) -> Option<Carried>;
-    /// Makes the stable cycle of `cycle` (with its impacts per period) that copies of the point's
-    /// motion landed on its attractor ([`escape`]): rule `escaped`, on it after `settle`
-    /// periods, with `beside` another stable cycle known there. The window's observables were
-    /// the transient's: they become the cycle's where the point keeps samples, NaN otherwise.
+    /// Makes the stable cycle of `cycle` (with its impacts per period) that copies of the
+    /// point's motion landed on its attractor ([`escape`]): rule `escaped`, on it after
+    /// `settle` periods, with `beside` another stable cycle known there. The window's
+    /// observables were the transient's: they become the cycle's where the point keeps
+    /// samples, NaN otherwise.
     fn escaped(
         &self,
         p: &mut Self::Point,
@@ -71,7 +72,8 @@ pub trait Looked: Keep {
     );
 }
 
-/// Which points run copies of a motion that may be a transient (chaotic-looking or undecided) ([`escape`]).
+/// Which points run copies of a motion that may be a transient (chaotic-looking or
+/// undecided, [`escape`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Copies {
     /// Those beside a neighbour on a stable cycle carried to them ([`crate::escape::beside`]):
@@ -94,7 +96,8 @@ pub struct Escapes {
     pub escaped: usize,
     /// Rounds (an escape makes its neighbours that may be transients candidates of the next).
     pub rounds: usize,
-    /// Each point's settle time's standard error where it escaped (the copies' mean lifetime's).
+    /// Each point's settle time's standard error where it escaped (the copies' mean
+    /// lifetime's).
     pub settle_se: Vec<Option<f64>>,
 }
 
@@ -102,9 +105,9 @@ pub struct Escapes {
 /// point that may be a transient ([`crate::escape::may_be_transient`]) and that [`Copies`]
 /// names runs copies of its motion from its last state; where copies land on stable cycles,
 /// the one most landed on is the point's attractor, its settle time the periods run plus the
-/// copies' mean lifetime. In rounds: a point that escaped onto a cycle makes its neighbours that
-/// may be transients, where that cycle was carried, candidates of the next round, until none
-/// is left. Run after [`coexist`].
+/// copies' mean lifetime. In rounds: a point that escaped onto a cycle makes its neighbours
+/// that may be transients, where that cycle was carried, candidates of the next round, until
+/// none is left. Run after [`coexist`].
 pub fn escape<K: Looked>(
     spec: &RunSpec,
     points: &Points,

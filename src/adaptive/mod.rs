@@ -58,8 +58,9 @@ pub struct Adaptive {
     pub periods: Vec<u32>,
     /// Periods until each point was on its attractor ([`Ended::settle`]).
     pub settle: Vec<u32>,
-    /// The standard error of each settle time where the point's chaotic-looking motion escaped
-    /// onto a cycle (the copies' mean lifetime's, [`look::escape`]); None elsewhere.
+    /// The standard error of each settle time where the point's chaotic-looking or undecided
+    /// motion escaped onto a cycle (the copies' mean lifetime's, [`look::escape`]); None
+    /// elsewhere.
     pub settle_se: Vec<Option<f64>>,
     /// The stable cycle carried to each point that coexists with its attractor
     /// ([`look`]).
@@ -757,7 +758,7 @@ pub fn run(
 
 /// [`run`] with the early rounds only where `early` is set (`point` runs the configured
 /// stretch, then the adaptive horizon, then the long look), and copies of the chaotic-looking
-/// motions that `copies` names ([`look::escape`]).
+/// or undecided motions that `copies` names ([`look::escape`]).
 pub fn run_samples(
     engine: &Engine,
     spec: &RunSpec,
@@ -794,7 +795,7 @@ pub fn run_samples(
         &keep,
         &mut done,
     );
-    // The carried cycles, then the copies of the motions that look chaotic beside them.
+    // The carried cycles, then the copies of the motions that may be transients beside them.
     let escapes = look::escape(
         spec,
         points,

@@ -223,9 +223,9 @@ fn cell_spec(cfg: &Config) -> RunSpec {
 /// The transients beyond the look ([`crate::escape`]): every `computed` cell whose motion may
 /// be a transient (`classes`: chaotic-looking or undecided) where a stable cycle was `carried`
 /// to it from a neighbour (`nb`) that landed on it runs copies of its motion from its last
-/// state; where copies land on stable cycles, the one most landed on is the cell's attractor (rule `escaped`, its settle time the periods run plus the copies' mean lifetime,
-/// with its error in `settle_se`), and the window's observables, which were the transient's,
-/// are NaN. Returns the classes after, and for each cell whose motion escaped, another stable
+/// state; where copies land on stable cycles, the one most landed on is the cell's attractor
+/// (rule `escaped`, its settle time the periods run plus the copies' mean lifetime, with its
+/// error in `settle_se`), and the window's observables, which were the transient's, are NaN. Returns the classes after, and for each cell whose motion escaped, another stable
 /// cycle known there (the carried one, or another the copies landed on) that coexists.
 fn escape_transients(
     cfg: &Config,
@@ -325,8 +325,8 @@ fn escape_transients(
         }
     }
     log::debug!(
-        "escapes: {candidates} chaotic-looking or undecided cells beside a carried stable cycle in {rounds} \
-         rounds, {escaped} of them transients, {:.2} s",
+        "escapes: {candidates} chaotic-looking or undecided cells beside a carried stable \
+         cycle in {rounds} rounds, {escaped} of them transients, {:.2} s",
         t0.elapsed().as_secs_f64()
     );
     (classes, beside)
@@ -334,9 +334,9 @@ fn escape_transients(
 
 /// Carries the stable cycles of a whole map's cells to their neighbouring cells
 /// ([`crate::carry::carry`]) and records in `fields.coexist` each carried cycle that coexists
-/// with the cell's own attractor, then decides the escapes of chaotic-looking or undecided cells beside a
-/// carried cycle ([`crate::escape`]). Runs on the whole grid once its parts are joined, on the host
-/// in f64, so that a single run, its shards and its checkpoints give the same layer. Cells
+/// with the cell's own attractor, then decides the escapes of chaotic-looking or undecided
+/// cells beside a carried cycle ([`crate::escape`]). Runs on the whole grid once its parts are
+/// joined, on the host in f64, so that a single run, its shards and its checkpoints give the same layer. Cells
 /// filled by `--refine` neither seed nor receive. Returns the cells that gained a cycle.
 pub fn carry_over(cfg: &Config, fields: &mut Fields, progress: &dyn Progress) -> usize {
     if cfg.z_axis().is_some() {
