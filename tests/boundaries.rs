@@ -341,6 +341,64 @@ fn a_cycle_ending_without_a_crossing_is_typed_from_its_approach() {
     );
 }
 
+/// A cycle whose leading multipliers are a complex pair until just before its end, where the
+/// pair meets the real axis and one of them goes on to +1, ends at a fold (the edge of a
+/// resonance tongue: the node meets the saddle on the torus): the period-8 cycle of cell (117,
+/// 77) of tests/data/r_lambda_128.toml (R 0.68359375, lambda 0.060546875), beside
+/// quasi-periodic cells, continued towards R 0.68203125. It was `undetermined` ("no multiplier
+/// crossing") while only a real leading multiplier at the far distance counted. The judge, the
+/// reference's own Newton: a stable period-8 cycle whose leading multipliers are a complex pair
+/// 1/64 of a cell before the point, still stable 1/4096 of a cell before it, and no stable
+/// period-8 cycle 1/512 of a cell after it.
+#[test]
+fn a_fold_met_through_a_complex_pair_is_a_fold() {
+    use rattle::model::Mode;
+    use rattle::stability::Kind;
+    let y = [
+        -0.37317103147506714,
+        -0.26085910201072693,
+        -1.085615634918213,
+        0.523762047290802,
+    ];
+    let (from, to) = (0.68359375, 0.68203125);
+    let (cfg, p, b) = end_along(true, (from, to), 0.060546875, (y, Mode::SlipNeg), 8);
+    let settings = cfg.settings();
+    assert_eq!(b.kind, Kind::Fold, "{b:?}");
+    assert!(b.evidence.starts_with("a complex pair"), "{}", b.evidence);
+    let edge = to - from;
+    let at = |v: f64| {
+        let mut q = p;
+        cfg.map.x.set(&mut q, v);
+        DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
+    };
+    // Continued from the cell's own cycle in 64 steps (near the tongue's edge the saddle
+    // partner lies close by: Newton from rattle's section point may land on it).
+    let before = b.value - edge / 64.0;
+    let mut far = at(from).cycle(y, 8).expect("the cell's cycle");
+    for k in 1..=64 {
+        let v = from + (before - from) * f64::from(k) / 64.0;
+        far = at(v).cycle(far.point, 8).expect("the cycle continued");
+    }
+    let near = at(b.value - edge / 4096.0)
+        .cycle(far.point, 8)
+        .expect("a cycle 1/4096 of a cell before");
+    eprintln!(
+        "reference's leading multipliers before the fold: {:?} at 1/64, {:?} at 1/4096",
+        far.lead(),
+        near.lead()
+    );
+    assert!(far.stable() && far.period == 8 && far.lead()[1] != 0.0);
+    assert!(near.stable() && near.period == 8);
+    let after = at(b.value + edge / 512.0).cycle(near.point, 8);
+    assert!(
+        after
+            .as_ref()
+            .is_none_or(|c| !(c.stable() && c.period == 8)),
+        "a stable period-8 cycle after the fold: {:?}",
+        after.map(|c| c.lead())
+    );
+}
+
 /// Grazing, the bifurcation of impact oscillators, is named where the exact system grazes: the
 /// period-7 cycle of cell (6, 1) of tests/data/r_lambda_128.toml (R 0.51015625, lambda
 /// 0.001171875), continued towards R 0.51171875, ends where one of its reversals (the relative

@@ -31,9 +31,9 @@ use std::collections::{BTreeMap, HashMap};
 const ENDS_UNNAMED: &str = "the cycle ends with no multiplier crossing the circle and no \
      impact speed, clearance or stick phase vanishing";
 /// Why a located end is `undetermined` where Newton stalls at a jump of the discrete map.
-const ENDS_AT_JUMP: &str = "Newton stalls beyond the end at a residual below 1e-4 of the \
-     state up to the other cell: the integrator's map jumps there by about its own error, so \
-     whether the exact system's cycle ends is not resolved";
+const ENDS_AT_JUMP: &str = "Newton stalls beyond the end at a residual between 1e-6 and \
+     1e-4 of the state up to the other cell: the integrator's map jumps there by about its own \
+     error, so whether the exact system's cycle ends is not resolved";
 /// Why a claimed coexistence is not one.
 const NOT_STABLE_AT_MIDPOINT: &str = "the cycle that would coexist is not stable at the \
      edge's midpoint";
@@ -1319,7 +1319,10 @@ fn type_of(p: &BifurcationPoint) -> (Type, &'static str) {
         Kind::StickOnset => (Type::StickOnset, ""),
         Kind::StickLoss => (Type::StickLoss, ""),
         Kind::BorderCollision => (Type::BorderCollision, ""),
-        Kind::NonSmooth if p.stall <= crate::stability::JUMP_RESIDUAL => {
+        Kind::NonSmooth
+            if (crate::stability::JUMP_FLOOR..=crate::stability::JUMP_RESIDUAL)
+                .contains(&p.stall) =>
+        {
             (Type::Undetermined, ENDS_AT_JUMP)
         }
         Kind::NonSmooth => (Type::Undetermined, ENDS_UNNAMED),

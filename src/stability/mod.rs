@@ -87,7 +87,15 @@ const CRITICAL: f64 = 0.05;
 /// grid, so that no fixed point may exist within a narrow window although the exact system's
 /// cycle goes on. The march looks beyond such a window (up to [`MAX_JUMPS`] times a search).
 pub const JUMP_RESIDUAL: f64 = 1e-4;
+/// A stall below this fraction of the state is not a jump: beyond a fold Newton stalls at a
+/// residual that shrinks with the bracket (5e-9 to 2.4e-7 of the state at 2^-20 of the edge on
+/// tests/data/r_lambda_128.toml), far below the method's error that a jump is about.
+pub const JUMP_FLOOR: f64 = 1e-6;
 const MAX_JUMPS: u32 = 2;
+/// The look past a stall grows its distance from the last stable cycle this many times a step
+/// (a window where the discrete map jumps is about the method's error wide: a cycle found again
+/// beyond one is found at any distance past it).
+const JUMP_GROWTH: f64 = 8.0;
 /// Stable cycles found in a bracket whose far end is a failure from afar after which that end
 /// is solved again from the last of them (at an eighth of the distance or less): the failure
 /// was from afar where the cycle goes on (3.5% of the failures on tests/data/r_lambda_128.toml),
@@ -576,7 +584,7 @@ impl<'a> Locate<'a> {
                 self.end_at(at, None, stall);
                 return;
             }
-            self.step_size = 2.0 * tried;
+            self.step_size = JUMP_GROWTH * tried;
         } else if crossed || close {
             let scale = c.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
             let stall = if crossed {
@@ -584,14 +592,14 @@ impl<'a> Locate<'a> {
             } else {
                 c.residual / scale
             };
-            if !crossed && stall <= JUMP_RESIDUAL && self.jumps < MAX_JUMPS {
+            if !crossed && (JUMP_FLOOR..=JUMP_RESIDUAL).contains(&stall) && self.jumps < MAX_JUMPS {
                 // Newton stalls at about the method's error: a jump of the discrete map (an
                 // event crossing a grid step), not the cycle's end. Look beyond it.
                 self.jumps += 1;
                 self.jump_from = Some((self.mid, stall));
                 self.bisecting = false;
                 self.outer.clear();
-                self.step_size = 4.0 * tried;
+                self.step_size = JUMP_GROWTH * tried;
             } else {
                 self.bad = self.mid;
                 self.beyond = crossed.then_some(c);
@@ -863,9 +871,37 @@ impl<'a> Locate<'a> {
             let (dn, df) = ((e - near.0).abs(), (e - far.0).abs());
             let contrast = dn / df;
             let (ln, lf) = (lead(&near.1), lead(&far.1));
-            if ln[1] == 0.0 && lf[1] == 0.0 && ln[0] > 0.0 && 1.0 - ln[0] <= CRITICAL {
-                let ratio = (1.0 - ln[0]) / (1.0 - lf[0]);
-                if ratio > 0.0 && ratio < 2.0 * contrast.sqrt() {
+            // The far cycle's leading multipliers may still be a complex pair that meets the
+            // real axis nearer the end, where one of the two goes on to +1 (period-8 cycles of
+            // tests/data/r_lambda_128.toml beside a torus: 0.9916 +- 0.0110i at 5.1e-8 from
+            // the end, 0.9989 at 7.5e-10): 1 - |mu| is the distance to the circle either way.
+            let gap = |l: &[f64; 2]| 1.0 - modulus(l);
+            if ln[1] == 0.0 && ln[0] > 0.0 && 1.0 - ln[0] <= CRITICAL && gap(&lf) > 0.0 {
+                let ratio = (1.0 - ln[0]) / gap(&lf);
+                if lf[1] != 0.0 && ratio > 0.0 && ratio < 2.0 * contrast.sqrt() {
+                    // The pair meets the real axis within a few brackets of the end: too
+                    // close for the square-root law to be read, but a multiplier reaching +1
+                    // where the cycle ceases to exist is a fold (at the edge of a resonance
+                    // tongue, the node meeting the saddle on the torus).
+                    let kind = if self.halves(&self.last) {
+                        Kind::PeriodDoubling
+                    } else {
+                        Kind::Fold
+                    };
+                    return (
+                        kind,
+                        None,
+                        format!(
+                            "a complex pair of multipliers, 1 - |mu| {:.3e}, at {df:.3e} from \
+                             the end; one real multiplier, 1 - mu {:.3e}, at {dn:.3e} (ratio \
+                             {ratio:.3}): the pair met the real axis and one of them nears +1 \
+                             where the cycle ceases to exist (its power law not resolved)",
+                            gap(&lf),
+                            1.0 - ln[0],
+                        ),
+                    );
+                }
+                if lf[1] == 0.0 && ratio > 0.0 && ratio < 2.0 * contrast.sqrt() {
                     // 1 - mu ~ distance^power: 1/2 at a fold; 1 where a doubled cycle merges
                     // into its half (its multiplier is the square of the half's, which leaves
                     // -1 linearly), also where its points have not yet come within DOUBLED.
