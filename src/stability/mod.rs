@@ -878,66 +878,63 @@ impl<'a> Locate<'a> {
             let gap = |l: &[f64; 2]| 1.0 - modulus(l);
             if ln[1] == 0.0 && ln[0] > 0.0 && 1.0 - ln[0] <= CRITICAL && gap(&lf) > 0.0 {
                 let ratio = (1.0 - ln[0]) / gap(&lf);
-                if lf[1] != 0.0 && ratio > 0.0 && ratio < 2.0 * contrast.sqrt() {
-                    // The pair meets the real axis within a few brackets of the end: too
-                    // close for the square-root law to be read, but a multiplier reaching +1
-                    // where the cycle ceases to exist is a fold (at the edge of a resonance
-                    // tongue, the node meeting the saddle on the torus).
-                    let kind = if self.halves(&self.last) {
-                        Kind::PeriodDoubling
+                if ratio > 0.0 && ratio < 2.0 * contrast.sqrt() {
+                    let (merging, evidence) = if lf[1] != 0.0 {
+                        // The pair meets the real axis within a few brackets of the end: too
+                        // close for the square-root law to be read, but a multiplier reaching
+                        // +1 where the cycle ceases to exist is a fold (at the edge of a
+                        // resonance tongue, the node meeting the saddle on the torus).
+                        (
+                            false,
+                            format!(
+                                "a complex pair of multipliers, 1 - |mu| {:.3e}, at {df:.3e} \
+                                 from the end; one real multiplier, 1 - mu {:.3e}, at \
+                                 {dn:.3e} (ratio {ratio:.3}): the pair met the real axis and \
+                                 one of them nears +1 where the cycle ceases to exist (its \
+                                 power law not resolved)",
+                                gap(&lf),
+                                1.0 - ln[0],
+                            ),
+                        )
                     } else {
-                        Kind::Fold
+                        // 1 - mu ~ distance^power: 1/2 at a fold; 1 where a doubled cycle
+                        // merges into its half (its multiplier is the square of the half's,
+                        // which leaves -1 linearly), also where its points have not yet come
+                        // within DOUBLED. The end lies anywhere in the last bracket, so that
+                        // the nearest cycle's distance to it is known only within a factor of
+                        // two: the power is read between the far cycle and one 8 times nearer
+                        // to the end (the bracket then shifts the distances by an eighth at
+                        // most).
+                        let mid = self
+                            .cycle_near(e, 8.0 * dn, 4.0 * dn)
+                            .filter(|m| (e - m.0).abs() < 0.5 * df)
+                            .map(|m| ((e - m.0).abs(), lead(&m.1)))
+                            .filter(|(_, l)| l[1] == 0.0 && l[0] > 0.0 && l[0] < 1.0);
+                        let power = match mid {
+                            Some((dm, lm)) => ((1.0 - lm[0]) / (1.0 - lf[0])).ln() / (dm / df).ln(),
+                            None => ratio.ln() / contrast.ln(),
+                        };
+                        (
+                            power > 0.75 && self.start.period.is_multiple_of(2),
+                            format!(
+                                "1 - mu {:.3e} at {df:.3e} from the end, {}{:.3e} at \
+                                 {dn:.3e} (ratio {ratio:.3}): the distance to the power \
+                                 {power:.2}",
+                                1.0 - lf[0],
+                                mid.map_or(String::new(), |(dm, lm)| format!(
+                                    "{:.3e} at {dm:.3e}, ",
+                                    1.0 - lm[0]
+                                )),
+                                1.0 - ln[0],
+                            ),
+                        )
                     };
-                    return (
-                        kind,
-                        None,
-                        format!(
-                            "a complex pair of multipliers, 1 - |mu| {:.3e}, at {df:.3e} from \
-                             the end; one real multiplier, 1 - mu {:.3e}, at {dn:.3e} (ratio \
-                             {ratio:.3}): the pair met the real axis and one of them nears +1 \
-                             where the cycle ceases to exist (its power law not resolved)",
-                            gap(&lf),
-                            1.0 - ln[0],
-                        ),
-                    );
-                }
-                if lf[1] == 0.0 && ratio > 0.0 && ratio < 2.0 * contrast.sqrt() {
-                    // 1 - mu ~ distance^power: 1/2 at a fold; 1 where a doubled cycle merges
-                    // into its half (its multiplier is the square of the half's, which leaves
-                    // -1 linearly), also where its points have not yet come within DOUBLED.
-                    // The end lies anywhere in the last bracket, so that the nearest cycle's
-                    // distance to it is known only within a factor of two: the power is read
-                    // between the far cycle and one 8 times nearer to the end (the bracket
-                    // then shifts the distances by an eighth at most).
-                    let mid = self
-                        .cycle_near(e, 8.0 * dn, 4.0 * dn)
-                        .filter(|m| (e - m.0).abs() < 0.5 * df)
-                        .map(|m| ((e - m.0).abs(), lead(&m.1)))
-                        .filter(|(_, l)| l[1] == 0.0 && l[0] > 0.0 && l[0] < 1.0);
-                    let power = match mid {
-                        Some((dm, lm)) => ((1.0 - lm[0]) / (1.0 - lf[0])).ln() / (dm / df).ln(),
-                        None => ratio.ln() / contrast.ln(),
-                    };
-                    let merging = power > 0.75 && self.start.period.is_multiple_of(2);
                     let kind = if merging || self.halves(&self.last) {
                         Kind::PeriodDoubling
                     } else {
                         Kind::Fold
                     };
-                    return (
-                        kind,
-                        None,
-                        format!(
-                            "1 - mu {:.3e} at {df:.3e} from the end, {}{:.3e} at {dn:.3e} \
-                             (ratio {ratio:.3}): the distance to the power {power:.2}",
-                            1.0 - lf[0],
-                            mid.map_or(String::new(), |(dm, lm)| format!(
-                                "{:.3e} at {dm:.3e}, ",
-                                1.0 - lm[0]
-                            )),
-                            1.0 - ln[0],
-                        ),
-                    );
+                    return (kind, None, evidence);
                 }
             }
             let sn = ends::structure(&self.integrator(near.0), &near.1);
