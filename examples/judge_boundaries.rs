@@ -303,29 +303,64 @@ fn main() -> anyhow::Result<()> {
                 return (false, "no reference".into());
             };
             let (f8, f64_) = (features(&r64, &before, n), features(&r512, &near, n));
+            // A third distance, 1/4096 of a cell before, where the reference's cycle is
+            // still stable there: what tells the stick length's law (below).
+            let f4096 = here(v_point - (v_point - v_before) / 64.0).and_then(|r| {
+                r.cycle(near.point, n)
+                    .filter(|c| c.stable() && c.period == n)
+                    .map(|c| features(&r, &c, n))
+            });
             let cell = (co - cf).abs();
             let d1 = (v_point - v_before).abs();
             let d2 = d1 / 8.0;
+            // The zero's distance before the point (negative: beyond it), in cells, from
+            // the feature in the power that is linear in the distance at two distances.
+            let zero =
+                |(a, da): (f64, f64), (b, db): (f64, f64)| (db - b * (da - db) / (a - b)) / cell;
             let best = kinds
                 .iter()
                 .filter(|&&k| f8[k].is_finite() && f64_[k].is_finite() && f8[k] > 0.0)
                 .map(|&k| {
-                    let (a, b) = if k == 0 {
-                        (f8[k] * f8[k], f64_[k] * f64_[k])
-                    } else {
-                        (f8[k], f64_[k])
+                    // An impact speed vanishes like the square root of the distance, a
+                    // clearance linearly. A stick phase's length does either: linearly where
+                    // the friction force's excess crosses zero at the stick's start, like the
+                    // square root where the stick vanishes at that excess's minimum (period-1
+                    // stick losses of two maps: the length shrinks 0.354 = 8^-1/2 from 1/64 to
+                    // 1/512 of a cell). Its law is the one whose line through the two nearer
+                    // distances (1/512, 1/4096) meets the third (1/64) closer.
+                    let square = match (k, f4096) {
+                        (0, _) => true,
+                        (2, Some(f3)) if f3[k].is_finite() => {
+                            let d3 = d1 / 64.0;
+                            let misfit = |pw: i32| {
+                                let g = |f: f64| f.powi(pw);
+                                let slope = (g(f64_[k]) - g(f3[k])) / (d2 - d3);
+                                let at_d1 = g(f3[k]) + slope * (d1 - d3);
+                                (at_d1 / g(f8[k]) - 1.0).abs()
+                            };
+                            misfit(2) < misfit(1)
+                        }
+                        _ => false,
                     };
-                    // The zero's distance before the point (negative: beyond it), in cells.
-                    let d0 = d2 - b * (d1 - d2) / (a - b);
-                    (k, f64_[k] / f8[k], d0 / cell)
+                    let sq = |f: f64| if square { f * f } else { f };
+                    (
+                        k,
+                        f64_[k] / f8[k],
+                        zero((sq(f8[k]), d1), (sq(f64_[k]), d2)),
+                        square,
+                    )
                 })
                 .min_by(|x, y| x.2.abs().total_cmp(&y.2.abs()));
             match best {
-                Some((k, ratio, d0)) => (
+                Some((k, ratio, d0, square)) => (
                     ratio < 0.5 && d0.abs() <= 1e-3,
                     format!(
-                        "{} {:.3e} -> {:.3e} (ratio {ratio:.3}), zero {d0:+.2e} cell from the point",
-                        FEATURES[k], f8[k], f64_[k]
+                        "{} {:.3e} -> {:.3e} (ratio {ratio:.3}), zero {d0:+.2e} cell from the \
+                         point ({})",
+                        FEATURES[k],
+                        f8[k],
+                        f64_[k],
+                        if square { "in its square" } else { "linear" }
                     ),
                 ),
                 None => (false, "no feature on the cycle".into()),
@@ -340,6 +375,53 @@ fn main() -> anyhow::Result<()> {
             Some((_, why)) => format!("{desc}; {why}"),
             None => desc,
         };
+        // A fold claims the cycle ceases to exist at the point. Where Newton after it, from
+        // 1/32 of a cell away, lands on a cycle of the same period that is not unstable
+        // through +1 (another cycle, or the same one gone on), the reference's own cycle is
+        // continued across the point in 64 steps: the claim holds where that branch ends
+        // within 1/64 of a cell of the point (Newton fails, or jumps to another cycle, or
+        // the cycle turns unstable through +1); it fails where the branch goes on.
+        let branch_ends = || -> Option<f64> {
+            let v_after = v_point + delta;
+            let mut last = before.point;
+            for k in 1..=STEPS {
+                let v = v_before + (v_after - v_before) * f64::from(k) / f64::from(STEPS);
+                let c = here(v).and_then(|r| r.cycle(last, n));
+                let scale = last.iter().fold(1.0f64, |a, x| a.max(x.abs()));
+                let gone = match &c {
+                    None => true,
+                    Some(c) => {
+                        let l = c.lead();
+                        c.period != n
+                            || (0..4).any(|i| (c.point[i] - last[i]).abs() > 0.1 * scale)
+                            || (!c.stable() && l[1] == 0.0 && l[0] > 1.0)
+                    }
+                };
+                if gone {
+                    return Some(v);
+                }
+                last = c.map_or(last, |c| c.point);
+            }
+            None
+        };
+        let fold_end = if ty == "fold"
+            && after.as_ref().is_some_and(|c| {
+                let l = c.lead();
+                c.period == n && !(!c.stable() && l[1] == 0.0 && l[0] > 1.0)
+            }) {
+            Some(branch_ends())
+        } else {
+            None
+        };
+        let desc = match fold_end {
+            Some(Some(v)) => format!(
+                "{desc}; the reference's branch continued across ends at {:+.2e} cell from the \
+                 point",
+                (v - v_point) / (co - cf).abs() * (co - cf).signum()
+            ),
+            Some(None) => format!("{desc}; the reference's branch goes on across the point"),
+            None => desc,
+        };
         let ok = feature.as_ref().is_none_or(|f| f.0)
             && match (ty, &after) {
                 // Through -1, or seen from the doubled side: merged into the half.
@@ -352,7 +434,11 @@ fn main() -> anyhow::Result<()> {
                 // Newton from the last cycle lands on another cycle of another period: the
                 // period-n cycle is gone.
                 ("fold", Some(c)) if c.period != n => true,
-                ("fold", Some(c)) => !c.stable() && c.lead()[1] == 0.0 && c.lead()[0] > 1.0,
+                ("fold", Some(c)) => {
+                    (!c.stable() && c.lead()[1] == 0.0 && c.lead()[0] > 1.0)
+                        || fold_end
+                            .is_some_and(|e| e.is_some_and(|v| (v - v_point).abs() <= delta.abs()))
+                }
                 ("period_doubling" | "neimark_sacker", None) => false,
                 (_, None) => true,
                 (_, Some(c)) => !(c.stable() && c.period == n),
