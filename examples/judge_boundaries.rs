@@ -381,6 +381,11 @@ fn main() -> anyhow::Result<()> {
         // continued across the point in 64 steps: the claim holds where that branch ends
         // within 1/64 of a cell of the point (Newton fails, or jumps to another cycle, or
         // the cycle turns unstable through +1); it fails where the branch goes on.
+        // Unstable through +1: the far side of a fold.
+        let past_fold = |c: &rattle::reference::dry::RefCycle| {
+            let l = c.lead();
+            !c.stable() && l[1] == 0.0 && l[0] > 1.0
+        };
         let branch_ends = || -> Option<f64> {
             let v_after = v_point + delta;
             let mut last = before.point;
@@ -391,10 +396,9 @@ fn main() -> anyhow::Result<()> {
                 let gone = match &c {
                     None => true,
                     Some(c) => {
-                        let l = c.lead();
                         c.period != n
                             || (0..4).any(|i| (c.point[i] - last[i]).abs() > 0.1 * scale)
-                            || (!c.stable() && l[1] == 0.0 && l[0] > 1.0)
+                            || past_fold(c)
                     }
                 };
                 if gone {
@@ -405,10 +409,10 @@ fn main() -> anyhow::Result<()> {
             None
         };
         let fold_end = if ty == "fold"
-            && after.as_ref().is_some_and(|c| {
-                let l = c.lead();
-                c.period == n && !(!c.stable() && l[1] == 0.0 && l[0] > 1.0)
-            }) {
+            && after
+                .as_ref()
+                .is_some_and(|c| c.period == n && !past_fold(c))
+        {
             Some(branch_ends())
         } else {
             None
@@ -417,7 +421,7 @@ fn main() -> anyhow::Result<()> {
             Some(Some(v)) => format!(
                 "{desc}; the reference's branch continued across ends at {:+.2e} cell from the \
                  point",
-                (v - v_point) / (co - cf).abs() * (co - cf).signum()
+                (v - v_point) / (co - cf)
             ),
             Some(None) => format!("{desc}; the reference's branch goes on across the point"),
             None => desc,
@@ -435,7 +439,7 @@ fn main() -> anyhow::Result<()> {
                 // period-n cycle is gone.
                 ("fold", Some(c)) if c.period != n => true,
                 ("fold", Some(c)) => {
-                    (!c.stable() && c.lead()[1] == 0.0 && c.lead()[0] > 1.0)
+                    past_fold(c)
                         || fold_end
                             .is_some_and(|e| e.is_some_and(|v| (v - v_point).abs() <= delta.abs()))
                 }
