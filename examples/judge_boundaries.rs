@@ -13,8 +13,10 @@
 //! A located point says: the cycle of period n (`period`) continued from the cell `from`
 //! stops being stable here, of `type`. The judge continues its own cycle: Newton at the cell
 //! from the cell's final state (the map's `state` layer: a start only), then 64 steps to 1/64
-//! of a cell before the point. Right where that cycle stays stable up to there, and after the
-//! point (Newton from it):
+//! of a cell before the point (where its Newton fails, as it does where an impact of the cycle
+//! crosses phase 0 and the stroboscopic map jumps, Newton from its own motion 60 cycles on, on a
+//! stable cycle of period n whose section's positions lie within 1e-2 of the last one's). Right
+//! where that cycle stays stable up to there, and after the point (Newton from it, the same way):
 //! - `period_doubling`: the continued cycle is unstable through -1 (a real multiplier below
 //!   -1), or, seen from the doubled side, it has merged into its half (its least period n/2);
 //! - `neimark_sacker`: unstable through a complex pair (modulus above 1);
@@ -213,6 +215,22 @@ fn main() -> anyhow::Result<()> {
             0.5 * (v_point + cf)
         };
         let own = class[from] == n as i32;
+        // The reference's period-n cycle at `r` from `x`: its Newton, or where that fails, its
+        // Newton from its own motion 60 cycles on from `x` where that motion is on a stable
+        // period-n cycle whose section's positions lie within 1e-2 of `x`'s. (Its stroboscopic
+        // map jumps where an impact of the cycle crosses phase 0, as rattle's does: Newton
+        // from the other side of the impact fails while the motion goes on.)
+        let cycle_of = |r: &DryReference, x: [f64; 4]| {
+            r.cycle(x, n).or_else(|| {
+                let mut st = r.start(x);
+                r.run(&mut st, 60 * n, None).ok()?;
+                r.cycle(st.y, n).filter(|c| {
+                    c.stable()
+                        && c.period == n
+                        && (c.point[0] - x[0]).abs().max((c.point[2] - x[2]).abs()) < 1e-2
+                })
+            })
+        };
         // A point on a branch that followed an earlier change on the edge (a doubled cycle):
         // the reference's cycle from the point's section (a start only) 1/64 of a cell before
         // it; the cell's own cycle is continued from the cell.
@@ -252,7 +270,7 @@ fn main() -> anyhow::Result<()> {
             let Some(r) = here(v) else {
                 return (Verdict::CannotTell, "no reference".into());
             };
-            match r.cycle(before.point, n) {
+            match cycle_of(&r, before.point) {
                 Some(c) if c.stable() && c.period == n => before = c,
                 Some(c) => {
                     return (
@@ -274,7 +292,7 @@ fn main() -> anyhow::Result<()> {
                 }
             }
         }
-        let after = ra.cycle(before.point, n);
+        let after = cycle_of(&ra, before.point);
         let desc = match &after {
             Some(c) => format!(
                 "before lead {:.4?}, after period {} lead {:.4?}",

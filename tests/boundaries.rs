@@ -249,6 +249,34 @@ fn locate_one(
         .expect("one change, one answer")
 }
 
+/// The stable period-`n` cycle at `from` (refined from `start` after `settle` periods there)
+/// and the change located when it is continued towards `to` along `param`.
+fn search(
+    settings: &rattle::method::Settings,
+    p: &rattle::model::Params<f64>,
+    param: rattle::model::Param,
+    (from, to): (f64, f64),
+    start: ([f64; 4], rattle::model::Mode),
+    n: u32,
+    settle: u32,
+) -> (rattle::cycles::Cycle, rattle::stability::Found) {
+    use rattle::cycles::refine;
+    use rattle::method::{Integrator, PointState};
+    let mut st = PointState {
+        y: start.0,
+        mode: start.1,
+        diag: Default::default(),
+    };
+    let it = Integrator::<f64>::new(p, settings);
+    for _ in 0..settle {
+        it.period(&mut st);
+    }
+    let cycle = refine(&it, &st, n);
+    assert!(cycle.is_stable() && cycle.period == n, "{cycle:?}");
+    let found = locate_one(settings, p, param, (from, to), &cycle);
+    (cycle, found)
+}
+
 /// The change located when the stable period-`n` cycle of tests/data/r_lambda_128.toml at
 /// `from`, refined from the map's final state `start`, is continued towards `to`, along R
 /// (`along_x`, lambda at `fixed`) or along lambda (R at `fixed`): the config, the parameters at
@@ -264,8 +292,6 @@ fn end_along(
     rattle::model::Params<f64>,
     rattle::stability::BifurcationPoint,
 ) {
-    use rattle::cycles::refine;
-    use rattle::method::{Integrator, PointState};
     use rattle::stability::Found;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/r_lambda_128.toml");
     let cfg = Config::load(&path, &[]).unwrap();
@@ -278,14 +304,7 @@ fn end_along(
     let mut p = cfg.params();
     param.set(&mut p, from);
     other.set(&mut p, fixed);
-    let st = PointState {
-        y: start.0,
-        mode: start.1,
-        diag: Default::default(),
-    };
-    let cycle = refine(&Integrator::<f64>::new(&p, &settings), &st, n);
-    assert!(cycle.is_stable() && cycle.period == n, "{cycle:?}");
-    let found = locate_one(&settings, &p, param, (from, to), &cycle);
+    let (_, found) = search(&settings, &p, param, (from, to), start, n, 0);
     let Found::Located(b) = &found else {
         panic!("{found:?}");
     };
@@ -1233,4 +1252,121 @@ fn the_branch_beyond_a_doubling_is_the_exact_systems_daughter() {
     eprintln!("daughter {off:.2e} from the reference's, {apart:.2e} from the mother");
     assert!(off < 1e-7 * scale, "{off}");
     assert!(apart > 100.0 * off, "{apart} against {off}");
+}
+
+/// The search of the stable period-`n` cycle of the eta x r map (R 0.6, lambda 0.02, N = 128)
+/// from `start` at `from` towards `to` along `param` (`fixed` the other parameter) goes on past
+/// `jump`, where an impact of the cycle meets the section. The judge, the reference's own Newton
+/// (exact motion between events; where its Newton fails, from its own motion 60 cycles on): the
+/// cycle is stable from the cell to 1/64 of a cell before `jump`, 1/64 of a cell past it and
+/// on up to 1/64 of a cell before wherever rattle's search ends (or at `to` where it reaches
+/// it).
+fn goes_on_past(
+    (param, fixed): (rattle::model::Param, (rattle::model::Param, f64)),
+    (from, to): (f64, f64),
+    start: ([f64; 4], rattle::model::Mode),
+    n: u32,
+    jump: f64,
+) {
+    use rattle::stability::Found;
+    let cfg = Config::parse(
+        "[model]\nR = 0.6\nlambda = 0.02\nfriction = \"coulomb\"\n[method]\n\
+         steps_per_period = 128\n",
+        &[],
+    )
+    .unwrap();
+    let settings = cfg.settings();
+    let mut p = cfg.params();
+    fixed.0.set(&mut p, fixed.1);
+    param.set(&mut p, from);
+    // The cell's motion from a point of the cycle's orbit near the jump, settled there.
+    let (cycle, found) = search(&settings, &p, param, (from, to), start, n, 400 / n * n);
+    let step = (to - from) / 64.0;
+    let at = |v: f64| {
+        let mut q = p;
+        param.set(&mut q, v);
+        DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
+    };
+    // Newton for the reference's cycle at `v` from `x`, else from the reference's own motion
+    // 60 cycles and k = 0 .. n - 1 periods on from `x`: its stroboscopic map jumps there too
+    // (its Newton from the other side of the impact fails as rattle's did), and k periods on
+    // the section is at another point of the orbit, away from the impact.
+    let cycle_at = |v: f64, x: [f64; 4]| {
+        let r = at(v);
+        r.cycle(x, n).filter(|c| c.stable()).or_else(|| {
+            (0..n).find_map(|k| {
+                let mut s = r.start(x);
+                r.run(&mut s, 60 * n + k, None).ok()?;
+                r.cycle(s.y, n).filter(|c| c.stable())
+            })
+        })
+    };
+    let mut c = at(from).cycle(cycle.point, n).expect("the cell's cycle");
+    let walk = |c: &mut rattle::reference::dry::RefCycle, a: f64, b: f64| {
+        for k in 1..=64 {
+            let v = a + (b - a) * f64::from(k) / 64.0;
+            *c = cycle_at(v, c.point).unwrap_or_else(|| panic!("no cycle at {v}"));
+            assert!(c.stable() && c.period == n, "at {v}: {:?}", c.lead());
+        }
+    };
+    // Up to 1/64 of a cell before the jump, then across it in one step (the reference's own
+    // iterates alternate across the impact within about 1e-5 of it).
+    walk(&mut c, from, jump - step);
+    let past = jump + step;
+    c = cycle_at(past, c.point).expect("a cycle past the jump");
+    assert!(c.stable() && c.period == n, "past the jump: {:?}", c.lead());
+    eprintln!(
+        "reference's leading multiplier 1/64 of a cell past {jump}: {:?}",
+        c.lead()
+    );
+    // Rattle's search goes on past the jump: to an end beyond it, before which the
+    // reference's cycle is stable, or to the far cell, where it is stable too.
+    let end = match &found {
+        Found::Located(b) => {
+            assert!((b.value - jump) / step > 1.0, "an end at the jump: {b:?}");
+            b.value - step
+        }
+        Found::StableThere => to,
+        other => panic!("{other:?}"),
+    };
+    eprintln!("rattle's search: {found:?}");
+    walk(&mut c, past, end);
+}
+
+/// A cycle whose impact meets the section goes on: the period-3 cycle of the eta x r map at eta
+/// 1.23046875 (cells of 1/64 of r 0.6-1.0), continued from r 0.834375 towards 0.828125, has an
+/// impact at phase 0 near r 0.8302902: on one side the integrator's section point is taken just
+/// after it, on the other just before, so that P^3 jumps by the impact's velocity change (0.9 of
+/// the state) there while the motion goes on. Newton from the last stable cycle fails across
+/// that jump (rattle located an `undetermined` end there, with no multiplier crossing and no
+/// feature vanishing); the map's own iterates contract onto the cycle again.
+#[test]
+fn a_cycle_whose_impact_meets_the_section_goes_on() {
+    use rattle::model::{Mode, Param};
+    let y = [-0.1203368, -0.2405750, -0.9506271, 0.5832287];
+    goes_on_past(
+        (Param::Clearance, (Param::Eta, 1.23046875)),
+        (0.834375, 0.828125),
+        (y, Mode::SlipNeg),
+        3,
+        0.8302902,
+    );
+}
+
+/// The same where the map's iterates do not contract but alternate across the impact: the
+/// period-2 cycle of the eta x r map at r 0.634375 (multiplier 0.9865, near the period-1
+/// cycle's doubling that gives birth to it), continued from eta 1.49296875 towards 1.49765625:
+/// its iterates at eta 1.4942487 move by 1.2 of the state a return, its positions kept (rattle
+/// located an `undetermined` end there).
+#[test]
+fn a_cycle_whose_impact_stays_at_the_section_goes_on() {
+    use rattle::model::{Mode, Param};
+    let y = [-0.0754275, 0.5875953, -0.7098024, -0.7074932];
+    goes_on_past(
+        (Param::Eta, (Param::Clearance, 0.634375)),
+        (1.49296875, 1.49765625),
+        (y, Mode::SlipPos),
+        2,
+        1.4942487,
+    );
 }

@@ -92,6 +92,22 @@ pub const JUMP_RESIDUAL: f64 = 1e-4;
 /// tests/data/r_lambda_128.toml), far below the method's error that a jump is about.
 pub const JUMP_FLOOR: f64 = 1e-6;
 const MAX_JUMPS: u32 = 2;
+/// Within the resolution the cycle's section point moves by less than this fraction of the
+/// state (an impact at the section jumps its velocities only).
+const KEEPS: f64 = 1e-4;
+/// A cycle whose leading multiplier lies this close to the circle may be a fold's: within the
+/// resolution of the fold (2^-20 of the edge) 1 - mu is 6e-5 to 1.8e-3 on
+/// tests/data/r_lambda_128.toml, and beyond it the fold's ghost moves by less than Newton's
+/// tolerance a return.
+const GHOST: f64 = 5e-3;
+/// A return that moves the state by this fraction of it at least jumps across an impact (the
+/// cycle's positions kept).
+const JUMPS: f64 = 1e-2;
+/// Returns of the map iterated onto a cycle Newton fails to find near a jump of the map at
+/// most (one whose multipliers have modulus 0.4 comes within 1e-14 of it in 20; one at 0.9865,
+/// a period-2 cycle near its doubling on eta x r, within 1e-9 from 1.5e-8 in 200). An
+/// iteration whose move does not shrink by a tenth in 8 returns stops there.
+const ITERATES: u32 = 256;
 /// The look past a stall grows its distance from the last stable cycle this many times a step
 /// (a window where the discrete map jumps is about the method's error wide: a cycle found again
 /// beyond one is found at any distance past it).
@@ -539,10 +555,12 @@ impl<'a> Locate<'a> {
     /// The next step once the Newton solution `c` at `self.mid` is known.
     fn solved(&mut self, c: Cycle) {
         let n = self.start.period;
-        // A doubled cycle that has merged into its stable half is that half, traversed twice.
-        let (c, m) = match self.merged(&c) {
-            Some(half) => (half, None),
-            None => (c, self.newton.monodromy().copied()),
+        // A doubled cycle that has merged into its stable half is that half, traversed twice;
+        // a failure from within the resolution may be Newton's alone.
+        let (c, m) = match (self.merged(&c), self.iterated(&c)) {
+            (Some(half), _) => (half, None),
+            (None, Some((on, m))) => (on, m),
+            (None, None) => (c, self.newton.monodromy().copied()),
         };
         let stable = c.is_stable() && c.period == n;
         // Converged to this cycle (or the cycle it merged into, of a divisor period) but not
@@ -755,6 +773,88 @@ impl<'a> Locate<'a> {
         }
         let half = crate::cycles::refine(&self.integrator(self.mid), &c.state(), c.period / 2);
         half.is_stable().then_some(half)
+    }
+
+    /// Where Newton failed at `self.mid` from within the resolution although the cycle goes
+    /// on: it lies within the method's error of a jump of the integrator's map P^n (an impact
+    /// at phase 0 is taken just before the section on one side and just after it on the
+    /// other, so that P^n jumps by the impact's velocity change: 0.9 of the state on a
+    /// period-3 cycle of eta x r), and Newton's iterates from the predicted start fall on the
+    /// other side of it. The map's own iterates from the last stable cycle (up to
+    /// [`ITERATES`] returns, each keeping the cycle's positions within [`KEEPS`] of the state)
+    /// contract onto the cycle where it goes on stable, then Newton. The same motion where it
+    /// is stable, of the same period, its section's positions within [`KEEPS`] of the last
+    /// one's and its events (impacts, reversals, stick phases) the same: that cycle and its
+    /// monodromy matrix. Where the iterates do not contract but jump across the impact (by
+    /// [`JUMPS`] or more) while keeping the positions, the cycle's impact stays at the
+    /// section (a period-2 cycle of eta x r, multiplier 0.9865: its iterates alternate by 1.2
+    /// of the state): the last stable cycle stands for it.
+    fn iterated(&self, failed: &Cycle) -> Option<(Cycle, Option<Matrix4<f64>>)> {
+        let n = self.last.period;
+        if (failed.converged && failed.period == n)
+            || (self.mid - self.good).abs() > self.resolution(None)
+        {
+            return None;
+        }
+        let last = &self.last;
+        let it = self.integrator(self.mid);
+        let scale = last.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        let moved = |a: &[f64; 4], b: &[f64; 4], i: usize| (a[i] - b[i]).abs() / scale;
+        let kept = |a: &[f64; 4], b: &[f64; 4]| moved(a, b, 0).max(moved(a, b, 2)) <= KEEPS;
+        let mut st = last.state();
+        // The largest move of a return, at the start of each eighth of the iteration.
+        let mut was = f64::INFINITY;
+        // Every iterate keeps the cycle's positions, and some return jumps in velocity.
+        let (mut stays, mut jumps) = (true, false);
+        let mut contracted = false;
+        for k in 0..ITERATES {
+            let before = st.y;
+            for _ in 0..n {
+                it.period(&mut st);
+            }
+            stays &= kept(&st.y, &last.point);
+            if !stays {
+                return None;
+            }
+            let d = (0..4).map(|i| moved(&st.y, &before, i)).fold(0.0, f64::max);
+            jumps |= d >= JUMPS;
+            if d <= crate::cycles::NEWTON_TOL {
+                contracted = true;
+                break;
+            }
+            if k % 8 == 0 {
+                // Not contracting: a cycle that ends, one too slow to reach this way, or one
+                // whose impact stays at the section (its iterates alternate across it).
+                if d > 0.9 * was {
+                    break;
+                }
+                was = d;
+            }
+        }
+        let inside = 1.0 - modulus(&lead(last));
+        if !contracted {
+            // The iterates keep the cycle's positions and jump across its impact at phase 0
+            // (none of a fold's slow drift jumps so): the motion goes on, its section point
+            // on the impact. The last stable cycle stands for it where its multipliers are
+            // not within 1e-3 of the circle (a crossing would not be hidden).
+            return (jumps && inside > 1e-3).then(|| (last.clone(), self.last_m));
+        }
+        if !jumps && inside <= GHOST {
+            // Within the resolution of a fold P^n moves its ghost by less than Newton's
+            // tolerance: a cycle found so is not one (period-8 folds of r x lambda turned into
+            // doublings so). That near the circle, only a jump across an impact is rescued.
+            return None;
+        }
+        let mut r = Refine::new(it.clone(), &st, n);
+        r.finish();
+        let m = *r.monodromy()?;
+        let c = r.cycle();
+        let events = |it: &Integrator<f64>, c: &Cycle| ends::structure(it, c).events;
+        let same = c.is_stable()
+            && c.period == n
+            && kept(&c.point, &last.point)
+            && events(&it, &c) == events(&self.integrator(self.good), last);
+        same.then_some((c, Some(m)))
     }
 
     /// Ends the search with the bracket's far end at `bad`.
@@ -971,6 +1071,14 @@ impl<'a> Locate<'a> {
                     sn.events, lf, ln
                 );
             }
+        }
+        if self.stall.is_finite() {
+            // What Newton did just beyond the end: where the residual it stopped at is tiny,
+            // the end may be Newton's, not the cycle's.
+            measured.push_str(&format!(
+                "; Newton beyond it stops at a residual of {:.1e} of the state",
+                self.stall
+            ));
         }
         match switched {
             Some(why) => (Kind::BorderCollision, None, why),
