@@ -18,7 +18,10 @@
 //! stable cycle of period n whose section's positions lie within 1e-2 of the last one's). Right
 //! where that cycle stays stable up to there, and after the point (Newton from it, the same way):
 //! - `period_doubling`: the continued cycle is unstable through -1 (a real multiplier below
-//!   -1), or, seen from the doubled side, it has merged into its half (its least period n/2);
+//!   -1), or, seen from the doubled side, it has merged into its half (its least period n/2),
+//!   or no period-n cycle is found and Newton for period n/2 finds a stable one whose section's
+//!   positions lie within 5e-2 of the last one's (the half, where Newton for the half traversed
+//!   twice fails: its multiplier is near +1);
 //! - `neimark_sacker`: unstable through a complex pair (modulus above 1);
 //! - `fold`: no cycle of period n is found from the last one (none, or Newton lands on a cycle
 //!   of another period), or it is unstable through +1;
@@ -302,6 +305,30 @@ fn main() -> anyhow::Result<()> {
             ),
             None => format!("before lead {:.4?}, after no cycle", before.lead()),
         };
+        // Where no period-n cycle is found past the point: its half there (Newton for period
+        // n/2 from the last cycle), stable and beside its orbit, or `None`.
+        let half = (after.is_none() && n.is_multiple_of(2))
+            .then(|| ra.cycle(before.point, n / 2))
+            .flatten();
+        let near_half = half.as_ref().is_some_and(|c| {
+            c.stable()
+                && c.period == n / 2
+                && (c.point[0] - before.point[0])
+                    .abs()
+                    .max((c.point[2] - before.point[2]).abs())
+                    < 5e-2
+        });
+        let desc = match &half {
+            Some(c) => format!(
+                "{desc}, its half period {} lead {:.4?} at {:.1e}",
+                c.period,
+                c.lead(),
+                (c.point[0] - before.point[0])
+                    .abs()
+                    .max((c.point[2] - before.point[2]).abs())
+            ),
+            None => desc,
+        };
         // A non-smooth end claims that a feature of the cycle vanishes at the point: the
         // reference's cycle 1/64 and 1/512 of a cell before it, the feature's zero extrapolated
         // from there (linearly for a clearance or a stick's length, in its square for an impact
@@ -461,7 +488,11 @@ fn main() -> anyhow::Result<()> {
                         || fold_end
                             .is_some_and(|e| e.is_some_and(|v| (v - v_point).abs() <= delta.abs()))
                 }
-                ("period_doubling" | "neimark_sacker", None) => false,
+                // Seen from the doubled side: past the point no period-n cycle (the reference's
+                // Newton for it fails where it would be the half traversed twice, its
+                // multiplier near +1), and its half is there, stable, beside its orbit.
+                ("period_doubling", None) => near_half,
+                ("neimark_sacker", None) => false,
                 (_, None) => true,
                 (_, Some(c)) => !(c.stable() && c.period == n),
             };
