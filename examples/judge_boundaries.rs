@@ -25,6 +25,9 @@
 //! - `neimark_sacker`: unstable through a complex pair (modulus above 1);
 //! - `fold`: no cycle of period n is found from the last one (none, or Newton lands on a cycle
 //!   of another period), or it is unstable through +1;
+//! - an `undetermined` end whose reason says the exact system's end is not resolved (a jump of
+//!   the integrator's map, the search's solves run out): nothing more than the cycle stable up
+//!   to there (its verdict says so);
 //! - `grazing`, `stick_onset`, `stick_loss`, `undetermined` (located ends): no stable cycle of
 //!   period n continues, and for `grazing` (`stick_loss`) the reference's cycle has an impact
 //!   speed or a clearance at a reversal (a stick's length) that vanishes at the point: its zero,
@@ -471,8 +474,21 @@ fn main() -> anyhow::Result<()> {
             Some(None) => format!("{desc}; the reference's branch goes on across the point"),
             None => desc,
         };
+        // An `undetermined` end whose reason leaves the exact system's end open (a jump of
+        // the integrator's map, the search's solves run out) claims of the exact system only
+        // that the cycle is stable up to the point: checked above.
+        let open_end = ty == "undetermined"
+            && p["reason"]
+                .as_str()
+                .is_some_and(|r| r.contains("is not resolved"));
+        let desc = if open_end {
+            format!("{desc}; its reason leaves the end open")
+        } else {
+            desc
+        };
         let ok = feature.as_ref().is_none_or(|f| f.0)
             && match (ty, &after) {
+                _ if open_end => true,
                 // Through -1, or seen from the doubled side: merged into the half.
                 ("period_doubling", Some(c)) => {
                     let l = c.lead();

@@ -1254,6 +1254,25 @@ fn the_branch_beyond_a_doubling_is_the_exact_systems_daughter() {
     assert!(apart > 100.0 * off, "{apart} against {off}");
 }
 
+/// The reference's stable period-`n` cycle from `x`: its Newton, else its Newton from its own
+/// motion 60 cycles and k = 0 .. n - 1 periods on from `x`. Its stroboscopic map jumps where an
+/// impact of the cycle crosses phase 0 (its Newton from the other side of the impact fails as
+/// rattle's did), and k periods on the section is at another point of the orbit, away from the
+/// impact.
+fn reference_cycle(
+    r: &DryReference,
+    x: [f64; 4],
+    n: u32,
+) -> Option<rattle::reference::dry::RefCycle> {
+    r.cycle(x, n).filter(|c| c.stable()).or_else(|| {
+        (0..n).find_map(|k| {
+            let mut s = r.start(x);
+            r.run(&mut s, 60 * n + k, None).ok()?;
+            r.cycle(s.y, n).filter(|c| c.stable())
+        })
+    })
+}
+
 /// The search of the stable period-`n` cycle of the eta x r map (R 0.6, lambda 0.02, N = 128)
 /// from `start` at `from` towards `to` along `param` (`fixed` the other parameter) goes on past
 /// `jump`, where an impact of the cycle meets the section. The judge, the reference's own Newton
@@ -1287,20 +1306,7 @@ fn goes_on_past(
         param.set(&mut q, v);
         DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
     };
-    // Newton for the reference's cycle at `v` from `x`, else from the reference's own motion
-    // 60 cycles and k = 0 .. n - 1 periods on from `x`: its stroboscopic map jumps there too
-    // (its Newton from the other side of the impact fails as rattle's did), and k periods on
-    // the section is at another point of the orbit, away from the impact.
-    let cycle_at = |v: f64, x: [f64; 4]| {
-        let r = at(v);
-        r.cycle(x, n).filter(|c| c.stable()).or_else(|| {
-            (0..n).find_map(|k| {
-                let mut s = r.start(x);
-                r.run(&mut s, 60 * n + k, None).ok()?;
-                r.cycle(s.y, n).filter(|c| c.stable())
-            })
-        })
-    };
+    let cycle_at = |v: f64, x: [f64; 4]| reference_cycle(&at(v), x, n);
     let mut c = at(from).cycle(cycle.point, n).expect("the cell's cycle");
     let walk = |c: &mut rattle::reference::dry::RefCycle, a: f64, b: f64| {
         for k in 1..=64 {
@@ -1368,5 +1374,83 @@ fn a_cycle_whose_impact_stays_at_the_section_goes_on() {
         (y, Mode::SlipPos),
         2,
         1.4942487,
+    );
+}
+
+/// An end where the search's Newton solves ran out says so: the period-9 cycle of the r x lambda
+/// map (eta 1.3, R 0.6, lambda 0.03984375; cells of 1/64 of r 0.6-1.0), continued from r
+/// 0.678125 towards 0.671875, where Newton fails at most values tried over the last 3e-5 between
+/// stable solutions: its 120 solves end at a bracket wider than 2^-20 of the edge. The point is
+/// `exhausted` (its reason: whether the exact system's cycle ends there is not resolved), its
+/// evidence gives the bracket. What the reason claims of the exact system, judged by the
+/// reference's own Newton: the cycle is stable from the cell to 1/64 of a cell before the point.
+#[test]
+fn an_end_the_search_did_not_resolve_says_so() {
+    use rattle::model::{Mode, Param};
+    use rattle::stability::{Found, Kind};
+    let cfg = Config::parse(
+        "[model]\neta = 1.3\nR = 0.6\nlambda = 0.03984375\nfriction = \"coulomb\"\n\
+         [method]\nsteps_per_period = 128\n",
+        &[],
+    )
+    .unwrap();
+    let settings = cfg.settings();
+    let (from, to) = (0.678125, 0.671875);
+    let mut p = cfg.params();
+    Param::Clearance.set(&mut p, from);
+    let y = [-0.29840475, 0.66914457, -0.36677516, -0.40993643];
+    // As the map searches: the cell's cycle with its monodromy matrix (the chord's Jacobian),
+    // crossings bracketed to 2^-10 of the edge.
+    let st = rattle::method::PointState {
+        y,
+        mode: Mode::SlipPos,
+        diag: Default::default(),
+    };
+    let mut r = rattle::cycles::Refine::new(rattle::method::Integrator::new(&p, &settings), &st, 9);
+    rattle::method::FlowTask::finish(&mut r);
+    let m = r.monodromy().copied();
+    let cycle = r.cycle();
+    assert!(cycle.is_stable() && cycle.period == 9, "{cycle:?}");
+    let change = rattle::stability::Change {
+        base: p,
+        param: Param::Clearance,
+        from,
+        cycle: &cycle,
+        monodromy: m,
+        to,
+        bisections: rattle::stability::BISECTIONS,
+        crossing_bisections: 10,
+        first_step: None,
+    };
+    let found = rattle::stability::locate_changes(&settings, &[change])
+        .pop()
+        .unwrap();
+    let Found::Located(b) = found else {
+        panic!("{found:?}");
+    };
+    let resolution = (to - from).abs() / f64::from(1u32 << rattle::stability::BISECTIONS);
+    eprintln!("{b:?}");
+    assert!(b.exhausted && b.kind == Kind::NonSmooth, "{b:?}");
+    assert!(b.uncertainty > resolution, "{b:?}");
+    assert!(
+        b.evidence.contains("Newton solves ran out"),
+        "{}",
+        b.evidence
+    );
+    let at = |v: f64| {
+        let mut q = p;
+        Param::Clearance.set(&mut q, v);
+        DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
+    };
+    let before = b.value + (from - to).signum() * ((to - from).abs() / 64.0 + b.uncertainty);
+    let mut c = reference_cycle(&at(from), cycle.point, 9).expect("the cell's cycle");
+    for k in 1..=64 {
+        let v = from + (before - from) * f64::from(k) / 64.0;
+        c = reference_cycle(&at(v), c.point, 9).unwrap_or_else(|| panic!("no cycle at {v}"));
+        assert!(c.stable() && c.period == 9, "at {v}: {:?}", c.lead());
+    }
+    eprintln!(
+        "the reference's leading multiplier 1/64 of a cell before: {:?}",
+        c.lead()
     );
 }

@@ -34,6 +34,12 @@ const ENDS_UNNAMED: &str = "the cycle ends with no multiplier crossing the circl
 const ENDS_AT_JUMP: &str = "Newton stalls beyond the end at a residual between 1e-6 and \
      1e-4 of the state up to the other cell: the integrator's map jumps there by about its own \
      error, so whether the exact system's cycle ends is not resolved";
+/// Why a located end is `undetermined` where the search's solves ran out before its bracket
+/// reached the resolution.
+const ENDS_EXHAUSTED: &str = "the search's Newton solves ran out before the end was \
+     bracketed to 2^-20 of the edge (the point's uncertainty is the bracket): the cycle is \
+     stable up to it and not found at most values tried beyond; whether the exact system's \
+     cycle ends there is not resolved";
 /// Why a claimed coexistence is not one.
 const NOT_STABLE_AT_MIDPOINT: &str = "the cycle that would coexist is not stable at the \
      edge's midpoint";
@@ -1319,6 +1325,7 @@ fn type_of(p: &BifurcationPoint) -> (Type, &'static str) {
         Kind::StickOnset => (Type::StickOnset, ""),
         Kind::StickLoss => (Type::StickLoss, ""),
         Kind::BorderCollision => (Type::BorderCollision, ""),
+        Kind::NonSmooth if p.exhausted => (Type::Undetermined, ENDS_EXHAUSTED),
         Kind::NonSmooth
             if (crate::stability::JUMP_FLOOR..=crate::stability::JUMP_RESIDUAL)
                 .contains(&p.stall) =>

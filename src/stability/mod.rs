@@ -69,6 +69,10 @@ pub struct BifurcationPoint {
     /// the exact system's end.
     #[serde(skip_serializing_if = "nan")]
     pub stall: f64,
+    /// The search's Newton solves ran out ([`MAX_SOLVES`]) before the bracket reached its
+    /// resolution: the end is where the search stopped, `uncertainty` the bracket's half-width.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub exhausted: bool,
     /// What was measured to type an end without a crossing: the vanishing feature and where
     /// it reaches zero, or the events and multipliers on both sides of a switching surface, or
     /// why nothing names the end (empty for a crossing).
@@ -379,6 +383,7 @@ pub fn graze(
         multipliers: crate::cycles::eigenvalues(&tan.matrix()),
         section: last.y,
         stall: f64::NAN,
+        exhausted: false,
         evidence: String::new(),
     })
 }
@@ -447,6 +452,8 @@ struct Locate<'a> {
     jump_from: Option<(f64, f64)>,
     /// Jumps looked beyond.
     jumps: u32,
+    /// The solves ran out before the bracket reached its resolution.
+    exhausted: bool,
     found: Option<BifurcationPoint>,
 }
 
@@ -500,6 +507,7 @@ impl<'a> Locate<'a> {
             stall: f64::NAN,
             jump_from: None,
             jumps: 0,
+            exhausted: false,
             found: None,
             tentative: false,
             outer: Vec::new(),
@@ -660,6 +668,8 @@ impl<'a> Locate<'a> {
                 Some((at, stall)) => self.end_at(at, None, stall),
                 None => {
                     self.done = true;
+                    let width = (self.bad - self.good).abs();
+                    self.exhausted = width > self.resolution(self.beyond.as_ref());
                     self.found = (self.bisecting && !self.tentative).then(|| self.point());
                 }
             }
@@ -931,6 +941,7 @@ impl<'a> Locate<'a> {
             } else {
                 f64::NAN
             },
+            exhausted: self.exhausted,
             evidence,
         }
     }
@@ -1071,6 +1082,12 @@ impl<'a> Locate<'a> {
                     sn.events, lf, ln
                 );
             }
+        }
+        if self.exhausted {
+            measured.push_str(&format!(
+                "; the search's {MAX_SOLVES} Newton solves ran out at a bracket of {:.1e}",
+                (self.bad - self.good).abs()
+            ));
         }
         if self.stall.is_finite() {
             // What Newton did just beyond the end: where the residual it stopped at is tiny,
