@@ -565,10 +565,11 @@ impl<'a> Locate<'a> {
         let n = self.start.period;
         // A doubled cycle that has merged into its stable half is that half, traversed twice;
         // a failure from within the resolution may be Newton's alone.
-        let (c, m) = match (self.merged(&c), self.iterated(&c)) {
-            (Some(half), _) => (half, None),
-            (None, Some((on, m))) => (on, m),
-            (None, None) => (c, self.newton.monodromy().copied()),
+        let (c, m) = match self.merged(&c) {
+            Some(half) => (half, None),
+            None => self
+                .iterated(&c)
+                .unwrap_or_else(|| (c, self.newton.monodromy().copied())),
         };
         let stable = c.is_stable() && c.period == n;
         // Converged to this cycle (or the cycle it merged into, of a divisor period) but not
@@ -814,16 +815,15 @@ impl<'a> Locate<'a> {
         let mut st = last.state();
         // The largest move of a return, at the start of each eighth of the iteration.
         let mut was = f64::INFINITY;
-        // Every iterate keeps the cycle's positions, and some return jumps in velocity.
-        let (mut stays, mut jumps) = (true, false);
+        // Some return jumps in velocity (every one keeps the cycle's positions).
+        let mut jumps = false;
         let mut contracted = false;
         for k in 0..ITERATES {
             let before = st.y;
             for _ in 0..n {
                 it.period(&mut st);
             }
-            stays &= kept(&st.y, &last.point);
-            if !stays {
+            if !kept(&st.y, &last.point) {
                 return None;
             }
             let d = (0..4).map(|i| moved(&st.y, &before, i)).fold(0.0, f64::max);
