@@ -372,6 +372,7 @@ impl App {
                 .map(|b| rattle::map::boundaries::MapBoundaries {
                     slices: vec![b.clone()],
                     across: None,
+                    slices_s: None,
                 });
             let files =
                 rattle::map::write_outputs(&prefix, &m.cfg, &m.fields, &m.report, b.as_ref())

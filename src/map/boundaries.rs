@@ -258,6 +258,10 @@ fn with_cells<T>(f: &super::Fields, then: impl FnOnce(&Cells) -> T) -> T {
 pub struct MapBoundaries {
     pub slices: Vec<Boundaries>,
     pub across: Option<Boundaries>,
+    /// A volume's slices are located in one pass (so that the many cores of a host share all
+    /// slices' continuations, not one slice's at a time): its seconds (continuations,
+    /// coexistence checks, all), which the slices' own fields (0) do not split.
+    pub slices_s: Option<[f64; 3]>,
 }
 
 /// The boundaries of a map in memory (`rattle map --boundaries`, Python's
@@ -266,64 +270,48 @@ pub fn of_map(engine: &Engine, cfg: &Config, f: &super::Fields) -> crate::Result
     with_cells(f, |cells| of_cells(engine, cfg, cells))
 }
 
-impl Cells<'_> {
-    /// The cells `r` (a slice of a volume).
-    fn range(&self, r: std::ops::Range<usize>) -> Cells<'_> {
-        Cells {
-            class: &self.class[r.clone()],
-            coexist: &self.coexist[r.clone()],
-            state: &self.state[4 * r.start..4 * r.end],
-            mode: &self.mode[r.clone()],
-            inferred: &self.inferred[r],
-        }
-    }
-}
-
 /// The boundaries of a map from its cells' layers (the one path of `rattle map --boundaries`,
 /// `rattle boundaries` and Python): each slice's located in its own plane, as `rattle map
 /// --boundaries` at that z locates them, and for a volume those between slices
 /// ([`locate_across`]). What the minutes after the map's bar are spent on is logged: a plane's
-/// phases, a volume's slices one line each, then the phases between slices.
+/// phases; a volume's phases in its slices (all slices at once), a line for each slice, then
+/// the phases between slices.
 pub fn of_cells(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<MapBoundaries> {
     let Some(z) = cfg.z_axis() else {
         log::info!("boundaries: locating them");
         return Ok(MapBoundaries {
             slices: vec![locate(engine, cfg, cells)?],
             across: None,
+            slices_s: None,
         });
     };
     log::info!(
         "boundaries: locating them in each of {} slices, then on the edges between slices",
         z.points
     );
-    let per = super::plane_cells(cfg);
-    let slices = (0..z.points as usize)
-        .map(|k| {
-            let plane = cfg.slice(k);
-            let part = cells.range(k * per..(k + 1) * per);
-            let b = located(
-                engine,
-                &Grid::new(&plane),
-                &part,
-                &[Axis::X, Axis::Y],
-                false,
-            )?;
-            log::info!(
-                "boundaries: slice {} of {} ({} = {}): {} edges between classes, {} changes \
-                 located in {:.1} s",
-                k + 1,
-                z.points,
-                z.param.name(),
-                z.values()[k],
-                b.edges,
-                b.points.iter().filter(|p| p.located).count(),
-                b.seconds
-            );
-            Ok(b)
-        })
-        .collect::<crate::Result<Vec<_>>>()?;
+    // All slices' edges in one pass over the volume's grid, then cut into the slices: each
+    // slice's points are those `rattle map --boundaries` at its z locates.
+    let grid = Grid::volume(cfg);
+    let pass = Pass::of(engine, &grid, cells, &[Axis::X, Axis::Y], "in the slices")?;
+    let slices_s = Some([pass.continuation_s, pass.coexistence_s, pass.seconds]);
+    let slices = pass.into_slices(&grid);
+    for (k, b) in slices.iter().enumerate() {
+        log::info!(
+            "boundaries: slice {} of {} ({} = {}): {} edges between classes, {} changes located",
+            k + 1,
+            z.points,
+            z.param.name(),
+            z.values()[k],
+            b.edges,
+            b.points.iter().filter(|p| p.located).count(),
+        );
+    }
     let across = Some(locate_across(engine, cfg, cells)?);
-    Ok(MapBoundaries { slices, across })
+    Ok(MapBoundaries {
+        slices,
+        across,
+        slices_s,
+    })
 }
 
 /// An item of one slice of a volume, with the slice's z value.
@@ -387,9 +375,13 @@ impl<'a> VolumeBoundaries<'a> {
             trials: count(&|b| b.trials),
             continuations: count(&|b| b.continuations),
             claims: count(&|b| b.claims),
-            continuation_s: sum(&|b| b.continuation_s),
-            coexistence_s: sum(&|b| b.coexistence_s),
-            seconds: sum(&|b| b.seconds),
+            continuation_s: b
+                .slices_s
+                .map_or_else(|| sum(&|b| b.continuation_s), |t| t[0]),
+            coexistence_s: b
+                .slices_s
+                .map_or_else(|| sum(&|b| b.coexistence_s), |t| t[1]),
+            seconds: b.slices_s.map_or_else(|| sum(&|b| b.seconds), |t| t[2]),
             across: b.across.as_ref(),
             surfaces: None,
         }
@@ -807,7 +799,7 @@ impl<'a> Grid<'a> {
 /// Locates and types the boundaries of the map of `cfg` from its cells' layers; the sides'
 /// motions at the edges' midpoints run on `engine` (the map's).
 pub fn locate(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Boundaries> {
-    located(engine, &Grid::new(cfg), cells, &[Axis::X, Axis::Y], true)
+    located(engine, &Grid::new(cfg), cells, &[Axis::X, Axis::Y])
 }
 
 /// Locates and types the changes on the edges between a volume's slices (along z), from the
@@ -816,102 +808,190 @@ pub fn locate(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Bou
 /// their z (the located value, or the edge's midpoint); no curves (a volume's changes on
 /// neighbouring edges join into surfaces: [`super::surfaces`]).
 pub fn locate_across(engine: &Engine, cfg: &Config, cells: &Cells) -> crate::Result<Boundaries> {
-    located(engine, &Grid::volume(cfg), cells, &[Axis::Z], true)
+    located(engine, &Grid::volume(cfg), cells, &[Axis::Z])
 }
 
-/// The boundaries on the edges of `grid` along `axes`; `loud`: each phase logged as it ends.
+/// The boundaries on the edges of `grid` along `axes` (a plane's with their curves; those
+/// between a volume's slices without: their points join into surfaces instead).
 fn located(
     engine: &Engine,
     grid: &Grid,
     cells: &Cells,
     axes: &[Axis],
-    loud: bool,
 ) -> crate::Result<Boundaries> {
-    let t0 = std::time::Instant::now();
-    let cfg = grid.cfg;
-    let settings = cfg.settings();
-    let edges = grid.edges(cells.class, axes);
-    // What the minutes are spent on, phase by phase (`loud`; each slice of a volume says one
-    // line when done instead).
-    let what = if axes.contains(&Axis::Z) {
+    let across = axes.contains(&Axis::Z);
+    let what = if across {
         "between slices"
     } else {
         "in the plane"
     };
-    let say = |line: String| {
-        if loud {
-            log::info!("boundaries {what}: {line}");
-        }
-    };
-    say(format!(
-        "{} edges between classes; continuing each side's cycle towards the other",
-        edges.len()
-    ));
-    let (trials, cycles, jacobians) = side_cycles(grid, &settings, cells, &edges);
-    let t1 = std::time::Instant::now();
-    let (mut per_edge, continuations) =
-        continuations(grid, &settings, cells, &edges, &cycles, &jacobians);
-    let both_sides = impact_free_grazings(grid, &settings, cells, &edges, &mut per_edge);
-    let continuation_s = t1.elapsed().as_secs_f64();
-    say(format!(
-        "{continuations} continuations in {continuation_s:.1} s; checking coexistences"
-    ));
-    let t2 = std::time::Instant::now();
-    let (coexists, claims, free) = coexistences(
-        engine,
-        grid,
-        &settings,
-        cells,
-        &edges,
-        &cycles,
-        &per_edge,
-        &both_sides,
-    )?;
-    let coexistence_s = t2.elapsed().as_secs_f64();
-    let mut points: Vec<Point> = edges
-        .iter()
-        .zip(&per_edge)
-        .enumerate()
-        .flat_map(|(k, (&e, f))| {
-            let mut ps = edge_points(grid, cells, e, f, &coexists, free.get(&k));
-            for p in &mut ps {
-                p.edge = k;
-            }
-            ps
-        })
-        .collect();
-    say(format!(
-        "{claims} coexistences checked in {coexistence_s:.1} s; checking the classes after the changes"
-    ));
-    check_after(engine, grid, &settings, cells, &edges, &mut points)?;
-    // Curves within a plane; across slices the points join into surfaces instead.
-    let curves = match axes.contains(&Axis::Z) {
+    let pass = Pass::of(engine, grid, cells, axes, what)?;
+    let curves = match across {
         true => Vec::new(),
-        false => curves(&points, &edges, grid.nx),
+        false => curves(&pass.points, &pass.edges, grid.nx),
     };
     Ok(Boundaries {
-        x_param: cfg.map.x.name(),
-        y_param: cfg.map.y.name(),
-        edges: edges.len(),
+        x_param: grid.cfg.map.x.name(),
+        y_param: grid.cfg.map.y.name(),
+        edges: pass.edges.len(),
         curves,
-        points,
-        trials,
-        continuations,
-        claims,
-        continuation_s,
-        coexistence_s,
-        seconds: t0.elapsed().as_secs_f64(),
+        trials: pass.sides.len(),
+        continuations: pass.ran.iter().sum(),
+        claims: pass.claims.iter().sum(),
+        continuation_s: pass.continuation_s,
+        coexistence_s: pass.coexistence_s,
+        seconds: pass.seconds,
+        points: pass.points,
     })
 }
 
+/// What one pass over the edges of a grid along some axes found: the edges, their points and
+/// what was run on each.
+struct Pass {
+    edges: Vec<Edge>,
+    points: Vec<Point>,
+    /// The periodic cells on the edges, whose own cycles were refined (a Newton trial each).
+    sides: Vec<usize>,
+    /// Continuations run and coexistences checked on each edge.
+    ran: Vec<usize>,
+    claims: Vec<usize>,
+    continuation_s: f64,
+    coexistence_s: f64,
+    seconds: f64,
+}
+
+impl Pass {
+    /// Locates and types the changes on the edges of `grid` along `axes`, each phase logged
+    /// as it ends (`what`: where, in the log's words).
+    fn of(
+        engine: &Engine,
+        grid: &Grid,
+        cells: &Cells,
+        axes: &[Axis],
+        what: &str,
+    ) -> crate::Result<Pass> {
+        let t0 = std::time::Instant::now();
+        let settings = grid.cfg.settings();
+        let edges = grid.edges(cells.class, axes);
+        let say = |line: String| log::info!("boundaries {what}: {line}");
+        say(format!(
+            "{} edges between classes; continuing each side's cycle towards the other",
+            edges.len()
+        ));
+        let (sides, cycles, jacobians) = side_cycles(grid, &settings, cells, &edges);
+        let t1 = std::time::Instant::now();
+        let (mut per_edge, ran) =
+            continuations(grid, &settings, cells, &edges, &cycles, &jacobians);
+        let both_sides = impact_free_grazings(grid, &settings, cells, &edges, &mut per_edge);
+        let continuation_s = t1.elapsed().as_secs_f64();
+        say(format!(
+            "{} continuations in {continuation_s:.1} s; checking coexistences",
+            ran.iter().sum::<usize>()
+        ));
+        let t2 = std::time::Instant::now();
+        let (coexists, claims, free) = coexistences(
+            engine,
+            grid,
+            &settings,
+            cells,
+            &edges,
+            &cycles,
+            &per_edge,
+            &both_sides,
+        )?;
+        let coexistence_s = t2.elapsed().as_secs_f64();
+        let mut points: Vec<Point> = edges
+            .iter()
+            .zip(&per_edge)
+            .enumerate()
+            .flat_map(|(k, (&e, f))| {
+                let mut ps = edge_points(grid, cells, e, f, &coexists, free.get(&k));
+                for p in &mut ps {
+                    p.edge = k;
+                }
+                ps
+            })
+            .collect();
+        say(format!(
+            "{} coexistences checked in {coexistence_s:.1} s; checking the classes after the \
+             changes",
+            claims.iter().sum::<usize>()
+        ));
+        check_after(engine, grid, &settings, cells, &edges, &mut points)?;
+        Ok(Pass {
+            edges,
+            points,
+            sides,
+            ran,
+            claims,
+            continuation_s,
+            coexistence_s,
+            seconds: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// A pass over the in-plane edges of a volume's `grid` cut into its slices, each as the
+    /// slice's own plane locates it (cells, edges and points numbered within the slice, no z),
+    /// with its curves; the seconds are the pass's, not the slices'.
+    fn into_slices(self, grid: &Grid) -> Vec<Boundaries> {
+        let per = grid.nx * grid.ny;
+        let mut points = self.points.into_iter().peekable();
+        let mut out = Vec::with_capacity(grid.zs.len());
+        let mut first = 0;
+        for k in 0..grid.zs.len() {
+            let off = k * per;
+            // The edges are numbered slice by slice, each slice's in its plane's order.
+            let end = first
+                + self.edges[first..]
+                    .iter()
+                    .take_while(|e| e.0 / per == k)
+                    .count();
+            let edges: Vec<Edge> = self.edges[first..end]
+                .iter()
+                .map(|&(a, b, axis)| (a - off, b - off, axis))
+                .collect();
+            let mut ps = Vec::new();
+            while let Some(mut p) = points.next_if(|p| p.edge < end) {
+                p.edge -= first;
+                p.cells = p.cells.map(|c| c - off);
+                p.from = p.from.map(|c| c - off);
+                p.z = None;
+                ps.push(p);
+            }
+            out.push(Boundaries {
+                x_param: grid.cfg.map.x.name(),
+                y_param: grid.cfg.map.y.name(),
+                edges: edges.len(),
+                curves: curves(&ps, &edges, grid.nx),
+                points: ps,
+                trials: self.sides.iter().filter(|&&c| c / per == k).count(),
+                continuations: self.ran[first..end].iter().sum(),
+                claims: self.claims[first..end].iter().sum(),
+                continuation_s: 0.0,
+                coexistence_s: 0.0,
+                seconds: 0.0,
+            });
+            first = end;
+        }
+        out
+    }
+}
+
+/// The periodic cells tried, their stable cycles and the monodromy matrices Newton kept.
+type SideCycles = (
+    Vec<usize>,
+    HashMap<usize, Cycle>,
+    HashMap<usize, Matrix4<f64>>,
+);
+
 /// The stable cycle of every periodic cell on an edge, refined from its final state (cells
-/// whose refined cycle is not stable at the cell's period have none); and the trials made.
+/// whose refined cycle is not stable at the cell's period have none); and the cells tried.
 fn side_cycles(
     grid: &Grid,
     settings: &crate::method::Settings,
     cells: &Cells,
     edges: &[Edge],
-) -> (usize, HashMap<usize, Cycle>, HashMap<usize, Matrix4<f64>>) {
+) -> SideCycles {
     let periodic = |c: usize| {
         cells.class[c] > 0 && cells.state[4 * c..4 * c + 4].iter().all(|v| v.is_finite())
     };
@@ -933,7 +1013,6 @@ fn side_cycles(
             )
         })
         .collect();
-    let trials = tasks.len();
     let (mut cycles, mut jacobians) = (HashMap::new(), HashMap::new());
     for (&c, t) in sides.iter().zip(Decider::Host.refine(settings, tasks)) {
         if let Some(m) = t.monodromy() {
@@ -944,14 +1023,14 @@ fn side_cycles(
             cycles.insert(c, cy);
         }
     }
-    (trials, cycles, jacobians)
+    (sides, cycles, jacobians)
 }
 
 /// A continuation from each side with a stable cycle towards the other side, unless the map's
 /// carry already found that cycle stable at the other side's parameters; where it locates a
 /// period doubling, the branch that follows ([`Switch`], batched on the host's lanes) is continued
 /// on towards the other side, in rounds, so that each change along the edge is located in
-/// order. What each edge's continuations found, and how many ran.
+/// order. What each edge's continuations found, and how many ran on each.
 fn continuations(
     grid: &Grid,
     settings: &crate::method::Settings,
@@ -959,7 +1038,7 @@ fn continuations(
     edges: &[Edge],
     cycles: &HashMap<usize, Cycle>,
     jacobians: &HashMap<usize, Matrix4<f64>>,
-) -> (Vec<EdgeFound>, usize) {
+) -> (Vec<EdgeFound>, Vec<usize>) {
     let start = |k: usize, from: usize, to: usize| -> Option<Pending> {
         let cycle = cycles.get(&from)?;
         if cells.coexist[to] == cells.class[from] {
@@ -994,7 +1073,7 @@ fn continuations(
         })
         .collect();
     let mut per_edge: Vec<EdgeFound> = vec![Vec::new(); edges.len()];
-    let mut ran = 0;
+    let mut ran = vec![0; edges.len()];
     let mut second_sides = true;
     loop {
         if pending.is_empty() && std::mem::take(&mut second_sides) {
@@ -1048,7 +1127,9 @@ fn continuations(
             })
             .collect();
         let found = locate_changes(settings, &changes);
-        ran += changes.len();
+        for q in &pending {
+            ran[q.edge] += 1;
+        }
         // The branch switches after this round's doublings, all at once on the host's lanes.
         let switches: Vec<(Placed, Switch)> = pending
             .iter()
@@ -1189,7 +1270,7 @@ fn on_orbit(c: &Cycle, orbit: &[[f64; 4]], y: &[f64; 4]) -> bool {
 }
 
 /// Which side's cycle coexists across each edge (the carry's or the continuation's), and
-/// whether both attractors persist at the edge's midpoint; the claims checked; and for each
+/// whether both attractors persist at the edge's midpoint; the claims checked on each edge; and for each
 /// edge whose impact-free motion exists on both sides (`both_sides`: edge -> the impacting
 /// cell), whether the impacting side's motion still impacts at the midpoint (a crisis, or a
 /// transient), the reason of the `undetermined` edge. The sides' motions at the midpoints run
@@ -1204,10 +1285,11 @@ fn coexistences(
     cycles: &HashMap<usize, Cycle>,
     per_edge: &[EdgeFound],
     both_sides: &HashMap<usize, usize>,
-) -> crate::Result<(Verdicts, usize, HashMap<usize, &'static str>)> {
+) -> crate::Result<(Verdicts, Vec<usize>, HashMap<usize, &'static str>)> {
     use rayon::prelude::*;
     let mut claims = Vec::new();
-    for (&(a, b, _), found) in edges.iter().zip(per_edge) {
+    let mut checked = vec![0; edges.len()];
+    for (k, (&(a, b, _), found)) in edges.iter().zip(per_edge).enumerate() {
         for (from, to) in [(a, b), (b, a)] {
             let Some(cycle) = cycles.get(&from) else {
                 continue;
@@ -1217,6 +1299,7 @@ fn coexistences(
                 .any(|l| l.from == from && l.step == 0 && matches!(l.found, Found::StableThere));
             if cells.coexist[to] == cells.class[from] || continued {
                 claims.push((a, b, from, to, cycle));
+                checked[k] += 1;
             }
         }
     }
@@ -1312,7 +1395,10 @@ fn coexistences(
             free.insert(k, if impacts { CRISIS_IMPACTS } else { CRISIS_ENDS });
         }
     }
-    Ok((verdicts, claims.len() + both_sides.len(), free))
+    for &k in both_sides.keys() {
+        checked[k] += 1;
+    }
+    Ok((verdicts, checked, free))
 }
 
 /// The type of a located change and, where `undetermined`, why.

@@ -1018,10 +1018,12 @@ fn surfaces_figure(
         .map(|&(t, n, f)| {
             (
                 format!(
-                    "{}: {} sheets, {} triangles",
+                    "{}: {} sheet{}, {} triangle{}",
                     t.name(),
                     grouped(n),
-                    grouped(f)
+                    if n == 1 { "" } else { "s" },
+                    grouped(f),
+                    if f == 1 { "" } else { "s" }
                 ),
                 t.rgb(),
             )

@@ -610,6 +610,7 @@ mod tests {
             &MapBoundaries {
                 slices,
                 across: Some(empty(across)),
+                slices_s: None,
             },
         );
         let kinds: Vec<(&str, &str)> = sf
