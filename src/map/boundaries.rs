@@ -18,11 +18,9 @@ use crate::class::Class;
 use crate::config::Config;
 use crate::cycles::{Cycle, Refine, run_parallel};
 use crate::engine::{Decider, Engine};
-use crate::method::{Integrator, PointState};
+use crate::method::{FlowTask, Integrator, PointState};
 use crate::model::{Mode, Param, Params};
-use crate::stability::{
-    BifurcationPoint, Change, Found, Grazed, Kind, SWITCH_AT, Switch, locate_changes,
-};
+use crate::stability::{BifurcationPoint, Change, Found, Grazed, Kind, SWITCH_AT, Switch};
 use nalgebra::Matrix4;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
@@ -534,10 +532,6 @@ struct Pending {
     first: Option<f64>,
 }
 
-/// Where a branch switch stands: (its pending continuation, the value it starts at, the value
-/// of the doubling it follows, the march's first step where predicted).
-type Placed = (usize, f64, f64, Option<f64>);
-
 /// Feigenbaum's ratio: in a cascade of period doublings each spacing is this many times the
 /// next.
 const FEIGENBAUM: f64 = 4.669;
@@ -1028,9 +1022,12 @@ fn side_cycles(
 
 /// A continuation from each side with a stable cycle towards the other side, unless the map's
 /// carry already found that cycle stable at the other side's parameters; where it locates a
-/// period doubling, the branch that follows ([`Switch`], batched on the host's lanes) is continued
-/// on towards the other side, in rounds, so that each change along the edge is located in
-/// order. What each edge's continuations found, and how many ran on each.
+/// period doubling, the branch that follows ([`Switch`]) is continued on towards the other
+/// side, so that each change along the edge is located in order. Each edge's continuations
+/// are one task of the host's lanes ([`Chain`]): the next starts as soon as the one before it
+/// ends, so that no edge waits for the slowest of the others (rounds over all edges left most
+/// of a many-core host idle behind a few long cycles). What each edge's continuations found,
+/// and how many ran on each.
 fn continuations(
     grid: &Grid,
     settings: &crate::method::Settings,
@@ -1039,160 +1036,280 @@ fn continuations(
     cycles: &HashMap<usize, Cycle>,
     jacobians: &HashMap<usize, Matrix4<f64>>,
 ) -> (Vec<EdgeFound>, Vec<usize>) {
-    let start = |k: usize, from: usize, to: usize| -> Option<Pending> {
-        let cycle = cycles.get(&from)?;
-        if cells.coexist[to] == cells.class[from] {
+    let along = Along {
+        grid,
+        settings,
+        cells,
+        edges,
+        cycles,
+        jacobians,
+        pad: Integrator::<f64>::new(&grid.cfg.params(), settings),
+    };
+    // The side of the smaller parameter value first (the side whose chain the edge reports),
+    // the other where it has a cycle of its own and none was continued first.
+    let chains: Vec<Chain> = edges
+        .iter()
+        .enumerate()
+        .filter_map(|(k, &(a, b, axis))| {
+            let [one, two] = if grid.along(a, axis) <= grid.along(b, axis) {
+                [(a, b), (b, a)]
+            } else {
+                [(b, a), (a, b)]
+            };
+            let q = along
+                .start(k, one.0, one.1)
+                .or_else(|| along.start(k, two.0, two.1))?;
+            Some(Chain::new(&along, q))
+        })
+        .collect();
+    let chains = run_parallel(chains, |c| u64::from(c.period));
+    let mut per_edge: Vec<EdgeFound> = vec![Vec::new(); edges.len()];
+    let mut ran = vec![0; edges.len()];
+    for c in chains {
+        ran[c.edge] = c.ran;
+        per_edge[c.edge] = c.links;
+    }
+    (per_edge, ran)
+}
+
+/// What the continuations along the edges share.
+struct Along<'a> {
+    grid: &'a Grid<'a>,
+    settings: &'a crate::method::Settings,
+    cells: &'a Cells<'a>,
+    edges: &'a [Edge],
+    cycles: &'a HashMap<usize, Cycle>,
+    jacobians: &'a HashMap<usize, Matrix4<f64>>,
+    /// An integrator for a chain that is done (never run).
+    pad: Integrator<f64>,
+}
+
+impl Along<'_> {
+    /// The continuation of the cell `from`'s own cycle on edge `k` towards `to`, unless it has
+    /// none or the map's carry found it at `to` already.
+    fn start(&self, k: usize, from: usize, to: usize) -> Option<Pending> {
+        let cycle = self.cycles.get(&from)?;
+        if self.cells.coexist[to] == self.cells.class[from] {
             return None;
         }
         Some(Pending {
             edge: k,
             from,
-            value: grid.along(from, edges[k].2),
+            value: self.grid.along(from, self.edges[k].2),
             cycle: cycle.clone(),
             step: 0,
             prev: None,
-            monodromy: jacobians.get(&from).copied(),
+            monodromy: self.jacobians.get(&from).copied(),
             first: None,
         })
-    };
-    // The side of the smaller parameter value first (the side whose chain the edge reports),
-    // the other where it has a cycle of its own and none was continued first.
-    let first = |(a, b, axis): Edge| {
-        if grid.along(a, axis) <= grid.along(b, axis) {
-            [(a, b), (b, a)]
-        } else {
-            [(b, a), (a, b)]
-        }
-    };
-    let mut pending: Vec<Pending> = edges
-        .iter()
-        .enumerate()
-        .filter_map(|(k, &e)| {
-            let [one, two] = first(e);
-            start(k, one.0, one.1).or_else(|| start(k, two.0, two.1))
-        })
-        .collect();
-    let mut per_edge: Vec<EdgeFound> = vec![Vec::new(); edges.len()];
-    let mut ran = vec![0; edges.len()];
-    let mut second_sides = true;
-    loop {
-        if pending.is_empty() && std::mem::take(&mut second_sides) {
-            // The other side's cycle, unless the first side's chain reached it: a branch of
-            // its period continued stable all the way to its cell after a located change
-            // (the same doubling seen from the doubled side, at the cost of another search).
-            pending = edges
-                .iter()
-                .enumerate()
-                .filter_map(|(k, &e)| {
-                    let links = &per_edge[k];
-                    let (one, two) = match links.first() {
-                        Some(l) if l.from == e.0 => ((e.0, e.1), (e.1, e.0)),
-                        Some(_) => ((e.1, e.0), (e.0, e.1)),
-                        None => return None,
-                    };
-                    let reached = links.iter().any(|l| {
-                        l.from == one.0
-                            && l.step >= 1
-                            && matches!(l.found, Found::StableThere)
-                            && u32::try_from(cells.class[one.1]) == Ok(l.period)
-                    });
-                    (!reached).then(|| start(k, two.0, two.1)).flatten()
-                })
-                .collect();
-        }
-        if pending.is_empty() {
-            break;
-        }
-        let to = |k: usize, from: usize| {
-            let (a, b, axis) = edges[k];
-            grid.along(if from == a { b } else { a }, axis)
-        };
-        let param = |k: usize| grid.param(edges[k].2);
-        let changes: Vec<Change> = pending
-            .iter()
-            .map(|q| {
-                let mut base = grid.params(q.from);
-                param(q.edge).set(&mut base, q.value);
-                Change {
-                    base,
-                    param: param(q.edge),
-                    from: q.value,
-                    cycle: &q.cycle,
-                    monodromy: q.monodromy,
-                    to: to(q.edge, q.from),
-                    bisections: EDGE_BISECTIONS,
-                    crossing_bisections: EDGE_CROSSING_BISECTIONS,
-                    first_step: q.first,
-                }
-            })
-            .collect();
-        let found = locate_changes(settings, &changes);
-        for q in &pending {
-            ran[q.edge] += 1;
-        }
-        // The branch switches after this round's doublings, all at once on the host's lanes.
-        let switches: Vec<(Placed, Switch)> = pending
-            .iter()
-            .zip(&found)
-            .zip(&changes)
-            .enumerate()
-            .filter_map(|(i, ((q, f), c))| {
-                let Found::Located(p) = f else {
-                    return None;
-                };
-                if p.kind != Kind::PeriodDoubling
-                    || q.step >= MAX_SWITCHES
-                    || 2 * p.period > MAX_SWITCH_PERIOD
-                {
-                    return None;
-                }
-                let edge = c.to - c.from;
-                let dir = edge.signum();
-                // In a cascade the next doubling comes about 4.7 times closer than the last
-                // spacing (Feigenbaum's ratio): the switch starts at a tenth of it.
-                let room = q.prev.map_or(f64::INFINITY, |v| 0.1 * (p.value - v).abs());
-                let at =
-                    p.value + dir * (SWITCH_AT * edge.abs()).min(room).max(4.0 * p.uncertainty);
-                if (c.to - at) * dir <= 0.0 {
-                    return None;
-                }
-                // The march's first step: twice the predicted spacing, from the switch on.
-                let first = q.prev.map(|v| 2.0 * (p.value - v).abs() / FEIGENBAUM);
-                Some((
-                    (i, at, p.value, first),
-                    Switch::new(&c.base, c.param, settings, p, q.cycle.mode, at),
-                ))
-            })
-            .collect();
-        let (placed, tasks): (Vec<_>, Vec<Switch>) = switches.into_iter().unzip();
-        let next: Vec<Pending> = placed
-            .into_iter()
-            .zip(run_parallel(tasks, |t| u64::from(t.period())))
-            .filter_map(|((i, at, value, first), t)| {
-                let q = &pending[i];
-                Some(Pending {
-                    edge: q.edge,
-                    from: q.from,
-                    value: at,
-                    cycle: t.out?,
-                    step: q.step + 1,
-                    prev: Some(value),
-                    monodromy: t.out_m,
-                    first,
-                })
-            })
-            .collect();
-        for (q, f) in pending.into_iter().zip(found) {
-            per_edge[q.edge].push(Link {
-                found: f,
-                period: q.cycle.period,
-                from: q.from,
-                step: q.step,
-            });
-        }
-        pending = next;
     }
-    (per_edge, ran)
+
+    /// The search of `q` towards the edge's other cell.
+    fn change<'q>(&self, q: &'q Pending) -> Change<'q> {
+        let (a, b, axis) = self.edges[q.edge];
+        let param = self.grid.param(axis);
+        let mut base = self.grid.params(q.from);
+        param.set(&mut base, q.value);
+        Change {
+            base,
+            param,
+            from: q.value,
+            cycle: &q.cycle,
+            monodromy: q.monodromy,
+            to: self.grid.along(if q.from == a { b } else { a }, axis),
+            bisections: EDGE_BISECTIONS,
+            crossing_bisections: EDGE_CROSSING_BISECTIONS,
+            first_step: q.first,
+        }
+    }
+}
+
+/// The continuations along one edge, one after another, as one task of the host's lanes.
+struct Chain<'a> {
+    along: &'a Along<'a>,
+    edge: usize,
+    /// The period of the first cycle continued (the queue takes the longest first).
+    period: u32,
+    /// The other side's cycle has been considered.
+    second: bool,
+    links: EdgeFound,
+    ran: usize,
+    stage: Stage<'a>,
+}
+
+/// Where a [`Chain`] stands.
+enum Stage<'a> {
+    /// A continuation (`None`: its cycle is not stable at its start).
+    Locate(Pending, Option<Box<crate::stability::Locate<'a>>>),
+    /// The branch switch after a doubling: the continuation it follows, the value it starts
+    /// at, the doubling's value and the march's first step where predicted.
+    Switch(Pending, f64, f64, Option<f64>, Box<Switch>),
+    Done,
+}
+
+impl<'a> Chain<'a> {
+    fn new(along: &'a Along<'a>, q: Pending) -> Chain<'a> {
+        let mut c = Chain {
+            along,
+            edge: q.edge,
+            period: q.cycle.period,
+            second: false,
+            links: Vec::new(),
+            ran: 0,
+            stage: Stage::Done,
+        };
+        c.locate(q);
+        c.advance();
+        c
+    }
+
+    fn locate(&mut self, q: Pending) {
+        self.ran += 1;
+        let l = crate::stability::Locate::new(&self.along.change(&q), self.along.settings, 0);
+        self.stage = Stage::Locate(q, l.map(Box::new));
+    }
+
+    /// Moves on to the next stage while the current one has no flow left.
+    fn advance(&mut self) {
+        loop {
+            match std::mem::replace(&mut self.stage, Stage::Done) {
+                Stage::Locate(q, Some(l)) if l.flow().is_some() => {
+                    self.stage = Stage::Locate(q, Some(l));
+                    return;
+                }
+                Stage::Switch(q, at, v, first, s) if s.flow().is_some() => {
+                    self.stage = Stage::Switch(q, at, v, first, s);
+                    return;
+                }
+                Stage::Locate(q, l) => {
+                    let found = l.map_or(Found::Nothing, |l| l.found());
+                    let switch = self.switch(&q, &found);
+                    self.links.push(Link {
+                        found,
+                        period: q.cycle.period,
+                        from: q.from,
+                        step: q.step,
+                    });
+                    match switch {
+                        Some((at, v, first, s)) => {
+                            self.stage = Stage::Switch(q, at, v, first, Box::new(s))
+                        }
+                        None => self.side_done(),
+                    }
+                }
+                Stage::Switch(q, at, value, first, s) => match s.out {
+                    Some(cycle) => self.locate(Pending {
+                        edge: q.edge,
+                        from: q.from,
+                        value: at,
+                        cycle,
+                        step: q.step + 1,
+                        prev: Some(value),
+                        monodromy: s.out_m,
+                        first,
+                    }),
+                    None => self.side_done(),
+                },
+                Stage::Done => return,
+            }
+        }
+    }
+
+    /// The branch switch after a doubling `found` by `q`, where the chain goes on past it:
+    /// (the value it starts at, the doubling's value, the march's first step, the switch).
+    fn switch(&self, q: &Pending, found: &Found) -> Option<(f64, f64, Option<f64>, Switch)> {
+        let Found::Located(p) = found else {
+            return None;
+        };
+        if p.kind != Kind::PeriodDoubling
+            || q.step >= MAX_SWITCHES
+            || 2 * p.period > MAX_SWITCH_PERIOD
+        {
+            return None;
+        }
+        let c = self.along.change(q);
+        let edge = c.to - c.from;
+        let dir = edge.signum();
+        // In a cascade the next doubling comes about 4.7 times closer than the last
+        // spacing (Feigenbaum's ratio): the switch starts at a tenth of it.
+        let room = q.prev.map_or(f64::INFINITY, |v| 0.1 * (p.value - v).abs());
+        let at = p.value + dir * (SWITCH_AT * edge.abs()).min(room).max(4.0 * p.uncertainty);
+        if (c.to - at) * dir <= 0.0 {
+            return None;
+        }
+        // The march's first step: twice the predicted spacing, from the switch on.
+        let first = q.prev.map(|v| 2.0 * (p.value - v).abs() / FEIGENBAUM);
+        let s = Switch::new(&c.base, c.param, self.along.settings, p, q.cycle.mode, at);
+        Some((at, p.value, first, s))
+    }
+
+    /// The side continued first is done: the other side's cycle next, unless the first
+    /// side's chain reached it (a branch of its period continued stable all the way to its
+    /// cell after a located change: the same doubling seen from the doubled side, at the cost
+    /// of another search).
+    fn side_done(&mut self) {
+        self.stage = Stage::Done;
+        if std::mem::replace(&mut self.second, true) {
+            return;
+        }
+        let along = self.along;
+        let e = along.edges[self.edge];
+        let Some(l) = self.links.first() else {
+            return;
+        };
+        let (one, two) = if l.from == e.0 {
+            ((e.0, e.1), (e.1, e.0))
+        } else {
+            ((e.1, e.0), (e.0, e.1))
+        };
+        let reached = self.links.iter().any(|l| {
+            l.from == one.0
+                && l.step >= 1
+                && matches!(l.found, Found::StableThere)
+                && u32::try_from(along.cells.class[one.1]) == Ok(l.period)
+        });
+        if let Some(q) = (!reached)
+            .then(|| along.start(self.edge, two.0, two.1))
+            .flatten()
+        {
+            self.locate(q);
+        }
+    }
+}
+
+impl FlowTask for Chain<'_> {
+    fn flow(&self) -> Option<(PointState<f64>, u32)> {
+        match &self.stage {
+            Stage::Locate(_, Some(l)) => l.flow(),
+            Stage::Switch(.., s) => s.flow(),
+            _ => None,
+        }
+    }
+
+    fn integrator(&self) -> &Integrator<f64> {
+        match &self.stage {
+            Stage::Locate(_, Some(l)) => l.integrator(),
+            Stage::Switch(.., s) => s.integrator(),
+            _ => &self.along.pad,
+        }
+    }
+
+    fn tangent(&self) -> bool {
+        match &self.stage {
+            Stage::Locate(_, Some(l)) => l.tangent(),
+            Stage::Switch(.., s) => s.tangent(),
+            _ => true,
+        }
+    }
+
+    fn ended(&mut self, end: &PointState<f64>, tan: &crate::cycles::Tangent<f64>) {
+        match &mut self.stage {
+            Stage::Locate(_, Some(l)) => l.ended(end, tan),
+            Stage::Switch(.., s) => s.ended(end, tan),
+            _ => {}
+        }
+        self.advance();
+    }
 }
 
 /// Where a `no_impact` cell neighbours one that impacts, and nothing else was located on the

@@ -259,11 +259,7 @@ pub fn locate_changes(settings: &Settings, changes: &[Change]) -> Vec<Found> {
         u64::from(t.start.period)
     });
     for t in tasks {
-        out[t.pair] = match t.found {
-            Some(p) => Found::Located(p),
-            None if t.reached => Found::StableThere,
-            None => Found::Nothing,
-        };
+        out[t.pair] = t.found();
     }
     out
 }
@@ -400,8 +396,8 @@ pub fn graze(
 /// unstable (converged, a multiplier outside the circle) has seen a crossing; one whose far
 /// end Newton cannot solve from 2^-20 of the edge is an end without one (typed by
 /// [`Locate::end`]).
-struct Locate<'a> {
-    base: &'a Params<f64>,
+pub(crate) struct Locate<'a> {
+    base: Params<f64>,
     param: Param,
     settings: &'a Settings,
     /// Index of the pair of sweep points.
@@ -466,9 +462,9 @@ fn integrator_at(base: &Params<f64>, param: Param, settings: &Settings, v: f64) 
 
 impl<'a> Locate<'a> {
     /// The search of `change` (the `pair`-th), `None` where its cycle is not stable.
-    fn new(change: &'a Change, settings: &'a Settings, pair: usize) -> Option<Locate<'a>> {
+    pub(crate) fn new(change: &Change, settings: &'a Settings, pair: usize) -> Option<Locate<'a>> {
         let start = Some(change.cycle).filter(|c| c.is_stable())?.clone();
-        let (base, param, to) = (&change.base, change.param, change.to);
+        let (base, param, to) = (change.base, change.param, change.to);
         let (bisections, crossing_bisections) = (change.bisections, change.crossing_bisections);
         let from = change.from;
         let last_m = change.monodromy;
@@ -480,7 +476,7 @@ impl<'a> Locate<'a> {
             }
             _ => (to - from, to),
         };
-        let it = integrator_at(base, param, settings, mid);
+        let it = integrator_at(&base, param, settings, mid);
         let newton = Solve::new(it, &start.state(), start.period, last_m.as_ref(), false);
         Some(Locate {
             base,
@@ -517,6 +513,15 @@ impl<'a> Locate<'a> {
         })
     }
 
+    /// What the search found, once it is done.
+    pub(crate) fn found(&self) -> Found {
+        match &self.found {
+            Some(p) => Found::Located(p.clone()),
+            None if self.reached => Found::StableThere,
+            None => Found::Nothing,
+        }
+    }
+
     /// The start of Newton's method at `v`: the last stable cycle's point moved along the
     /// secant of the last two (of one mode), where `v` is at most four of their distances
     /// beyond the last: the first residual shrinks from the order of the step to its square.
@@ -534,7 +539,7 @@ impl<'a> Locate<'a> {
     }
 
     fn integrator(&self, v: f64) -> Integrator<f64> {
-        integrator_at(self.base, self.param, self.settings, v)
+        integrator_at(&self.base, self.param, self.settings, v)
     }
 
     /// The smallest bracket, 2^-bisections of the edge; 2^-crossing_bisections where the
