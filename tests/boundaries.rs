@@ -1273,6 +1273,70 @@ fn reference_cycle(
     })
 }
 
+/// The reference (exact motion between events, 1024 steps a period) at `param` = `v`.
+fn reference_at(
+    p: &rattle::model::Params<f64>,
+    param: rattle::model::Param,
+    v: f64,
+    settings: &rattle::method::Settings,
+) -> DryReference {
+    let mut q = *p;
+    param.set(&mut q, v);
+    DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
+}
+
+/// The continuation of a map cell's period-`n` cycle (the model's `[model]` lines besides
+/// Coulomb friction, N = 128), refined from its final state `y`, from `from` towards `to` along
+/// `param`, as the map searches: the cycle's monodromy matrix the chord's Jacobian from the
+/// start, crossings bracketed to 2^-10 of the edge. The settings, the parameters at `from`, the
+/// cycle and what the search found.
+fn as_the_map_searches(
+    model: &str,
+    param: rattle::model::Param,
+    (from, to): (f64, f64),
+    y: [f64; 4],
+    n: u32,
+) -> (
+    rattle::method::Settings,
+    rattle::model::Params<f64>,
+    rattle::cycles::Cycle,
+    rattle::stability::Found,
+) {
+    let cfg = Config::parse(
+        &format!("[model]\n{model}\nfriction = \"coulomb\"\n[method]\nsteps_per_period = 128\n"),
+        &[],
+    )
+    .unwrap();
+    let settings = cfg.settings();
+    let mut p = cfg.params();
+    param.set(&mut p, from);
+    let st = rattle::method::PointState {
+        y,
+        mode: rattle::model::Mode::SlipPos,
+        diag: Default::default(),
+    };
+    let mut r = rattle::cycles::Refine::new(rattle::method::Integrator::new(&p, &settings), &st, n);
+    rattle::method::FlowTask::finish(&mut r);
+    let monodromy = r.monodromy().copied();
+    let cycle = r.cycle();
+    assert!(cycle.is_stable() && cycle.period == n, "{cycle:?}");
+    let change = rattle::stability::Change {
+        base: p,
+        param,
+        from,
+        cycle: &cycle,
+        monodromy,
+        to,
+        bisections: rattle::stability::BISECTIONS,
+        crossing_bisections: 10,
+        first_step: None,
+    };
+    let found = rattle::stability::locate_changes(&settings, &[change])
+        .pop()
+        .expect("one change, one answer");
+    (settings, p, cycle, found)
+}
+
 /// The search of the stable period-`n` cycle of the eta x r map (R 0.6, lambda 0.02, N = 128)
 /// from `start` at `from` towards `to` along `param` (`fixed` the other parameter) goes on past
 /// `jump`, where an impact of the cycle meets the section. The judge, the reference's own Newton
@@ -1386,45 +1450,13 @@ fn a_cycle_whose_impact_stays_at_the_section_goes_on() {
 /// reference's own Newton: the cycle is stable from the cell to 1/64 of a cell before the point.
 #[test]
 fn an_end_the_search_did_not_resolve_says_so() {
-    use rattle::model::{Mode, Param};
+    use rattle::model::Param;
     use rattle::stability::{Found, Kind};
-    let cfg = Config::parse(
-        "[model]\neta = 1.3\nR = 0.6\nlambda = 0.03984375\nfriction = \"coulomb\"\n\
-         [method]\nsteps_per_period = 128\n",
-        &[],
-    )
-    .unwrap();
-    let settings = cfg.settings();
     let (from, to) = (0.678125, 0.671875);
-    let mut p = cfg.params();
-    Param::Clearance.set(&mut p, from);
     let y = [-0.29840475, 0.66914457, -0.36677516, -0.40993643];
-    // As the map searches: the cell's cycle with its monodromy matrix (the chord's Jacobian),
-    // crossings bracketed to 2^-10 of the edge.
-    let st = rattle::method::PointState {
-        y,
-        mode: Mode::SlipPos,
-        diag: Default::default(),
-    };
-    let mut r = rattle::cycles::Refine::new(rattle::method::Integrator::new(&p, &settings), &st, 9);
-    rattle::method::FlowTask::finish(&mut r);
-    let m = r.monodromy().copied();
-    let cycle = r.cycle();
-    assert!(cycle.is_stable() && cycle.period == 9, "{cycle:?}");
-    let change = rattle::stability::Change {
-        base: p,
-        param: Param::Clearance,
-        from,
-        cycle: &cycle,
-        monodromy: m,
-        to,
-        bisections: rattle::stability::BISECTIONS,
-        crossing_bisections: 10,
-        first_step: None,
-    };
-    let found = rattle::stability::locate_changes(&settings, &[change])
-        .pop()
-        .unwrap();
+    let model = "eta = 1.3\nR = 0.6\nlambda = 0.03984375";
+    let (settings, p, cycle, found) =
+        as_the_map_searches(model, Param::Clearance, (from, to), y, 9);
     let Found::Located(b) = found else {
         panic!("{found:?}");
     };
@@ -1437,11 +1469,7 @@ fn an_end_the_search_did_not_resolve_says_so() {
         "{}",
         b.evidence
     );
-    let at = |v: f64| {
-        let mut q = p;
-        Param::Clearance.set(&mut q, v);
-        DryReference::new(&q, 1024, settings.zeno_speed).unwrap()
-    };
+    let at = |v: f64| reference_at(&p, Param::Clearance, v, &settings);
     let before = b.value + (from - to).signum() * ((to - from).abs() / 64.0 + b.uncertainty);
     let mut c = reference_cycle(&at(from), cycle.point, 9).expect("the cell's cycle");
     for k in 1..=64 {
@@ -1452,5 +1480,67 @@ fn an_end_the_search_did_not_resolve_says_so() {
     eprintln!(
         "the reference's leading multiplier 1/64 of a cell before: {:?}",
         c.lead()
+    );
+}
+
+/// An even-period cycle whose leading multiplier reaches +1 like the distance is a doubled
+/// cycle merging into its half only where its points half its period apart close in: the
+/// period-2 cycle of the eta x r map (R 0.6, lambda 0.02) at eta 1.47890625, continued as the
+/// map does (from the cell's state, the chord's Jacobian its monodromy, crossings bracketed to
+/// 2^-10) from r 0.653125 towards 0.659375, ends near r 0.658771 with 1 - mu shrinking like the
+/// distance while its two points stay about 1.26 of the state apart (rattle typed it a period
+/// doubling; the judge found no stable period-1 cycle near its orbit). It is a fold. The judge,
+/// the reference's own Newton: stable up to 1/64 of a cell before the point, its leading
+/// multiplier real and near +1 there, and P(x) about as far from x there as at the cell.
+#[test]
+fn a_cycle_whose_halves_stay_apart_is_not_a_doubling() {
+    use rattle::model::Param;
+    use rattle::stability::{Found, Kind};
+    let (from, to) = (0.653125, 0.659375);
+    // The cell's final state in the map (lavapipe f32).
+    let y = [
+        -0.08337178826332092,
+        0.5661728978157043,
+        -0.705540120601654,
+        -0.7112293839454651,
+    ];
+    let model = "R = 0.6\nlambda = 0.02\neta = 1.47890625";
+    let (settings, p, cycle, found) =
+        as_the_map_searches(model, Param::Clearance, (from, to), y, 2);
+    let Found::Located(b) = found else {
+        panic!("{found:?}");
+    };
+    eprintln!("{b:?}");
+    assert_eq!(b.kind, Kind::Fold, "{b:?}");
+    assert!((0.6587..0.6589).contains(&b.value), "{b:?}");
+    assert!(
+        b.evidence.contains("half its period apart"),
+        "{}",
+        b.evidence
+    );
+    let at = |v: f64| reference_at(&p, Param::Clearance, v, &settings);
+    let half_gap = |r: &DryReference, x: [f64; 4]| {
+        let y = r.map_n(x, 1).expect("one period");
+        let scale = x.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        (0..4).fold(0.0f64, |g, i| g.max((y[i] - x[i]).abs() / scale))
+    };
+    let mut c = reference_cycle(&at(from), cycle.point, 2).expect("the cell's cycle");
+    let cell_gap = half_gap(&at(from), c.point);
+    let before = b.value - (to - from) / 64.0;
+    for k in 1..=64 {
+        let v = from + (before - from) * f64::from(k) / 64.0;
+        c = reference_cycle(&at(v), c.point, 2).unwrap_or_else(|| panic!("no cycle at {v}"));
+        assert!(c.stable() && c.period == 2, "at {v}: {:?}", c.lead());
+    }
+    let lead = c.lead();
+    let gap = half_gap(&at(before), c.point);
+    eprintln!(
+        "reference 1/64 of a cell before the point: lead {lead:?}, halves {gap:.3} apart \
+         ({cell_gap:.3} at the cell)"
+    );
+    assert!(lead[1] == 0.0 && lead[0] > 0.9, "{lead:?}");
+    assert!(
+        gap > 0.5 && gap > 0.5 * cell_gap,
+        "halves {gap} apart, {cell_gap} at the cell"
     );
 }

@@ -891,8 +891,14 @@ impl<'a> Locate<'a> {
 
     /// [`Locate::halves`] at the parameter value `v`.
     fn halves_at(&self, v: f64, c: &Cycle) -> bool {
+        self.half_gap(v, c) < DOUBLED
+    }
+
+    /// How far apart (relative to the state's scale, the largest component) the points of
+    /// the cycle `c` at `v` lie half its period apart; infinite for an odd period.
+    fn half_gap(&self, v: f64, c: &Cycle) -> f64 {
         if !c.period.is_multiple_of(2) {
-            return false;
+            return f64::INFINITY;
         }
         let it = self.integrator(v);
         let mut st = c.state();
@@ -900,7 +906,7 @@ impl<'a> Locate<'a> {
             it.period(&mut st);
         }
         let scale = c.point.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-        (0..4).all(|i| (st.y[i] - c.point[i]).abs() < DOUBLED * scale)
+        (0..4).fold(0.0f64, |g, i| g.max((st.y[i] - c.point[i]).abs() / scale))
     }
 
     /// The located point. A crossing seen (the cycle beyond the bracket converged, a
@@ -1030,18 +1036,34 @@ impl<'a> Locate<'a> {
                             Some((dm, lm)) => ((1.0 - lm[0]) / (1.0 - lf[0])).ln() / (dm / df).ln(),
                             None => ratio.ln() / contrast.ln(),
                         };
+                        // A doubled cycle's halves close in towards the end (or have nearly
+                        // merged): a cycle whose points half its period apart stay apart is
+                        // not merging into a half, whatever its multiplier's law (a period-2
+                        // cycle of eta x r: 1 - mu linear, its halves 1.27 and 1.26 of the
+                        // state apart 64 brackets and one bracket from its end).
+                        let (gn, gf) =
+                            (self.half_gap(near.0, &near.1), self.half_gap(far.0, &far.1));
+                        let closing = gn < DOUBLED || gn < 0.5 * gf;
                         (
-                            power > 0.75 && self.start.period.is_multiple_of(2),
+                            power > 0.75 && self.start.period.is_multiple_of(2) && closing,
                             format!(
                                 "1 - mu {:.3e} at {df:.3e} from the end, {}{:.3e} at \
                                  {dn:.3e} (ratio {ratio:.3}): the distance to the power \
-                                 {power:.2}",
+                                 {power:.2}{}",
                                 1.0 - lf[0],
                                 mid.map_or(String::new(), |(dm, lm)| format!(
                                     "{:.3e} at {dm:.3e}, ",
                                     1.0 - lm[0]
                                 )),
                                 1.0 - ln[0],
+                                if gf.is_finite() {
+                                    format!(
+                                        "; its points half its period apart differ by \
+                                         {gf:.3e} and {gn:.3e} (relative)"
+                                    )
+                                } else {
+                                    String::new()
+                                },
                             ),
                         )
                     };
